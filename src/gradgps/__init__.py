@@ -1,0 +1,30 @@
+"""gradgps: find, classify and repair faults in vehicle GPS and sensor streams.
+
+An implementation of GRAD (REMA + multi-stage sliding-window features + a
+small GRU) built for real-time use. The public API is exactly ``__all__``;
+everything in underscore modules is private and may change.
+"""
+
+from __future__ import annotations
+
+from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
+from ._geo import LocalFrame
+from ._preprocess import Prepared, preprocess
+from ._track import ColumnMap, Table, to_fixes
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "ColumnMap",
+    "ConfigError",
+    "DataNotFoundError",
+    "GradGPSError",
+    "InputError",
+    "LocalFrame",
+    "ModelError",
+    "Prepared",
+    "Table",
+    "__version__",
+    "preprocess",
+    "to_fixes",
+]

@@ -1,0 +1,43 @@
+"""Options shared by every command that reads tracks (column mapping, format)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import click
+
+from .._track import ColumnMap
+
+__all__ = ["column_map", "column_options"]
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+_ROLES = (
+    ("time", "--time-col", "time column (seconds, ms/us epochs or ISO-8601)"),
+    ("lat", "--lat-col", "latitude column, degrees"),
+    ("lon", "--lon-col", "longitude column, degrees"),
+    ("track", "--track-col", "track id column (one track per value)"),
+    ("speed", "--speed-col", "speed column, m/s"),
+    ("heading", "--heading-col", "heading/course column, degrees"),
+    ("alt", "--alt-col", "altitude column, metres"),
+    ("hdop", "--hdop-col", "HDOP column"),
+)
+
+
+def column_options(func: F) -> F:
+    """Add ``--format`` and the ``--*-col`` options to a command."""
+    for role, flag, text in reversed(_ROLES):
+        func = click.option(flag, f"{role}_col", default=None, metavar="NAME",
+                            help=f"{text}; auto-detected when omitted ('' = none)")(func)
+    func = click.option(
+        "--format", "fmt", default=None,
+        type=click.Choice(["csv", "parquet", "gpx", "nmea"], case_sensitive=False),
+        help="input format; by default from the file extension",
+    )(func)
+    return func
+
+
+def column_map(kwargs: dict[str, Any]) -> ColumnMap:
+    """Pop the ``--*-col`` values out of a command's kwargs into a ColumnMap."""
+    return ColumnMap(**{role: kwargs.pop(f"{role}_col", None) for role, _, _ in _ROLES})
