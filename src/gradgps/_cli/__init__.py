@@ -1,16 +1,13 @@
 """The ``gradgps`` command line.
 
-One module per command under this package; this file only builds the group.
-Heavy imports happen inside commands so ``gradgps --help`` stays fast.
+One module per command under this package; this file only builds the group
+and lists the commands. Heavy imports happen inside commands so
+``gradgps --help`` stays fast.
 """
 
 from __future__ import annotations
 
 import click
-
-from .info import info
-from .simulate import simulate
-from .demo import demo
 
 __all__ = ["main"]
 
@@ -19,8 +16,3 @@ __all__ = ["main"]
 @click.version_option(package_name="gradgps")
 def main() -> None:
     """Find, classify and repair faults in vehicle GPS and sensor streams (GRAD)."""
-
-
-main.add_command(info)
-main.add_command(simulate)
-main.add_command(demo)
