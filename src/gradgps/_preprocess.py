@@ -123,10 +123,10 @@ def _group_mean(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
 def _interp_heading(t_new: np.ndarray, t: np.ndarray, heading: np.ndarray) -> np.ndarray:
     ok = np.isfinite(heading)
     if ok.sum() < 2:
-        return np.interp(t_new, t, heading)
+        return np.asarray(np.interp(t_new, t, heading), dtype=np.float64)
     unwrapped = np.full_like(heading, np.nan)
     unwrapped[ok] = np.degrees(np.unwrap(np.radians(heading[ok])))
-    return np.mod(np.interp(t_new, t, unwrapped), 360.0)
+    return np.asarray(np.mod(np.interp(t_new, t, unwrapped), 360.0), dtype=np.float64)
 
 
 def preprocess(

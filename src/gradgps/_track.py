@@ -259,7 +259,10 @@ def to_fixes(
         out["track"] = tr.astype("string").fillna("").astype(object).to_numpy()
     else:
         out["track"] = np.full(n, "0", dtype=object)
-    assert cmap.time is not None and cmap.lat is not None and cmap.lon is not None
+    # resolve_columns guarantees these three; the asserts narrow the types.
+    assert cmap.time is not None
+    assert cmap.lat is not None
+    assert cmap.lon is not None
     out["t"] = _times(frame, cmap.time, table)
     out["lat"] = _numeric(frame, cmap.lat, table, what="latitude in degrees")
     out["lon"] = _numeric(frame, cmap.lon, table, what="longitude in degrees")
