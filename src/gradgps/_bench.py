@@ -62,8 +62,9 @@ def bench_units(protocol: str, detectors: Sequence[str]) -> int:
 
 def _positions(fixes: pd.DataFrame) -> np.ndarray:
     """Each row's index within its track in time order."""
-    order = pd.DataFrame({"track": fixes["track"].to_numpy(dtype=object),
-                          "t": fixes["t"].to_numpy(dtype=np.float64)})
+    order = pd.DataFrame(
+        {"track": fixes["track"].to_numpy(dtype=object), "t": fixes["t"].to_numpy(dtype=np.float64)}
+    )
     order = order.sort_values(["track", "t"], kind="stable")
     pos = np.empty(len(fixes), dtype=np.int64)
     pos[order.index.to_numpy()] = order.groupby("track", sort=False).cumcount().to_numpy()
@@ -87,7 +88,9 @@ def _scores(
     pos = _positions(fixes)
     out: dict[str, Any] = dict(class_scores(truth, flagged))
     if protocol == "grad":
-        episode = np.r_[labelled["label_episode_lat"].to_numpy(), labelled["label_episode_lon"].to_numpy()]
+        episode = np.r_[
+            labelled["label_episode_lat"].to_numpy(), labelled["label_episode_lon"].to_numpy()
+        ]
         recall, delay = event_recall(episode, np.r_[flagged, flagged], np.r_[pos, pos])
         faulty = truth == 1
         out.update(
@@ -95,10 +98,16 @@ def _scores(
             detection_delay_median=delay,
             bias_type_accuracy=type_accuracy(labelled["label_bias"], result["bias_type"], flagged),
             time_type_accuracy=type_accuracy(labelled["label_time"], result["time_type"], flagged),
-            recovery_rmse_m=rmse_m(result["lat_clean"], result["lon_clean"],
-                                   labelled["lat_true"], labelled["lon_true"], faulty),
-            corrupted_rmse_m=rmse_m(fixes["lat"], fixes["lon"],
-                                    labelled["lat_true"], labelled["lon_true"], faulty),
+            recovery_rmse_m=rmse_m(
+                result["lat_clean"],
+                result["lon_clean"],
+                labelled["lat_true"],
+                labelled["lon_true"],
+                faulty,
+            ),
+            corrupted_rmse_m=rmse_m(
+                fixes["lat"], fixes["lon"], labelled["lat_true"], labelled["lon_true"], faulty
+            ),
         )
     else:
         recall, delay = event_recall(labelled["label_episode"], flagged, pos)
@@ -131,19 +140,20 @@ def run_bench(
     ``advance`` is called after each (row, detector) evaluation.
     """
     rows = _row_names(protocol)
+    built = {name: make_detector(name) for name in detectors}  # bad names fail before any work
     table = load_dataset(dataset, split, data_dir=data_dir)
     cmap: ColumnMap = to_fixes(table).attrs["columns"]
     channels = _SENSOR_CHANNELS if protocol == "sensor-grid" else []
     # False alarms are counted on the uncorrupted drive.
     clean_table = with_accel_mps2(table) if protocol == "sensor-grid" else table
     clean = to_fixes(clean_table, cmap, channels=channels)
-    built = {name: make_detector(name) for name in detectors}
     false_alarms = {}
     for name, det in built.items():
         clean_result = det.detect(clean)
         _check_result(name, clean_result, clean)
-        false_alarms[name] = false_alarms_per_hour(clean_result["anomaly"].to_numpy() == 1,
-                                                   clean["track"], clean["t"])
+        false_alarms[name] = false_alarms_per_hour(
+            clean_result["anomaly"].to_numpy() == 1, clean["track"], clean["t"]
+        )
     results: dict[str, Any] = {name: {} for name in detectors}
     for row in rows:
         if protocol == "grad":
@@ -165,8 +175,14 @@ def run_bench(
                 results[name][row] = block
             if advance is not None:
                 advance(f"{name} {row}")
-    report = {"protocol": protocol, "dataset": dataset, "split": split, "seed": seed,
-              "scale": scale, "results": results}
+    report = {
+        "protocol": protocol,
+        "dataset": dataset,
+        "split": split,
+        "seed": seed,
+        "scale": scale,
+        "results": results,
+    }
     jsonable: dict[str, Any] = _jsonable(report)
     return jsonable
 

@@ -65,7 +65,9 @@ def _check(name: str, split: str) -> None:
         raise ConfigError(f"unknown split {split!r}; choose one of {', '.join(SPLITS)}")
 
 
-def load_dataset(name: str, split: str = "test", *, data_dir: str | Path | None = None) -> pd.DataFrame:
+def load_dataset(
+    name: str, split: str = "test", *, data_dir: str | Path | None = None
+) -> pd.DataFrame:
     """Rows of data set ``name`` (``driveplotr``, ``tuc`` or ``simulated``) in ``split``.
 
     Real data keeps the file's columns and row order (index 0..n-1).
@@ -81,7 +83,9 @@ def load_dataset(name: str, split: str = "test", *, data_dir: str | Path | None 
 
         n_tracks, minutes, rate_hz, seed = SIMULATED_SPLITS[split]
         fleet: pd.DataFrame = simulate_fleet(n_tracks, minutes, rate_hz, seed)
-        renamed: pd.DataFrame = fleet.rename(columns={"accel_x": "accel_x_mps2", "yaw_rate": "gyro_z_dps"})
+        renamed: pd.DataFrame = fleet.rename(
+            columns={"accel_x": "accel_x_mps2", "yaw_rate": "gyro_z_dps"}
+        )
         return renamed
     path = find_data_dir(data_dir) / _FILES[name]
     if not path.is_file():

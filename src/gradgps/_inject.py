@@ -87,8 +87,12 @@ class _Channel:
 
     @classmethod
     def empty(cls, n: int) -> _Channel:
-        return cls(np.zeros(n), np.full(n, "none", dtype=object), np.full(n, "none", dtype=object),
-                   np.full(n, -1, dtype=np.int64))
+        return cls(
+            np.zeros(n),
+            np.full(n, "none", dtype=object),
+            np.full(n, "none", dtype=object),
+            np.full(n, -1, dtype=np.int64),
+        )
 
     def free_starts(self, lo: int, hi: int, span: int) -> np.ndarray:
         """Starts ``s`` in ``[lo, hi - span]`` whose ``[s, s+span)`` keeps the gap to every episode."""
@@ -110,14 +114,16 @@ def _intermittent_pattern(rng: np.random.Generator) -> np.ndarray:
     """
     while True:
         n_bursts = int(rng.integers(INTERMITTENT_BURSTS[0], INTERMITTENT_BURSTS[1] + 1))
-        lengths = rng.integers(INTERMITTENT_BURST_POINTS[0], INTERMITTENT_BURST_POINTS[1] + 1,
-                               size=n_bursts)
+        lengths = rng.integers(
+            INTERMITTENT_BURST_POINTS[0], INTERMITTENT_BURST_POINTS[1] + 1, size=n_bursts
+        )
         pauses = rng.integers(INTERMITTENT_PAUSE[0], INTERMITTENT_PAUSE[1] + 1, size=n_bursts - 1)
         starts = np.r_[0, np.cumsum(lengths[:-1] + pauses)]
         span = int(starts[-1] + lengths[-1])
         if INTERMITTENT_SPAN[0] <= span <= INTERMITTENT_SPAN[1]:
             points: np.ndarray = np.concatenate(
-                [np.arange(s, s + k) for s, k in zip(starts, lengths, strict=True)])
+                [np.arange(s, s + k) for s, k in zip(starts, lengths, strict=True)]
+            )
             return points
 
 
@@ -175,7 +181,9 @@ class _GradScheduler:
             if kind == "intermittent":
                 pattern = _intermittent_pattern(self.rng)
             else:
-                pattern = np.arange(int(self.rng.integers(TRANSIENT_POINTS[0], TRANSIENT_POINTS[1] + 1)))
+                pattern = np.arange(
+                    int(self.rng.integers(TRANSIENT_POINTS[0], TRANSIENT_POINTS[1] + 1))
+                )
             if budget[kind] < pattern.size / 2:
                 return
             starts = ch.free_starts(lo, hi, int(pattern[-1]) + 1)
@@ -331,12 +339,18 @@ class SensorFaultRow:
 
 
 def _rows() -> tuple[SensorFaultRow, ...]:
-    rows = [SensorFaultRow(f"instant-{m}", "instant", float(m), 1) for m in (25, 100, 500, 1000, 10000)]
+    rows = [
+        SensorFaultRow(f"instant-{m}", "instant", float(m), 1) for m in (25, 100, 500, 1000, 10000)
+    ]
     for kind in ("constant", "bias"):
-        rows += [SensorFaultRow(f"{kind}-{a}-{d}", kind, float(a), d)
-                 for a, d in ((5, 3), (5, 5), (5, 10), (3, 10), (1, 10))]
-    rows += [SensorFaultRow(f"drift-{a}-{d}", "drift", float(a), d)
-             for a, d in ((4, 10), (4, 20), (2, 10), (2, 20))]
+        rows += [
+            SensorFaultRow(f"{kind}-{a}-{d}", kind, float(a), d)
+            for a, d in ((5, 3), (5, 5), (5, 10), (3, 10), (1, 10))
+        ]
+    rows += [
+        SensorFaultRow(f"drift-{a}-{d}", "drift", float(a), d)
+        for a, d in ((4, 10), (4, 20), (2, 10), (2, 20))
+    ]
     return tuple(rows)
 
 
@@ -369,15 +383,18 @@ def with_accel_mps2(table: pd.DataFrame) -> pd.DataFrame:
 
 def _check_sensor_columns(table: pd.DataFrame, speed_col: str | None, source: str) -> None:
     if speed_col is None:
-        raise InputError("protocol sensor-grid needs a speed column (m/s)", source=source,
-                         hint="name it with --speed-col")
+        raise InputError(
+            "protocol sensor-grid needs a speed column (m/s)",
+            source=source,
+            hint="name it with --speed-col",
+        )
     for col in ("accel_x_mps2", "gyro_z_dps"):
         if col not in table.columns:
             raise InputError(
                 f"protocol sensor-grid needs column {col!r}",
                 source=source,
                 hint="it corrupts speed, longitudinal acceleration (accel_x_g in g or accel_x_mps2) "
-                     "and yaw rate (gyro_z_dps), as in the DrivePlotR drives",
+                "and yaw rate (gyro_z_dps), as in the DrivePlotR drives",
             )
 
 
@@ -424,7 +441,9 @@ def inject_sensor_grid(
     source = str(table.attrs.get("source", "<data>"))
     in_g = "accel_x_mps2" not in table.columns and "accel_x_g" in table.columns
     table = with_accel_mps2(table)
-    fixes = to_fixes(table, columns, channels=[c for c in SENSOR_CHANNELS[1:] if c in table.columns])
+    fixes = to_fixes(
+        table, columns, channels=[c for c in SENSOR_CHANNELS[1:] if c in table.columns]
+    )
     cmap: ColumnMap = fixes.attrs["columns"]
     _check_sensor_columns(table, cmap.speed, source)
     assert cmap.speed is not None
@@ -488,8 +507,10 @@ def sensor_grid_rates(labelled: pd.DataFrame) -> pd.DataFrame:
     table: dict[str, dict[str, float]] = {}
     for kind in (*SENSOR_TYPES, "total"):
         sel = (kinds != "none") if kind == "total" else (kinds == kind)
-        row = {ch: 100.0 * float(np.sum(sel & (labelled[f"label_{ch}"].to_numpy() == 1))) / n
-               for ch in SENSOR_CHANNELS}
+        row = {
+            ch: 100.0 * float(np.sum(sel & (labelled[f"label_{ch}"].to_numpy() == 1))) / n
+            for ch in SENSOR_CHANNELS
+        }
         row["all"] = 100.0 * float(np.sum(sel)) / n
         table[kind] = row
     return pd.DataFrame.from_dict(table, orient="index")

@@ -65,8 +65,11 @@ def confusion_matrix(y_true: ArrayLike, y_pred: ArrayLike, labels: Sequence[str]
         row = t == a
         for j, b in enumerate(labels):
             counts[i, j] = int(np.sum(row & (p == b)))
-    return pd.DataFrame(counts, index=pd.Index(list(labels), name="true"),
-                        columns=pd.Index(list(labels), name="predicted"))
+    return pd.DataFrame(
+        counts,
+        index=pd.Index(list(labels), name="true"),
+        columns=pd.Index(list(labels), name="predicted"),
+    )
 
 
 def type_accuracy(true_type: ArrayLike, pred_type: ArrayLike, flagged: ArrayLike) -> float:
@@ -96,15 +99,20 @@ def detection_delays(episode: ArrayLike, flagged: ArrayLike, position: ArrayLike
     hit = np.asarray(flagged).astype(bool)
     pos = np.asarray(position, dtype=np.float64)
     sel = ep >= 0
-    frame = pd.DataFrame({"episode": ep[sel], "pos": pos[sel],
-                          "flag_pos": np.where(hit[sel], pos[sel], np.inf)})
-    grouped = frame.groupby("episode", sort=True).agg(start=("pos", "min"), first=("flag_pos", "min"))
+    frame = pd.DataFrame(
+        {"episode": ep[sel], "pos": pos[sel], "flag_pos": np.where(hit[sel], pos[sel], np.inf)}
+    )
+    grouped = frame.groupby("episode", sort=True).agg(
+        start=("pos", "min"), first=("flag_pos", "min")
+    )
     found = np.isfinite(grouped["first"].to_numpy())
     delay = np.where(found, grouped["first"].to_numpy() - grouped["start"].to_numpy(), np.nan)
     return pd.DataFrame({"found": found, "delay": delay}, index=grouped.index)
 
 
-def event_recall(episode: ArrayLike, flagged: ArrayLike, position: ArrayLike) -> tuple[float, float]:
+def event_recall(
+    episode: ArrayLike, flagged: ArrayLike, position: ArrayLike
+) -> tuple[float, float]:
     """``(share of episodes found, median detection delay in points)``; nan where undefined."""
     per = detection_delays(episode, flagged, position)
     if per.empty:
@@ -122,9 +130,13 @@ def false_alarms_per_hour(flagged: ArrayLike, track: ArrayLike, t: ArrayLike) ->
     order), so one long false detection counts once, as a driver would hear
     it. Hours are the summed time spans of the tracks.
     """
-    frame = pd.DataFrame({"track": np.asarray(track, dtype=object),
-                          "t": np.asarray(t, dtype=np.float64),
-                          "flag": np.asarray(flagged).astype(bool)})
+    frame = pd.DataFrame(
+        {
+            "track": np.asarray(track, dtype=object),
+            "t": np.asarray(t, dtype=np.float64),
+            "flag": np.asarray(flagged).astype(bool),
+        }
+    )
     frame = frame[np.isfinite(frame["t"].to_numpy())].sort_values(["track", "t"], kind="stable")
     alarms = 0
     seconds = 0.0
@@ -136,8 +148,13 @@ def false_alarms_per_hour(flagged: ArrayLike, track: ArrayLike, t: ArrayLike) ->
     return alarms / (seconds / 3600.0) if seconds > 0 else float("nan")
 
 
-def rmse_m(lat: ArrayLike, lon: ArrayLike, lat_true: ArrayLike, lon_true: ArrayLike,
-           mask: ArrayLike | None = None) -> float:
+def rmse_m(
+    lat: ArrayLike,
+    lon: ArrayLike,
+    lat_true: ArrayLike,
+    lon_true: ArrayLike,
+    mask: ArrayLike | None = None,
+) -> float:
     """Root mean square position error in metres over ``mask`` (all points by default).
 
     Points with a missing estimate count as not evaluable and are left out;

@@ -45,7 +45,10 @@ _STATE_KEYS = ("anchor", "rejected", "streak", "last_t")
 def _distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
     """Haversine distance, the scalar twin of :func:`gradgps._geo.haversine_m`."""
     p1, p2 = math.radians(lat1), math.radians(lat2)
-    h = math.sin((p2 - p1) / 2) ** 2 + math.cos(p1) * math.cos(p2) * math.sin(math.radians(lon2 - lon1) / 2) ** 2
+    h = (
+        math.sin((p2 - p1) / 2) ** 2
+        + math.cos(p1) * math.cos(p2) * math.sin(math.radians(lon2 - lon1) / 2) ** 2
+    )
     return 2.0 * _EARTH_RADIUS_M * math.asin(math.sqrt(min(max(h, 0.0), 1.0)))
 
 
@@ -67,7 +70,9 @@ class SpeedGate:
     ``max_gap_s`` the silence after which the next fix starts afresh.
     """
 
-    def __init__(self, max_speed_mps: float = 50.0, reanchor_after: int = 5, max_gap_s: float = 60.0) -> None:
+    def __init__(
+        self, max_speed_mps: float = 50.0, reanchor_after: int = 5, max_gap_s: float = 60.0
+    ) -> None:
         if not (math.isfinite(max_speed_mps) and max_speed_mps > 0):
             raise ConfigError(f"max_speed_mps must be a positive number, got {max_speed_mps}")
         if reanchor_after < 1:
@@ -82,11 +87,23 @@ class SpeedGate:
         self._streak = 0
         self._last_t: float | None = None
 
-    def update(self, t: float, lat: float, lon: float, speed: float | None = None,
-               heading: float | None = None, **channels: float) -> PointResult:
+    def update(
+        self,
+        t: float,
+        lat: float,
+        lon: float,
+        speed: float | None = None,
+        heading: float | None = None,
+        **channels: float,
+    ) -> PointResult:
         """Judge one fix (time order). Unusable fixes (missing or out of range) change nothing."""
-        if not (math.isfinite(t) and math.isfinite(lat) and math.isfinite(lon)
-                and abs(lat) <= 90.0 and abs(lon) <= 180.0):
+        if not (
+            math.isfinite(t)
+            and math.isfinite(lat)
+            and math.isfinite(lon)
+            and abs(lat) <= 90.0
+            and abs(lon) <= 180.0
+        ):
             return PointResult(0, math.nan, None, None, math.nan, math.nan, 0)
         fix = [float(t), float(lat), float(lon)]
         gap = self._last_t is not None and t - self._last_t > self.max_gap_s
@@ -96,7 +113,9 @@ class SpeedGate:
         v = _speed(self._anchor, t, lat, lon)
         if v <= self.max_speed_mps:
             return self._accept(fix, v, alert=0)
-        consistent = self._rejected is not None and _speed(self._rejected, t, lat, lon) <= self.max_speed_mps
+        consistent = (
+            self._rejected is not None and _speed(self._rejected, t, lat, lon) <= self.max_speed_mps
+        )
         self._streak = self._streak + 1 if consistent else 1
         self._rejected = fix
         if self._streak > self.reanchor_after:
@@ -114,9 +133,12 @@ class SpeedGate:
 
     def get_state(self) -> dict[str, Any]:
         """The gate's memory as plain JSON-able data (parameters are not state)."""
-        return {"anchor": None if self._anchor is None else list(self._anchor),
-                "rejected": None if self._rejected is None else list(self._rejected),
-                "streak": self._streak, "last_t": self._last_t}
+        return {
+            "anchor": None if self._anchor is None else list(self._anchor),
+            "rejected": None if self._rejected is None else list(self._rejected),
+            "streak": self._streak,
+            "last_t": self._last_t,
+        }
 
     def set_state(self, state: dict[str, Any]) -> None:
         """Restore what :meth:`get_state` returned (e.g. after a restart)."""
@@ -124,7 +146,9 @@ class SpeedGate:
         if missing:
             raise ConfigError(f"speed-gate state lacks {missing}; pass what get_state() returned")
         self._anchor = None if state["anchor"] is None else [float(v) for v in state["anchor"]]
-        self._rejected = None if state["rejected"] is None else [float(v) for v in state["rejected"]]
+        self._rejected = (
+            None if state["rejected"] is None else [float(v) for v in state["rejected"]]
+        )
         self._streak = int(state["streak"])
         self._last_t = None if state["last_t"] is None else float(state["last_t"])
 
@@ -155,9 +179,15 @@ class SpeedGate:
                 anomaly[i], score[i], alert[i] = r.anomaly, r.score, r.alert
                 lat_clean[i], lon_clean[i] = r.lat_clean, r.lon_clean
         return pd.DataFrame(
-            {"anomaly": anomaly, "score": score,
-             "bias_type": np.full(n, None, dtype=object), "time_type": np.full(n, None, dtype=object),
-             "lat_clean": lat_clean, "lon_clean": lon_clean, "alert": alert,
-             "invalid_reason": reason},
+            {
+                "anomaly": anomaly,
+                "score": score,
+                "bias_type": np.full(n, None, dtype=object),
+                "time_type": np.full(n, None, dtype=object),
+                "lat_clean": lat_clean,
+                "lon_clean": lon_clean,
+                "alert": alert,
+                "invalid_reason": reason,
+            },
             index=fixes.index,
         )

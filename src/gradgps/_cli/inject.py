@@ -19,24 +19,52 @@ def _read_input(path: Path, fmt: str | None) -> Table:
 
     kind = (fmt or path.suffix.lstrip(".") or "csv").lower()
     if kind != "csv":
-        raise click.UsageError(f"{path}: inject reads CSV only for now (got format {kind!r}); "
-                               "convert the file to CSV first")
+        raise click.UsageError(
+            f"{path}: inject reads CSV only for now (got format {kind!r}); "
+            "convert the file to CSV first"
+        )
     return Table(frame=pd.read_csv(path), source=str(path), first_line=2)
 
 
 @click.command()
-@click.argument("input_path", metavar="INPUT", type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@click.option("--protocol", type=click.Choice(["grad", "sensor-grid"]), required=True,
-              help="grad: position faults (paper Table 1); sensor-grid: speed/accel/yaw-rate faults")
-@click.option("--row", default=None, metavar="NAME",
-              help="sensor-grid row, e.g. instant-25, bias-5-3, drift-4-20, or mixed (default)")
+@click.argument(
+    "input_path", metavar="INPUT", type=click.Path(exists=True, dir_okay=False, path_type=Path)
+)
+@click.option(
+    "--protocol",
+    type=click.Choice(["grad", "sensor-grid"]),
+    required=True,
+    help="grad: position faults (paper Table 1); sensor-grid: speed/accel/yaw-rate faults",
+)
+@click.option(
+    "--row",
+    default=None,
+    metavar="NAME",
+    help="sensor-grid row, e.g. instant-25, bias-5-3, drift-4-20, or mixed (default)",
+)
 @click.option("--seed", type=int, required=True, help="random seed; same seed, same output bytes")
-@click.option("--scale", type=float, default=1.0, show_default=True, help="multiplies every fault magnitude")
-@click.option("-o", "--output", "output", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="output CSV: the input columns (corrupted) plus label columns")
+@click.option(
+    "--scale", type=float, default=1.0, show_default=True, help="multiplies every fault magnitude"
+)
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="output CSV: the input columns (corrupted) plus label columns",
+)
 @column_options
-def inject(input_path: Path, protocol: str, row: str | None, seed: int, scale: float,
-           output: Path, fmt: str | None, **cols: Any) -> None:
+def inject(
+    input_path: Path,
+    protocol: str,
+    row: str | None,
+    seed: int,
+    scale: float,
+    output: Path,
+    fmt: str | None,
+    **cols: Any,
+) -> None:
     """Inject seeded faults into INPUT and write the corrupted track with labels.
 
     Prints the achieved share of faulty points (percent of rows) per channel,
@@ -58,8 +86,9 @@ def inject(input_path: Path, protocol: str, row: str | None, seed: int, scale: f
             labelled = inject_grad(table.frame, seed=seed, scale=scale, columns=columns)
             rates = grad_rates(labelled)
         else:
-            labelled = inject_sensor_grid(table.frame, row=row or "mixed", seed=seed, scale=scale,
-                                          columns=columns)
+            labelled = inject_sensor_grid(
+                table.frame, row=row or "mixed", seed=seed, scale=scale, columns=columns
+            )
             rates = sensor_grid_rates(labelled)
     except GradGPSError as exc:
         raise click.ClickException(str(exc)) from exc
