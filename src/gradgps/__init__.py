@@ -7,6 +7,7 @@ everything in underscore modules is private and may change.
 
 from __future__ import annotations
 
+from . import metrics
 from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
 from ._geo import LocalFrame
 from ._preprocess import Prepared, preprocess
@@ -25,6 +26,7 @@ __all__ = [
     "Prepared",
     "Table",
     "__version__",
+    "metrics",
     "preprocess",
     "to_fixes",
 ]

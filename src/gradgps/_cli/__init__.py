@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import click
 
+from .bench import bench
+from .inject import inject
+
 __all__ = ["main"]
 
 
@@ -16,3 +19,7 @@ __all__ = ["main"]
 @click.version_option(package_name="gradgps")
 def main() -> None:
     """Find, classify and repair faults in vehicle GPS and sensor streams (GRAD)."""
+
+
+main.add_command(bench)
+main.add_command(inject)

@@ -1,0 +1,199 @@
+"""Benchmarks: inject faults into a data split, run detectors, score them the same way.
+
+Every detector is measured through its batch ``detect`` on the same
+corrupted fixes (docs/architecture.md, "Detector interface"), and on the
+clean fixes for false alarms. :func:`make_detector` is the one place where
+benchmark names map to detectors.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import pandas as pd
+
+from ._datasets import load_dataset
+from ._exceptions import ConfigError
+from ._inject import SENSOR_GRID_ROWS, inject_grad, inject_sensor_grid, with_accel_mps2
+from ._metrics import class_scores, event_recall, false_alarms_per_hour, rmse_m, type_accuracy
+from ._result import RESULT_COLUMNS
+from ._track import ColumnMap, to_fixes
+
+__all__ = ["DETECTOR_NAMES", "PROTOCOLS", "Detector", "bench_units", "make_detector", "run_bench"]
+
+PROTOCOLS = ("grad", "sensor-grid")
+#: Names :func:`make_detector` knows, for help texts and error messages.
+DETECTOR_NAMES = ("speed-gate",)
+_SENSOR_CHANNELS = ["accel_x_mps2", "gyro_z_dps"]
+
+
+class Detector(Protocol):
+    """Anything with the batch interface: canonical fixes in, one result row per input row out."""
+
+    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame: ...
+
+
+def make_detector(name: str) -> Detector:
+    """A detector with its default settings, by benchmark name."""
+    if name == "speed-gate":
+        from ._speed_gate import SpeedGate
+
+        return SpeedGate()
+    raise ConfigError(f"unknown detector {name!r}; known detectors: {', '.join(DETECTOR_NAMES)}")
+
+
+def _row_names(protocol: str) -> list[str]:
+    if protocol == "grad":
+        return ["grad"]
+    if protocol == "sensor-grid":
+        return [r.name for r in SENSOR_GRID_ROWS] + ["mixed"]
+    raise ConfigError(f"unknown protocol {protocol!r}; choose one of {', '.join(PROTOCOLS)}")
+
+
+def bench_units(protocol: str, detectors: Sequence[str]) -> int:
+    """How many (row, detector) evaluations :func:`run_bench` performs (for progress bars)."""
+    return len(_row_names(protocol)) * len(detectors)
+
+
+def _positions(fixes: pd.DataFrame) -> np.ndarray:
+    """Each row's index within its track in time order."""
+    order = pd.DataFrame(
+        {"track": fixes["track"].to_numpy(dtype=object), "t": fixes["t"].to_numpy(dtype=np.float64)}
+    )
+    order = order.sort_values(["track", "t"], kind="stable")
+    pos = np.empty(len(fixes), dtype=np.int64)
+    pos[order.index.to_numpy()] = order.groupby("track", sort=False).cumcount().to_numpy()
+    return pos
+
+
+def _check_result(name: str, result: pd.DataFrame, fixes: pd.DataFrame) -> None:
+    missing = [c for c in RESULT_COLUMNS if c not in result.columns]
+    if missing or len(result) != len(fixes):
+        raise ConfigError(
+            f"detector {name!r} broke the batch interface: expected {len(fixes)} rows with columns "
+            f"{list(RESULT_COLUMNS)}, got {len(result)} rows, missing {missing}"
+        )
+
+
+def _scores(
+    labelled: pd.DataFrame, fixes: pd.DataFrame, result: pd.DataFrame, protocol: str
+) -> dict[str, Any]:
+    flagged = result["anomaly"].to_numpy(dtype=np.int64) == 1
+    truth = labelled["label_anomaly"].to_numpy(dtype=np.int64)
+    pos = _positions(fixes)
+    out: dict[str, Any] = dict(class_scores(truth, flagged))
+    if protocol == "grad":
+        episode = np.r_[
+            labelled["label_episode_lat"].to_numpy(), labelled["label_episode_lon"].to_numpy()
+        ]
+        recall, delay = event_recall(episode, np.r_[flagged, flagged], np.r_[pos, pos])
+        faulty = truth == 1
+        out.update(
+            event_recall=recall,
+            detection_delay_median=delay,
+            bias_type_accuracy=type_accuracy(labelled["label_bias"], result["bias_type"], flagged),
+            time_type_accuracy=type_accuracy(labelled["label_time"], result["time_type"], flagged),
+            recovery_rmse_m=rmse_m(
+                result["lat_clean"],
+                result["lon_clean"],
+                labelled["lat_true"],
+                labelled["lon_true"],
+                faulty,
+            ),
+            corrupted_rmse_m=rmse_m(
+                fixes["lat"], fixes["lon"], labelled["lat_true"], labelled["lon_true"], faulty
+            ),
+        )
+    else:
+        recall, delay = event_recall(labelled["label_episode"], flagged, pos)
+        out.update(
+            event_recall=recall,
+            detection_delay_median=delay,
+            bias_type_accuracy=type_accuracy(labelled["label_type"], result["bias_type"], flagged),
+            time_type_accuracy=math.nan,  # sensor-grid faults carry no time type
+            recovery_rmse_m=math.nan,  # positions are not corrupted; channel recovery is not part of the interface
+            corrupted_rmse_m=math.nan,
+        )
+    return out
+
+
+def run_bench(
+    protocol: str,
+    dataset: str,
+    detectors: Sequence[str],
+    *,
+    split: str = "test",
+    seed: int = 0,
+    scale: float = 1.0,
+    data_dir: str | Path | None = None,
+    advance: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Run the benchmark; return the JSON-ready report (``nan`` turned into ``None``).
+
+    ``results[detector]`` holds the scores for protocol ``grad`` and
+    ``results[detector][row]`` one block per sensor-grid row (plus ``mixed``).
+    ``advance`` is called after each (row, detector) evaluation.
+    """
+    rows = _row_names(protocol)
+    built = {name: make_detector(name) for name in detectors}  # bad names fail before any work
+    table = load_dataset(dataset, split, data_dir=data_dir)
+    cmap: ColumnMap = to_fixes(table).attrs["columns"]
+    channels = _SENSOR_CHANNELS if protocol == "sensor-grid" else []
+    # False alarms are counted on the uncorrupted drive.
+    clean_table = with_accel_mps2(table) if protocol == "sensor-grid" else table
+    clean = to_fixes(clean_table, cmap, channels=channels)
+    false_alarms = {}
+    for name, det in built.items():
+        clean_result = det.detect(clean)
+        _check_result(name, clean_result, clean)
+        false_alarms[name] = false_alarms_per_hour(
+            clean_result["anomaly"].to_numpy() == 1, clean["track"], clean["t"]
+        )
+    results: dict[str, Any] = {name: {} for name in detectors}
+    for row in rows:
+        if protocol == "grad":
+            labelled = inject_grad(table, seed=seed, scale=scale, columns=cmap)
+        else:
+            labelled = inject_sensor_grid(table, row=row, seed=seed, scale=scale, columns=cmap)
+        fixes = to_fixes(labelled, cmap, channels=channels)
+        for name, det in built.items():
+            start = time.perf_counter()
+            result = det.detect(fixes)
+            elapsed = time.perf_counter() - start
+            _check_result(name, result, fixes)
+            block = _scores(labelled, fixes, result, protocol)
+            block["false_alarms_per_hour"] = false_alarms[name]
+            block["us_per_point"] = 1e6 * elapsed / max(len(fixes), 1)
+            if protocol == "grad":
+                results[name] = block
+            else:
+                results[name][row] = block
+            if advance is not None:
+                advance(f"{name} {row}")
+    report = {
+        "protocol": protocol,
+        "dataset": dataset,
+        "split": split,
+        "seed": seed,
+        "scale": scale,
+        "results": results,
+    }
+    jsonable: dict[str, Any] = _jsonable(report)
+    return jsonable
+
+
+def _jsonable(value: Any) -> Any:
+    """Nested dicts with floats; ``nan``/``inf`` become ``None`` (JSON null)."""
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (float, np.floating)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value

@@ -1,0 +1,33 @@
+"""What a detector says about one point, and the columns of a batch result.
+
+Every detector returns the same columns (see docs/architecture.md, "Detector
+interface") so benchmarks and the CLI treat them alike. A detector that does
+not produce a quantity (a speed gate has no bias type) leaves it missing
+(``None``) rather than inventing a value.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["RESULT_COLUMNS", "PointResult"]
+
+RESULT_COLUMNS = ("anomaly", "score", "bias_type", "time_type", "lat_clean", "lon_clean", "alert")
+
+
+@dataclass(frozen=True)
+class PointResult:
+    """A streaming detector's verdict on one fix.
+
+    ``anomaly`` and ``alert`` are 0/1; ``score`` in [0, 1] (nan for an
+    unusable fix); ``bias_type``/``time_type`` ``None`` when the detector does
+    not classify; ``lat_clean``/``lon_clean`` the position to use instead.
+    """
+
+    anomaly: int
+    score: float
+    bias_type: str | None
+    time_type: str | None
+    lat_clean: float
+    lon_clean: float
+    alert: int

@@ -1,0 +1,24 @@
+"""Benchmark metrics (public): pointwise scores, confusion matrices, events, false alarms, RMSE.
+
+``from gradgps import metrics``; see :mod:`gradgps._metrics` for the definitions.
+"""
+
+from ._metrics import (
+    class_scores,
+    confusion_matrix,
+    detection_delays,
+    event_recall,
+    false_alarms_per_hour,
+    rmse_m,
+    type_accuracy,
+)
+
+__all__ = [
+    "class_scores",
+    "confusion_matrix",
+    "detection_delays",
+    "event_recall",
+    "false_alarms_per_hour",
+    "rmse_m",
+    "type_accuracy",
+]

@@ -1,0 +1,218 @@
+"""``gradgps inject`` and ``gradgps bench`` through the command line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from gradgps._cli import main
+from gradgps._datasets import load_dataset
+
+BLOCK_KEYS = {
+    "anomaly",
+    "normal",
+    "event_recall",
+    "detection_delay_median",
+    "false_alarms_per_hour",
+    "bias_type_accuracy",
+    "time_type_accuracy",
+    "recovery_rmse_m",
+    "corrupted_rmse_m",
+    "us_per_point",
+}
+
+
+@pytest.fixture
+def small_csv(shared_data: Path, tmp_path: Path) -> Path:
+    path = tmp_path / "drive.csv"
+    load_dataset("driveplotr", "test", data_dir=shared_data).to_csv(path, index=False)
+    return path
+
+
+@pytest.mark.shared
+@pytest.mark.parametrize("protocol", ["grad", "sensor-grid"])
+def test_inject_writes_the_same_bytes_for_the_same_seed(
+    small_csv: Path, tmp_path: Path, protocol: str
+) -> None:
+    runner = CliRunner()
+    outs = []
+    for k in range(2):
+        out = tmp_path / f"out{k}.csv"
+        res = runner.invoke(
+            main, ["inject", str(small_csv), "--protocol", protocol, "--seed", "4", "-o", str(out)]
+        )
+        assert res.exit_code == 0, res.output
+        outs.append(out.read_bytes())
+    assert outs[0] == outs[1]
+    assert "achieved fault rates" in res.output
+    assert ("intermittent" if protocol == "grad" else "drift") in res.output
+    table = pd.read_csv(tmp_path / "out0.csv")
+    original = pd.read_csv(small_csv)
+    assert list(table.columns[: original.shape[1]]) == list(original.columns)
+    assert "label_anomaly" in table.columns
+
+
+@pytest.mark.shared
+def test_inject_sensor_grid_row_and_errors(small_csv: Path, tmp_path: Path) -> None:
+    runner = CliRunner()
+    out = tmp_path / "o.csv"
+    res = runner.invoke(
+        main,
+        [
+            "inject",
+            str(small_csv),
+            "--protocol",
+            "sensor-grid",
+            "--row",
+            "drift-4-20",
+            "--seed",
+            "0",
+            "-o",
+            str(out),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert set(pd.read_csv(out)["label_type"]) == {"none", "drift"}
+    res = runner.invoke(
+        main,
+        [
+            "inject",
+            str(small_csv),
+            "--protocol",
+            "sensor-grid",
+            "--row",
+            "nope",
+            "--seed",
+            "0",
+            "-o",
+            str(out),
+        ],
+    )
+    assert res.exit_code != 0
+    assert "known rows" in res.output
+    res = runner.invoke(
+        main,
+        [
+            "inject",
+            str(small_csv),
+            "--protocol",
+            "grad",
+            "--row",
+            "bias-5-3",
+            "--seed",
+            "0",
+            "-o",
+            str(out),
+        ],
+    )
+    assert res.exit_code != 0
+    assert "--row applies to --protocol sensor-grid only" in res.output
+
+
+@pytest.mark.shared
+def test_bench_grad_speed_gate_writes_the_report(shared_data: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out.json"
+    res = CliRunner().invoke(
+        main,
+        [
+            "bench",
+            "--protocol",
+            "grad",
+            "--dataset",
+            "driveplotr",
+            "--split",
+            "test",
+            "--seed",
+            "0",
+            "--detector",
+            "speed-gate",
+            "--json",
+            str(out),
+            "--data-dir",
+            str(shared_data),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    report = json.loads(out.read_text())
+    assert {k: report[k] for k in ("protocol", "dataset", "split", "seed")} == {
+        "protocol": "grad",
+        "dataset": "driveplotr",
+        "split": "test",
+        "seed": 0,
+    }
+    block = report["results"]["speed-gate"]
+    assert set(block) == BLOCK_KEYS
+    assert set(block["anomaly"]) == {"precision", "recall", "f1"}
+    assert block["bias_type_accuracy"] is None  # the gate does not classify
+    assert block["time_type_accuracy"] is None
+    assert 0 < block["anomaly"]["f1"] < 1
+    assert block["recovery_rmse_m"] < block["corrupted_rmse_m"]
+    assert "speed-gate" in res.output
+
+
+@pytest.mark.shared
+def test_bench_sensor_grid_has_a_block_per_row(shared_data: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out.json"
+    res = CliRunner().invoke(
+        main,
+        [
+            "bench",
+            "--protocol",
+            "sensor-grid",
+            "--dataset",
+            "driveplotr",
+            "--split",
+            "validation",
+            "--detector",
+            "speed-gate",
+            "--json",
+            str(out),
+            "--data-dir",
+            str(shared_data),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    rows = json.loads(out.read_text())["results"]["speed-gate"]
+    assert len(rows) == 20
+    assert {"instant-25", "bias-5-3", "drift-4-20", "mixed"} <= set(rows)
+    assert all(set(b) == BLOCK_KEYS for b in rows.values())
+
+
+def test_bench_unknown_detector_and_missing_data_fail_clearly(tmp_path: Path) -> None:
+    runner = CliRunner()
+    res = runner.invoke(
+        main,
+        [
+            "bench",
+            "--protocol",
+            "grad",
+            "--dataset",
+            "driveplotr",
+            "--detector",
+            "speed-gate",
+            "--data-dir",
+            str(tmp_path / "none"),
+        ],
+    )
+    assert res.exit_code != 0
+    assert "GRADGPS_DATA" in res.output
+    res = runner.invoke(
+        main,
+        [
+            "bench",
+            "--protocol",
+            "grad",
+            "--dataset",
+            "driveplotr",
+            "--detector",
+            "speed-gate,magic",
+            "--data-dir",
+            str(tmp_path),
+        ],
+    )
+    assert res.exit_code != 0
+    assert "unknown detector 'magic'; known detectors: speed-gate" in res.output
