@@ -10,6 +10,7 @@ from __future__ import annotations
 from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
 from ._geo import LocalFrame
 from ._preprocess import Prepared, preprocess
+from ._simulator import SimulatorParams, simulate_drive, simulate_fleet
 from ._track import ColumnMap, Table, to_fixes
 
 __version__ = "0.1.0"
@@ -23,8 +24,11 @@ __all__ = [
     "LocalFrame",
     "ModelError",
     "Prepared",
+    "SimulatorParams",
     "Table",
     "__version__",
     "preprocess",
+    "simulate_drive",
+    "simulate_fleet",
     "to_fixes",
 ]

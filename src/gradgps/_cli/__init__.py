@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import click
 
+from .simulate import simulate
+
 __all__ = ["main"]
 
 
@@ -16,3 +18,6 @@ __all__ = ["main"]
 @click.version_option(package_name="gradgps")
 def main() -> None:
     """Find, classify and repair faults in vehicle GPS and sensor streams (GRAD)."""
+
+
+main.add_command(simulate)
