@@ -35,7 +35,9 @@ def load_real(data: Path) -> pd.DataFrame:
     return to_fixes(frame)
 
 
-def bootstrap_spread(real: pd.DataFrame, n: int = 200, seed: int = 0) -> dict[str, tuple[float, ...]]:
+def bootstrap_spread(
+    real: pd.DataFrame, n: int = 200, seed: int = 0
+) -> dict[str, tuple[float, ...]]:
     """p5 and p95 over drive-bootstrap resamples of each (median, p90, p99)."""
     rng = np.random.default_rng(seed)
     per_track = {k: g for k, g in real.groupby("track", sort=True)}
@@ -51,14 +53,19 @@ def bootstrap_spread(real: pd.DataFrame, n: int = 200, seed: int = 0) -> dict[st
     spread: dict[str, tuple[float, ...]] = {}
     for name, values in runs.items():
         arr = np.asarray(values)
-        spread[name] = tuple(np.concatenate([np.percentile(arr, 5, axis=0), np.percentile(arr, 95, axis=0)]))
+        spread[name] = tuple(
+            np.concatenate([np.percentile(arr, 5, axis=0), np.percentile(arr, 95, axis=0)])
+        )
     return spread
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path,
-                        default=Path(os.environ.get("GRADGPS_DATA", REPO.parent / "shared" / "data")))
+    parser.add_argument(
+        "--data",
+        type=Path,
+        default=Path(os.environ.get("GRADGPS_DATA", REPO.parent / "shared" / "data")),
+    )
     parser.add_argument("--tracks", type=int, default=40)
     parser.add_argument("--minutes", type=float, default=15.0)
     parser.add_argument("--seed", type=int, default=0)
@@ -73,21 +80,29 @@ def main(argv: list[str] | None = None) -> int:
     real_summary = summarize(drive_statistics(real))
     spread = bootstrap_spread(real, args.bootstrap, args.seed)
 
-    print(f"Simulated: {args.tracks} tracks x {args.minutes:g} min at 1 Hz, seed {args.seed} "
-          f"({len(sim)} fixes, {sim_seconds:.2f} s). Real: DrivePlotR, {real['track'].nunique()} drives, "
-          f"{len(real)} fixes.\n")
-    print("| statistic | sim median | real median | sim p90 | real p90 | sim p99 | real p99 |"
-          " real drives p5-p95 (median / p90 / p99) |")
+    print(
+        f"Simulated: {args.tracks} tracks x {args.minutes:g} min at 1 Hz, seed {args.seed} "
+        f"({len(sim)} fixes, {sim_seconds:.2f} s). Real: DrivePlotR, {real['track'].nunique()} drives, "
+        f"{len(real)} fixes.\n"
+    )
+    print(
+        "| statistic | sim median | real median | sim p90 | real p90 | sim p99 | real p99 |"
+        " real drives p5-p95 (median / p90 / p99) |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|---|")
     for name in (*DISTRIBUTIONS, "stop_fraction", "zero_step_fraction"):
         s, r, b = sim_summary[name], real_summary[name], spread[name]
         if name in DISTRIBUTIONS:
             ranges = " / ".join(f"{b[i]:.3g}-{b[i + 3]:.3g}" for i in range(3))
-            print(f"| {name} | {s[0]:.3g} | {r[0]:.3g} | {s[1]:.3g} | {r[1]:.3g} | {s[2]:.3g} | {r[2]:.3g} | {ranges} |")
+            print(
+                f"| {name} | {s[0]:.3g} | {r[0]:.3g} | {s[1]:.3g} | {r[1]:.3g} | {s[2]:.3g} | {r[2]:.3g} | {ranges} |"
+            )
         else:
             print(f"| {name} | {s[0]:.3g} | {r[0]:.3g} | | | | | {b[0]:.3g}-{b[3]:.3g} |")
-    print(f"\nMachine: {platform.platform()}, {platform.processor() or platform.machine()}, "
-          f"Python {sys.version.split()[0]}, numpy {np.__version__}, pandas {pd.__version__}.")
+    print(
+        f"\nMachine: {platform.platform()}, {platform.processor() or platform.machine()}, "
+        f"Python {sys.version.split()[0]}, numpy {np.__version__}, pandas {pd.__version__}."
+    )
     return 0
 
 

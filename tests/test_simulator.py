@@ -41,8 +41,18 @@ def _csv_bytes(frame: pd.DataFrame) -> bytes:
 @pytest.mark.parametrize("rate_hz", [1.0, 10.0])
 def test_columns_times_and_rates(rate_hz: float) -> None:
     drive = simulate_drive(3, rate_hz, seed=1)
-    assert list(drive.columns) == ["track", "t", "lat", "lon", "speed", "heading", "alt", "hdop",
-                                   "accel_x", "yaw_rate"]
+    assert list(drive.columns) == [
+        "track",
+        "t",
+        "lat",
+        "lon",
+        "speed",
+        "heading",
+        "alt",
+        "hdop",
+        "accel_x",
+        "yaw_rate",
+    ]
     assert len(drive) == round(3 * 60 * rate_hz)
     assert drive["t"].iloc[0] == EPOCH
     np.testing.assert_allclose(np.diff(drive["t"].to_numpy()), 1.0 / rate_hz, rtol=0, atol=1e-6)
@@ -78,7 +88,9 @@ def test_imu_switch_leaves_gnss_columns_alone() -> None:
 def test_fleet_track_equals_its_single_drive() -> None:
     fleet = simulate_fleet(4, 2, 1.0, seed=11)
     assert list(fleet["track"].unique()) == ["0", "1", "2", "3"]
-    alone = simulate_drive(2, 1.0, seed=11, origin=_fleet_origin((41.2565, -95.9345), 20.0, 11, 2), track=2)
+    alone = simulate_drive(
+        2, 1.0, seed=11, origin=_fleet_origin((41.2565, -95.9345), 20.0, 11, 2), track=2
+    )
     pd.testing.assert_frame_equal(fleet[fleet["track"] == "2"].reset_index(drop=True), alone)
     starts = fleet.groupby("track")["lat"].first()
     assert starts.nunique() == 4  # different origins
@@ -116,7 +128,8 @@ def test_true_motion_respects_limits(seed: int, rate_hz: float) -> None:
     v, a = truth.speed, truth.accel
     assert v.min() >= -1e-9
     assert v.max() <= PARAMS.highway_speed_limit * PARAMS.driver_speed_factor[1] * np.exp(
-        5 * PARAMS.speed_wander)
+        5 * PARAMS.speed_wander
+    )
     # Finite differences of a piecewise-smooth signal: 2 % slack.
     assert a.max() <= PARAMS.max_accel * 1.02
     assert a.min() >= -PARAMS.max_decel * 1.02
@@ -140,7 +153,9 @@ def test_drive_has_stops_turns_and_speed_variety() -> None:
     speed = drive["speed"].to_numpy()
     stopped = speed < 0.5
     assert 0.02 < stopped.mean() < 0.6
-    assert np.count_nonzero(np.diff(stopped.astype(int)) == 1) >= 2  # at least two stops after the start
+    assert (
+        np.count_nonzero(np.diff(stopped.astype(int)) == 1) >= 2
+    )  # at least two stops after the start
     assert speed.max() > 10.0
     _, truth = _simulate_truth(30, 1.0, 5, 0, PARAMS)
     total_turn = np.abs(np.diff(truth.heading)).sum()
@@ -162,7 +177,9 @@ def test_gnss_error_is_metre_scale_and_slowly_varying() -> None:
     from gradgps._geo import LocalFrame
 
     drive = simulate_drive(60, 1.0, seed=6)
-    east, north = LocalFrame(41.2565, -95.9345).to_local(drive["lat"].to_numpy(), drive["lon"].to_numpy())
+    east, north = LocalFrame(41.2565, -95.9345).to_local(
+        drive["lat"].to_numpy(), drive["lon"].to_numpy()
+    )
     err = np.hypot(east - truth.east, north - truth.north)
     assert 0.3 < np.median(err) < 6.0
     e = east - truth.east
@@ -227,7 +244,9 @@ def _bootstrap_bands(real: pd.DataFrame, resamples: int = 40) -> dict[str, np.nd
     runs: dict[str, list[tuple[float, float, float]]] = {}
     for _ in range(resamples):
         pick = rng.choice(len(tracks), len(tracks))
-        sample = pd.concat([tracks[i].assign(track=str(j)) for j, i in enumerate(pick)], ignore_index=True)
+        sample = pd.concat(
+            [tracks[i].assign(track=str(j)) for j, i in enumerate(pick)], ignore_index=True
+        )
         for name, value in summarize(drive_statistics(sample)).items():
             runs.setdefault(name, []).append(value)
     return {name: np.percentile(np.asarray(v), [5.0, 95.0], axis=0) for name, v in runs.items()}
@@ -252,6 +271,8 @@ def test_statistics_within_bands_of_real_drives(shared_data: Path) -> None:
         for i, label in enumerate(("median", "p90", "p99")):
             margin = 0.1 * real_summary[name][i]
             if not low[i] - margin <= sim_summary[name][i] <= high[i] + margin:
-                failures.append(f"{name} {label}: sim {sim_summary[name][i]:.4g} outside "
-                                f"[{low[i] - margin:.4g}, {high[i] + margin:.4g}]")
+                failures.append(
+                    f"{name} {label}: sim {sim_summary[name][i]:.4g} outside "
+                    f"[{low[i] - margin:.4g}, {high[i] + margin:.4g}]"
+                )
     assert not failures, "; ".join(failures)

@@ -87,7 +87,9 @@ def drive_statistics(fixes: pd.DataFrame) -> dict[str, FloatArray]:
         parts["heading_change_deg"].append(turn[one])
         parts["position_residual_m"].append(_quadratic_residual(t, east))
         parts["position_residual_m"].append(_quadratic_residual(t, north))
-    out = {name: np.concatenate(values) if values else np.empty(0) for name, values in parts.items()}
+    out = {
+        name: np.concatenate(values) if values else np.empty(0) for name, values in parts.items()
+    }
     for name, values in out.items():
         out[name] = values[np.isfinite(values)]
     speed_all = out["speed_mps"]

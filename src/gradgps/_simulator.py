@@ -180,17 +180,36 @@ class SimulatorParams:
             values = value if isinstance(value, tuple) else (value,)
             for v in values:
                 if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
-                    raise ConfigError(f"SimulatorParams.{f.name} must be finite and >= 0, got {value!r}")
+                    raise ConfigError(
+                        f"SimulatorParams.{f.name} must be finite and >= 0, got {value!r}"
+                    )
             if isinstance(value, tuple) and (len(value) != 2 or value[0] > value[1]):
-                raise ConfigError(f"SimulatorParams.{f.name} must be a (low, high) pair with low <= high, got {value!r}")
-        positive = ("urban_speed_limit", "arterial_speed_limit", "highway_speed_limit", "max_accel",
-                    "max_decel", "max_jerk", "accel_fade_speed", "max_lateral_accel", "gnss_correlation_time",
-                    "hdop_correlation_time", "hdop_median", "transition_length")
+                raise ConfigError(
+                    f"SimulatorParams.{f.name} must be a (low, high) pair with low <= high, got {value!r}"
+                )
+        positive = (
+            "urban_speed_limit",
+            "arterial_speed_limit",
+            "highway_speed_limit",
+            "max_accel",
+            "max_decel",
+            "max_jerk",
+            "accel_fade_speed",
+            "max_lateral_accel",
+            "gnss_correlation_time",
+            "hdop_correlation_time",
+            "hdop_median",
+            "transition_length",
+        )
         for name in positive:
             if getattr(self, name) <= 0:
-                raise ConfigError(f"SimulatorParams.{name} must be > 0, got {getattr(self, name)!r}")
+                raise ConfigError(
+                    f"SimulatorParams.{name} must be > 0, got {getattr(self, name)!r}"
+                )
         if self.turn_radius[0] <= 0 or self.accel_use[0] <= 0 or self.driver_speed_factor[0] <= 0:
-            raise ConfigError("SimulatorParams: turn_radius, accel_use and driver_speed_factor must be > 0")
+            raise ConfigError(
+                "SimulatorParams: turn_radius, accel_use and driver_speed_factor must be > 0"
+            )
         if self.static_hold_probability > 1 or self.accel_use[1] > 1:
             raise ConfigError("SimulatorParams: static_hold_probability and accel_use must be <= 1")
 
@@ -288,16 +307,25 @@ def _plan_route(rng: np.random.Generator, duration: float, p: SimulatorParams) -
                     arc(p.highway_curve_radius, (5.0, 30.0))
                 continue
             if rng.random() < 0.3:
-                arc(p.urban_curve_radius if road == _URBAN else p.arterial_curve_radius, (10.0, 45.0))
+                arc(
+                    p.urban_curve_radius if road == _URBAN else p.arterial_curve_radius,
+                    (10.0, 45.0),
+                )
                 continue
-            kind = rng.choice(4, p=(0.35, 0.3, 0.1, 0.25) if road == _URBAN else (0.5, 0.3, 0.0, 0.2))
+            kind = rng.choice(
+                4, p=(0.35, 0.3, 0.1, 0.25) if road == _URBAN else (0.5, 0.3, 0.0, 0.2)
+            )
             if kind == 1 and rng.random() < 0.5:  # traffic light, red
                 stop(rng.uniform(*p.red_light_wait))
             elif kind == 2:  # stop sign
                 stop(rng.uniform(*p.stop_sign_wait))
             elif kind == 3:  # turn, after a stop half of the time
                 if rng.random() < 0.5:
-                    stop(rng.uniform(*p.red_light_wait) if rng.random() < 0.5 else rng.uniform(*p.stop_sign_wait))
+                    stop(
+                        rng.uniform(*p.red_light_wait)
+                        if rng.random() < 0.5
+                        else rng.uniform(*p.stop_sign_wait)
+                    )
                 arc(p.turn_radius, (80.0, 100.0))
     add(50.0, 0.0)  # room to come to the final stop
     hold = rng.random(len(stop_at)) < p.static_hold_probability
@@ -412,7 +440,9 @@ def _speed_profile_reference(cap2: FloatArray, accel: FloatArray, decel: FloatAr
     return np.maximum(v2, 0.0)
 
 
-def _distance_at(t: FloatArray, leave: FloatArray, cell_dt: FloatArray, v2: FloatArray) -> FloatArray:
+def _distance_at(
+    t: FloatArray, leave: FloatArray, cell_dt: FloatArray, v2: FloatArray
+) -> FloatArray:
     """Distance driven at times ``t``: constant acceleration within each 1 m cell.
 
     v^2 is linear in s within a cell, i.e. the acceleration is constant there,
@@ -444,7 +474,9 @@ class _Truth:
     hold: NDArray[np.bool_]  # receiver in static hold
 
 
-def _motion(route: _Route, n_out: int, rate_hz: float, heading0: float, p: SimulatorParams) -> _Truth:
+def _motion(
+    route: _Route, n_out: int, rate_hz: float, heading0: float, p: SimulatorParams
+) -> _Truth:
     """Turn the route into smoothed, jerk-limited motion sampled at ``rate_hz``."""
     cap2 = _speed_cap_squared(route, p)
     # Cars pull (and drivers brake) less hard at speed: scale the limits by the
@@ -458,7 +490,9 @@ def _motion(route: _Route, n_out: int, rate_hz: float, heading0: float, p: Simul
     cell_dt = 2.0 * _DS / np.maximum(v[:-1] + v[1:], 1e-12)
     wait = np.zeros(n_nodes)
     np.add.at(wait, route.stop_node, route.stop_wait)
-    arrive = np.concatenate([[0.0], np.cumsum(cell_dt)]) + np.concatenate([[0.0], np.cumsum(wait)[:-1]])
+    arrive = np.concatenate([[0.0], np.cumsum(cell_dt)]) + np.concatenate(
+        [[0.0], np.cumsum(wait)[:-1]]
+    )
     leave = arrive + wait
 
     sub = max(1, math.ceil(1.0 / (rate_hz * _FINE_DT)))
@@ -488,7 +522,9 @@ def _motion(route: _Route, n_out: int, rate_hz: float, heading0: float, p: Simul
     t_out = t_fine[out]
     stop_idx = np.searchsorted(leave[route.stop_node], t_out, side="left")
     stop_idx = np.minimum(stop_idx, route.stop_node.size - 1)
-    at_stop = (t_out >= arrive[route.stop_node][stop_idx]) & (t_out <= leave[route.stop_node][stop_idx])
+    at_stop = (t_out >= arrive[route.stop_node][stop_idx]) & (
+        t_out <= leave[route.stop_node][stop_idx]
+    )
     hold = at_stop & route.stop_hold[stop_idx] & (v_fine[out] < p.static_hold_speed)
 
     return _Truth(
@@ -510,7 +546,9 @@ def _motion(route: _Route, n_out: int, rate_hz: float, heading0: float, p: Simul
 # ---------------------------------------------------------------------------
 
 
-def _gauss_markov(rng: np.random.Generator, n: int, sigma: float, tau: float, dt: float) -> FloatArray:
+def _gauss_markov(
+    rng: np.random.Generator, n: int, sigma: float, tau: float, dt: float
+) -> FloatArray:
     """Stationary first-order Gauss-Markov sequence: x_k = phi x_{k-1} + w_k, std ``sigma``."""
     phi = math.exp(-dt / tau)
     innovations = rng.normal(0.0, sigma * math.sqrt(1.0 - phi * phi), n)
@@ -545,7 +583,9 @@ def _ar1(innovations: FloatArray, phi: float) -> FloatArray:
     while start < n - 1:
         stop = min(n, start + 1 + block)
         k = np.arange(1, stop - start, dtype=np.float64)
-        out[start + 1 : stop] = phi**k * (out[start] + np.cumsum(phi**-k * innovations[start + 1 : stop]))
+        out[start + 1 : stop] = phi**k * (
+            out[start] + np.cumsum(phi**-k * innovations[start + 1 : stop])
+        )
         start = stop - 1
     return out
 
@@ -571,19 +611,28 @@ def _freeze(values: FloatArray, hold: NDArray[np.bool_]) -> FloatArray:
     return values[np.maximum.accumulate(idx)]
 
 
-def _measure(rng: np.random.Generator, truth: _Truth, rate_hz: float, p: SimulatorParams) -> dict[str, FloatArray]:
+def _measure(
+    rng: np.random.Generator, truth: _Truth, rate_hz: float, p: SimulatorParams
+) -> dict[str, FloatArray]:
     n = truth.t.size
     dt = 1.0 / rate_hz
     hdop = np.maximum(
         p.hdop_min,
-        p.hdop_median * np.exp(_gauss_markov(rng, n, p.hdop_log_sigma, p.hdop_correlation_time, dt)),
+        p.hdop_median
+        * np.exp(_gauss_markov(rng, n, p.hdop_log_sigma, p.hdop_correlation_time, dt)),
     )
     hdop = np.round(hdop, 2)
     white_scale = p.gnss_white_sigma * hdop / p.hdop_median
-    east = (truth.east + _gauss_markov(rng, n, p.gnss_correlated_sigma, p.gnss_correlation_time, dt)
-            + white_scale * _epoch_noise(rng, n, p.gnss_white_dof))
-    north = (truth.north + _gauss_markov(rng, n, p.gnss_correlated_sigma, p.gnss_correlation_time, dt)
-             + white_scale * _epoch_noise(rng, n, p.gnss_white_dof))
+    east = (
+        truth.east
+        + _gauss_markov(rng, n, p.gnss_correlated_sigma, p.gnss_correlation_time, dt)
+        + white_scale * _epoch_noise(rng, n, p.gnss_white_dof)
+    )
+    north = (
+        truth.north
+        + _gauss_markov(rng, n, p.gnss_correlated_sigma, p.gnss_correlation_time, dt)
+        + white_scale * _epoch_noise(rng, n, p.gnss_white_dof)
+    )
     alt = truth.alt + _gauss_markov(rng, n, p.vertical_sigma, p.gnss_correlation_time, dt)
     psi = np.radians(truth.heading)
     v_east = truth.speed * np.sin(psi) + rng.normal(0.0, p.velocity_sigma, n)
@@ -592,10 +641,16 @@ def _measure(rng: np.random.Generator, truth: _Truth, rate_hz: float, p: Simulat
     heading = np.mod(np.degrees(np.arctan2(v_east, v_north)), 360.0)
     accel_bias = rng.normal(0.0, p.accel_bias_sigma)
     gyro_bias = rng.normal(0.0, p.gyro_bias_sigma)
-    accel_x = (truth.accel + _GRAVITY * np.sin(np.arctan(truth.grade)) + accel_bias
-               + rng.normal(0.0, p.accel_noise_sigma, n))
+    accel_x = (
+        truth.accel
+        + _GRAVITY * np.sin(np.arctan(truth.grade))
+        + accel_bias
+        + rng.normal(0.0, p.accel_noise_sigma, n)
+    )
     # Yaw rate: counterclockwise positive (ISO 8855, and the real logger), so minus v*kappa.
-    yaw_rate = -np.degrees(truth.speed * truth.kappa) + gyro_bias + rng.normal(0.0, p.gyro_noise_sigma, n)
+    yaw_rate = (
+        -np.degrees(truth.speed * truth.kappa) + gyro_bias + rng.normal(0.0, p.gyro_noise_sigma, n)
+    )
 
     hold = truth.hold
     return {
@@ -622,7 +677,9 @@ def _check_args(minutes: float, rate_hz: float, origin: tuple[float, float]) -> 
         raise ConfigError(f"rate_hz must be in [0.1, 100], got {rate_hz!r}")
     lat, lon = origin
     if not (-80.0 <= lat <= 80.0 and -180.0 <= lon <= 180.0):
-        raise ConfigError(f"origin must be (lat, lon) with |lat| <= 80 and |lon| <= 180, got {origin!r}")
+        raise ConfigError(
+            f"origin must be (lat, lon) with |lat| <= 80 and |lon| <= 180, got {origin!r}"
+        )
 
 
 def _simulate_truth(
@@ -638,8 +695,13 @@ def _simulate_truth(
 
 
 def _simulate_track(
-    minutes: float, rate_hz: float, seed: int, track: int, origin: tuple[float, float],
-    p: SimulatorParams, imu: bool,
+    minutes: float,
+    rate_hz: float,
+    seed: int,
+    track: int,
+    origin: tuple[float, float],
+    p: SimulatorParams,
+    imu: bool,
 ) -> pd.DataFrame:
     rng, truth = _simulate_truth(minutes, rate_hz, seed, track, p)
     n_out = truth.t.size
@@ -685,7 +747,9 @@ def simulate_drive(
     return _simulate_track(minutes, rate_hz, seed, track, origin, params or SimulatorParams(), imu)
 
 
-def _fleet_origin(origin: tuple[float, float], spread_km: float, seed: int, track: int) -> tuple[float, float]:
+def _fleet_origin(
+    origin: tuple[float, float], spread_km: float, seed: int, track: int
+) -> tuple[float, float]:
     """Start point of fleet track ``track``: uniform in a square of side 2 x spread_km around ``origin``."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, track, 1]))
     d_north, d_east = rng.uniform(-spread_km * 1000.0, spread_km * 1000.0, 2)

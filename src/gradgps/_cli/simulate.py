@@ -13,17 +13,40 @@ _PROGRESS_FROM = 20
 
 
 @click.command()
-@click.option("--minutes", type=click.FloatRange(min=0.0, min_open=True, max=1440.0), default=30.0,
-              show_default=True, help="length of each drive")
-@click.option("--rate", "rate_hz", type=click.FloatRange(0.1, 100.0), default=1.0, show_default=True,
-              help="fixes per second")
+@click.option(
+    "--minutes",
+    type=click.FloatRange(min=0.0, min_open=True, max=1440.0),
+    default=30.0,
+    show_default=True,
+    help="length of each drive",
+)
+@click.option(
+    "--rate",
+    "rate_hz",
+    type=click.FloatRange(0.1, 100.0),
+    default=1.0,
+    show_default=True,
+    help="fixes per second",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="same seed, same bytes")
-@click.option("--tracks", type=click.IntRange(min=1), default=1, show_default=True,
-              help="number of drives (track ids 0..N-1, start points spread around the origin)")
+@click.option(
+    "--tracks",
+    type=click.IntRange(min=1),
+    default=1,
+    show_default=True,
+    help="number of drives (track ids 0..N-1, start points spread around the origin)",
+)
 @click.option("--no-imu", is_flag=True, help="leave out accel_x (m/s^2) and yaw_rate (deg/s)")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="output file: .csv or .parquet")
-def simulate(minutes: float, rate_hz: float, seed: int, tracks: int, no_imu: bool, output: Path) -> None:
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="output file: .csv or .parquet",
+)
+def simulate(
+    minutes: float, rate_hz: float, seed: int, tracks: int, no_imu: bool, output: Path
+) -> None:
     """Simulate realistic car drives (GNSS + optional IMU) and write them to a file."""
     suffix = output.suffix.lower()
     if suffix not in (".csv", ".parquet"):
@@ -40,8 +63,14 @@ def simulate(minutes: float, rate_hz: float, seed: int, tracks: int, no_imu: boo
     else:
         with Progress(transient=True) as progress:
             task = progress.add_task("simulating drives", total=tracks)
-            frame = simulate_fleet(tracks, minutes, rate_hz, seed, imu=not no_imu,
-                                   on_track=lambda _: progress.advance(task))
+            frame = simulate_fleet(
+                tracks,
+                minutes,
+                rate_hz,
+                seed,
+                imu=not no_imu,
+                on_track=lambda _: progress.advance(task),
+            )
     if suffix == ".csv":
         frame.to_csv(output, index=False)
     else:
