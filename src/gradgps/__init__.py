@@ -11,6 +11,7 @@ from . import metrics
 from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
 from ._geo import LocalFrame
 from ._preprocess import Prepared, preprocess
+from ._simulator import SimulatorParams, simulate_drive, simulate_fleet
 from ._track import ColumnMap, Table, to_fixes
 
 __version__ = "0.1.0"
@@ -24,9 +25,12 @@ __all__ = [
     "LocalFrame",
     "ModelError",
     "Prepared",
+    "SimulatorParams",
     "Table",
     "__version__",
     "metrics",
     "preprocess",
+    "simulate_drive",
+    "simulate_fleet",
     "to_fixes",
 ]

@@ -11,6 +11,7 @@ import click
 
 from .bench import bench
 from .inject import inject
+from .simulate import simulate
 
 __all__ = ["main"]
 
@@ -23,3 +24,4 @@ def main() -> None:
 
 main.add_command(bench)
 main.add_command(inject)
+main.add_command(simulate)
