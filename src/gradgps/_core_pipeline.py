@@ -30,7 +30,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._exceptions import ConfigError
-from ._features import N_CHANNEL, FeatureParams, channel_features_step, cross_features_step
+from ._features import (
+    N_CHANNEL,
+    FeatureParams,
+    channel_features_step,
+    cross_features_step,
+    history_push,
+)
 from ._recovery import N_RECOVERY_STATE, RecoveryParams, recovery_step
 from ._rema import (
     N_OUT,
@@ -68,7 +74,7 @@ N_RESULT = 6
 def _layout(P: FloatArray) -> tuple[int, int, int, int, int, int, int, int, int]:
     """Offsets into S: rema east state/ring, rema north state/ring, hist east/north, count, time, recovery."""
     ss = int(P[P_SS])
-    hist = max(int(P[_P_LONG]), int(P[_P_SHORT]) + 1)
+    hist = 2 * max(int(P[_P_LONG]), int(P[_P_SHORT]) + 1)
     rs_e = 0
     rr_e = rs_e + N_STATE
     rs_n = rr_e + ss
@@ -112,7 +118,6 @@ def core_step(P: FloatArray, S: FloatArray, east: float, north: float, speed: fl
     """Advance the whole statistical pipeline by one point; fill ``out`` (see module doc)."""
     rs_e, rr_e, rs_n, rr_n, h_e, h_n, cnt, ts, rec = _layout(P)
     ss = int(P[P_SS])
-    hist_n = h_n - h_e
     period = P[_P_PERIOD]
     rema_p = P[:N_PARAMS]
     row_e = out[N_RESULT:N_RESULT + N_OUT]
@@ -121,14 +126,13 @@ def core_step(P: FloatArray, S: FloatArray, east: float, north: float, speed: fl
     rema_step(rema_p, S[rs_n:rs_n + N_STATE], S[rr_n:rr_n + ss], north, row_n)
     count = int(S[cnt]) + 1
     S[cnt] = count
-    S[h_e + (count - 1) % hist_n] = east
-    S[h_n + (count - 1) % hist_n] = north
+    win_e = history_push(S[h_e:h_n], count, east)
+    win_n = history_push(S[h_n:cnt], count, north)
     f0 = N_RESULT + 2 * N_OUT
     long_n = int(P[_P_LONG])
     short_n = int(P[_P_SHORT])
-    channel_features_step(S[h_e:h_n], count, long_n, short_n, period, row_e,
-                          out[f0:f0 + N_CHANNEL])
-    channel_features_step(S[h_n:cnt], count, long_n, short_n, period, row_n,
+    channel_features_step(win_e, long_n, short_n, period, row_e, out[f0:f0 + N_CHANNEL])
+    channel_features_step(win_n, long_n, short_n, period, row_n,
                           out[f0 + N_CHANNEL:f0 + 2 * N_CHANNEL])
     if P[_P_CROSS] != 0.0:
         c0 = f0 + 2 * N_CHANNEL
@@ -136,9 +140,8 @@ def core_step(P: FloatArray, S: FloatArray, east: float, north: float, speed: fl
             out[c0] = np.nan
             out[c0 + 1] = np.nan
         else:
-            prev = (count - 2) % hist_n
-            cross_features_step(east - S[h_e + prev], north - S[h_n + prev], period, speed,
-                                heading, out[c0:c0 + 2])
+            cross_features_step(east - win_e[win_e.size - 2], north - win_n[win_n.size - 2],
+                                period, speed, heading, out[c0:c0 + 2])
     flag = 1.0 if row_e[O_FLAG] != 0.0 or row_n[O_FLAG] != 0.0 else 0.0
     code = time_step(P[_P_TIME:_P_TIME + 3], S[ts:ts + N_TIME_STATE], flag)
     recovery_step(P[_P_REC:_P_REC + 2], S[rec:rec + N_RECOVERY_STATE], code, period, east, north,

@@ -93,77 +93,86 @@ def feature_names(params: FeatureParams | None = None) -> list[str]:
 
 
 @numba.njit(cache=True)
-def channel_features_step(hist: FloatArray, count: int, long_n: int, short_n: int,
-                          period: float, rema_row: FloatArray, out: FloatArray) -> None:
-    """Features of one channel at the newest point.
+def history_push(hist: FloatArray, count: int, x: float) -> FloatArray:
+    """Append the ``count``-th value (1-based) to a doubled ring; return the recent window.
 
-    ``hist`` is a ring of the last ``len(hist) >= max(long_n, short_n + 1)``
-    values, the newest at absolute index ``count - 1``; ``count`` is the
-    number of points seen so far including the newest.
+    ``hist`` has length ``2 * H``; each value is written at ``p`` and ``p + H``
+    so the last ``min(count, H)`` values are always one contiguous slice
+    (oldest first), which keeps the feature loops free of modulo arithmetic.
     """
-    size = hist.size
-    newest = hist[(count - 1) % size]
-    # Long window: least squares of value on time, centred on the window.
-    m = min(count, long_n)
-    start = count - m
-    mean_y = 0.0
+    size = hist.size // 2
+    pos = (count - 1) % size
+    hist[pos] = x
+    hist[pos + size] = x
+    m = min(count, size)
+    return hist[pos + size - m + 1:pos + size + 1]
+
+
+@numba.njit(cache=True)
+def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: float,
+                          rema_row: FloatArray, out: FloatArray) -> None:
+    """Features of one channel at the newest point from ``win``, the recent values (oldest first).
+
+    Sums run over values relative to the newest one (translation invariance
+    and small magnitudes, so the one-pass formulas lose no precision).
+    """
+    total = win.size
+    newest = win[total - 1]
+    # Long window: least squares of value on point index, centred on the window.
+    m = min(total, long_n)
+    first = total - m
+    sy = 0.0
+    sky = 0.0
+    syy = 0.0
     for k in range(m):
-        mean_y += hist[(start + k) % size] - newest
-    mean_y /= m
+        y = win[first + k] - newest
+        sy += y
+        sky += k * y
+        syy += y * y
+    mean_y = sy / m
     mean_j = (m - 1) / 2.0
-    sxy = 0.0
-    sxx = 0.0
-    for k in range(m):
-        dj = k - mean_j
-        sxy += dj * (hist[(start + k) % size] - newest - mean_y)
-        sxx += dj * dj
+    sxx = m * (m * m - 1.0) / 12.0
+    sxy = sky - mean_j * sy
     slope_pt = sxy / sxx if sxx > 0.0 else 0.0
     se = 0.0
     if m > 2:
-        ssr = 0.0
-        for k in range(m):
-            r = hist[(start + k) % size] - newest - (mean_y + slope_pt * (k - mean_j))
-            ssr += r * r
-        se = np.sqrt(ssr / (m - 2))
+        se = np.sqrt(max(syy - sy * mean_y - slope_pt * sxy, 0.0) / (m - 2))
     out[0] = slope_pt / period
     out[1] = mean_y + slope_pt * (m - 1 - mean_j)
     out[2] = se
     # Short window: the last short_n steps (fewer at the start).
-    n_steps = min(count - 1, short_n)
-    std_v = 0.0
+    n_steps = min(total - 1, short_n)
+    sd = 0.0
+    sdd = 0.0
     gain = 0.0
     loss = 0.0
-    if n_steps > 0:
-        mean_v = 0.0
-        for k in range(n_steps):
-            i = count - 1 - k
-            mean_v += hist[i % size] - hist[(i - 1) % size]
-        mean_v /= n_steps
-        for k in range(n_steps):
-            i = count - 1 - k
-            d = hist[i % size] - hist[(i - 1) % size]
-            std_v += (d - mean_v) * (d - mean_v)
-            if d > 0.0:
-                gain += d
-            else:
-                loss -= d
-        std_v = np.sqrt(std_v / n_steps) / period
     lo = newest
     hi = newest
-    for k in range(1, n_steps + 1):
-        v = hist[(count - 1 - k) % size]
-        lo = min(lo, v)
-        hi = max(hi, v)
+    for k in range(total - n_steps, total):
+        d = win[k] - win[k - 1]
+        sd += d
+        sdd += d * d
+        if d > 0.0:
+            gain += d
+        else:
+            loss -= d
+        lo = min(lo, win[k - 1])
+        hi = max(hi, win[k - 1])
+    std_v = 0.0
+    if n_steps > 0:
+        mean_d = sd / n_steps
+        std_v = np.sqrt(max(sdd / n_steps - mean_d * mean_d, 0.0)) / period
     out[3] = std_v
     out[4] = 100.0 * gain / (gain + loss) if gain + loss > 0.0 else 50.0
     out[5] = hi - lo
-    out[6] = (newest - hist[(count - 2) % size]) / period if count > 1 else 0.0
+    out[6] = (newest - win[total - 2]) / period if total > 1 else 0.0
     # REMA.
     out[7] = rema_row[O_DISTANCE]
     width = rema_row[O_UPPER] - rema_row[O_LOWER]
     out[8] = width if np.isfinite(width) else 0.0
     out[9] = rema_row[O_FLAG]
     out[10] = rema_row[O_ALPHA]
+
 
 
 @numba.njit(cache=True)
@@ -188,14 +197,14 @@ def features_batch_kernel(east: FloatArray, north: FloatArray, speed: FloatArray
     out = np.empty((n, width))
     rema_e = rema_batch_kernel(rema_p, east)
     rema_n = rema_batch_kernel(rema_p, north)
-    size = max(long_n, short_n + 1)
+    size = 2 * max(long_n, short_n + 1)
     hist_e = np.zeros(size)
     hist_n = np.zeros(size)
     for i in range(n):
-        hist_e[i % size] = east[i]
-        hist_n[i % size] = north[i]
-        channel_features_step(hist_e, i + 1, long_n, short_n, period, rema_e[i], out[i, :N_CHANNEL])
-        channel_features_step(hist_n, i + 1, long_n, short_n, period, rema_n[i],
+        win_e = history_push(hist_e, i + 1, east[i])
+        win_n = history_push(hist_n, i + 1, north[i])
+        channel_features_step(win_e, long_n, short_n, period, rema_e[i], out[i, :N_CHANNEL])
+        channel_features_step(win_n, long_n, short_n, period, rema_n[i],
                               out[i, N_CHANNEL:2 * N_CHANNEL])
         if cross:
             if i == 0:
