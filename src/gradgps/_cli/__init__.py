@@ -9,10 +9,16 @@ from __future__ import annotations
 
 import click
 
+from .errors import ErrorReportingGroup
+from .info import info
+
 __all__ = ["main"]
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=ErrorReportingGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="gradgps")
 def main() -> None:
     """Find, classify and repair faults in vehicle GPS and sensor streams (GRAD)."""
+
+
+main.add_command(info)
