@@ -48,12 +48,17 @@ def text_lines(raw: io.BufferedIOBase, source: str) -> Iterator[str]:
 
     Decoding per line is exact for UTF-8 (no character spans a newline) and
     gives the line number that a whole-file decode cannot. A leading BOM is
-    dropped.
+    dropped. NUL bytes are refused: no text format uses them, and they are
+    the mark of a binary file or of UTF-16 text (Excel's "Unicode text").
     """
     try:
         for number, line in enumerate(raw, start=1):
             if number == 1 and line.startswith(b"\xef\xbb\xbf"):
                 line = line[3:]
+            if b"\x00" in line:
+                raise InputError("NUL bytes in the text: a binary file, or UTF-16 text",
+                                 source=source, line=number,
+                                 hint="save the file as UTF-8 text or pass the right format")
             try:
                 yield line.decode("utf-8")
             except UnicodeDecodeError as exc:

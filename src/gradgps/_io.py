@@ -11,8 +11,10 @@ CSV files are read in two passes. The first pass, with the standard
 quoting, the same number of fields on every row) and reports the exact file
 line of the first problem; pandas would otherwise pad short rows with missing
 values without a word and report long rows by a line count that ignores
-blank lines. The second pass lets pandas parse and type the columns. Every
-input column is kept under its original name and in its original order
+blank lines. The second pass lets pandas parse and type the columns (the
+track-id column, when it can be found from the header, stays text so ``007``
+keeps its zeros; values pandas treats as missing, like ``NA``, become an
+empty track id). Every input column is kept under its original name and in its original order
 (pandas renames duplicate names ``x``, ``x.1``... and unnamed ones
 ``Unnamed: 0``); *values* are checked later by :func:`gradgps.to_fixes`, whose
 errors name the row, the file line and the column.
@@ -34,7 +36,7 @@ from ._exceptions import ConfigError, InputError
 from ._files import READ_ERRORS, check_readable, open_bytes, text_lines
 from ._gpx import read_gpx
 from ._nmea import read_nmea
-from ._track import ColumnMap, Table, to_fixes
+from ._track import ColumnMap, Table, resolve_columns, to_fixes
 
 __all__ = [
     "FORMATS",
@@ -110,7 +112,7 @@ def read_table(
     kind = resolve_format(path, fmt)
     check_readable(path)
     if kind == "csv":
-        table = _read_csv(path)
+        table = _read_csv(path, columns)
     elif kind == "parquet":
         table = _read_parquet(path)
     elif kind == "gpx":
@@ -178,7 +180,8 @@ def iter_csv_tables(
     cmap = _override(ColumnMap(), columns) if columns is not None else ColumnMap()
     offset = 0
     with _pandas_errors(source):
-        reader = pd.read_csv(path, sep=layout.delimiter, encoding="utf-8", chunksize=chunksize)
+        reader = pd.read_csv(path, sep=layout.delimiter, encoding="utf-8", chunksize=chunksize,
+                             dtype=_label_dtypes(layout, columns, source))
         with reader:
             for chunk in reader:
                 first_line = layout.first_line + offset if layout.lines_regular else None
@@ -293,11 +296,25 @@ def _pandas_errors(source: str) -> Iterator[None]:
         raise InputError(f"cannot read: {exc}", source=source) from None
 
 
-def _read_csv(path: Path) -> Table:
+def _label_dtypes(layout: _CsvLayout, columns: ColumnMap | None, source: str) -> dict[str, str]:
+    """Read the track-id column as text: ``007`` is a label, not the number 7.
+
+    Only when the column map can already be resolved from the header; when it
+    cannot, :func:`gradgps.to_fixes` reports why later.
+    """
+    try:
+        track = resolve_columns(layout.header, columns, source=source).track
+    except InputError:
+        return {}
+    return {track: "string"} if track is not None else {}
+
+
+def _read_csv(path: Path, columns: ColumnMap | None) -> Table:
     source = str(path)
     layout = _scan_csv(path)
     with _pandas_errors(source):
-        frame = pd.read_csv(path, sep=layout.delimiter, encoding="utf-8", low_memory=False)
+        frame = pd.read_csv(path, sep=layout.delimiter, encoding="utf-8", low_memory=False,
+                            dtype=_label_dtypes(layout, columns, source))
     regular = layout.lines_regular and len(frame) == layout.n_rows
     return Table(frame=frame, source=source, first_line=layout.first_line if regular else None)
 
