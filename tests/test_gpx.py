@@ -60,7 +60,12 @@ def write(tmp_path: Path, text: str, name: str = "t.gpx") -> Path:
 def test_gpx11_tracks_segments_and_values(tmp_path: Path) -> None:
     table = read_table(write(tmp_path, GPX11))
     frame = table.frame
-    assert frame["track"].tolist() == ["Morning drive/0", "Morning drive/0", "Morning drive/1", "1/0"]
+    assert frame["track"].tolist() == [
+        "Morning drive/0",
+        "Morning drive/0",
+        "Morning drive/1",
+        "1/0",
+    ]
     assert list(frame.columns) == ["track", "time", "lat", "lon", "alt", "speed", "course", "hdop"]
     np.testing.assert_array_equal(frame["alt"], [350.5, 351.0, np.nan, np.nan])
     np.testing.assert_array_equal(frame["speed"], [13.5, np.nan, np.nan, np.nan])
@@ -103,17 +108,42 @@ def test_gzipped_gpx(tmp_path: Path) -> None:
     ("text", "match", "line"),
     [
         (GPX11[: GPX11.index("<trkseg>", 400)], "malformed XML: no element found", 16),
-        (GPX11.replace("</ele><time>2019-05-23T20:54:11Z", "</elevation><time>2019-05-23T20:54:11Z"),
-         "malformed XML: mismatched tag", 8),
+        (
+            GPX11.replace(
+                "</ele><time>2019-05-23T20:54:11Z", "</elevation><time>2019-05-23T20:54:11Z"
+            ),
+            "malformed XML: mismatched tag",
+            8,
+        ),
         ("", "malformed XML: no element found", 1),
         ("lat,lon\n1,2\n", "malformed XML: syntax error", 1),
-        (GPX11.replace('lat="41.2501"', 'lat="41.25O1"'), "track point lat is not a number: '41.25O1'", 14),
-        (GPX11.replace("2019-05-23T20:54:12.500Z", "yesterday"), "track point time is not ISO-8601: 'yesterday'", 14),
-        ('<gpx version="1.1"><wpt lat="1" lon="2"/><rte><rtept lat="1" lon="2"/></rte></gpx>',
-         r"no track points \(<trkpt>\) in the file \(2 waypoints/route points", None),
+        (
+            GPX11.replace('lat="41.2501"', 'lat="41.25O1"'),
+            "track point lat is not a number: '41.25O1'",
+            14,
+        ),
+        (
+            GPX11.replace("2019-05-23T20:54:12.500Z", "yesterday"),
+            "track point time is not ISO-8601: 'yesterday'",
+            14,
+        ),
+        (
+            '<gpx version="1.1"><wpt lat="1" lon="2"/><rte><rtept lat="1" lon="2"/></rte></gpx>',
+            r"no track points \(<trkpt>\) in the file \(2 waypoints/route points",
+            None,
+        ),
         ('<gpx version="1.1"></gpx>', "no track points", None),
     ],
-    ids=["truncated", "bad-xml", "empty", "not-xml", "bad-lat", "bad-time", "only-waypoints", "no-points"],
+    ids=[
+        "truncated",
+        "bad-xml",
+        "empty",
+        "not-xml",
+        "bad-lat",
+        "bad-time",
+        "only-waypoints",
+        "no-points",
+    ],
 )
 def test_malformed_gpx(tmp_path: Path, text: str, match: str, line: int | None) -> None:
     path = write(tmp_path, text)

@@ -36,7 +36,9 @@ def test_tuc_counts_and_json(shared_data: Path) -> None:
     result = run("info", path, "--track-col", "trace", "--time-col", "t_rel")
     assert result.exit_code == 0, result.output
     assert "tracks: 5  points: 25,289" in result.output
-    data = json.loads(run("info", path, "--track-col", "trace", "--time-col", "t_rel", "--json").output)
+    data = json.loads(
+        run("info", path, "--track-col", "trace", "--time-col", "t_rel", "--json").output
+    )
     assert (data["n_tracks"], data["n_points"]) == (5, 25289)
     rates = {t["track"]: round(t["rate_hz"], 3) for t in data["tracks"]}
     assert rates["chemnitz_city"] == 4.0  # 0.248 s and 0.252 s steps alternate
@@ -44,7 +46,9 @@ def test_tuc_counts_and_json(shared_data: Path) -> None:
 
 
 def test_bad_value_is_one_clean_line_with_exit_2(tmp_path: Path) -> None:
-    frame = pd.DataFrame({"t": np.arange(100.0), "lat": ["41.25"] * 100, "lon": np.full(100, -95.9)})
+    frame = pd.DataFrame(
+        {"t": np.arange(100.0), "lat": ["41.25"] * 100, "lon": np.full(100, -95.9)}
+    )
     frame.loc[56, "lat"] = "north"
     path = tmp_path / "bad.csv"
     frame.to_csv(path, index=False)
@@ -65,8 +69,10 @@ def test_missing_file_is_clean(tmp_path: Path) -> None:
 def test_nmea_rejected_sentences_are_printed(tmp_path: Path) -> None:
     lines = []
     for second in range(6):
-        for body in (f"GPRMC,1200{second:02d},A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W",
-                     f"GPGGA,1200{second:02d},4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,"):
+        for body in (
+            f"GPRMC,1200{second:02d},A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W",
+            f"GPGGA,1200{second:02d},4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,",
+        ):
             lines.append(f"${body}*{nmea_checksum(body):02X}")
     for i in (1, 4, 9):
         lines[i] = lines[i][:-2] + ("00" if lines[i][-2:] != "00" else "01")
@@ -83,8 +89,20 @@ def test_nmea_rejected_sentences_are_printed(tmp_path: Path) -> None:
 def test_format_and_column_options(tmp_path: Path) -> None:
     path = tmp_path / "data.dat"
     path.write_text("when,y,x,who\n0,1,2,a\n1,1,2,a\n0,1,2,b\n")
-    result = run("info", str(path), "--format", "csv", "--time-col", "when", "--lat-col", "y",
-                 "--lon-col", "x", "--track-col", "who")
+    result = run(
+        "info",
+        str(path),
+        "--format",
+        "csv",
+        "--time-col",
+        "when",
+        "--lat-col",
+        "y",
+        "--lon-col",
+        "x",
+        "--track-col",
+        "who",
+    )
     assert result.exit_code == 0, result.output
     assert "tracks: 2  points: 3" in result.output
 
@@ -111,13 +129,17 @@ def test_summary_numbers_on_a_known_track() -> None:
 
 
 def test_summary_reported_speed_and_totals() -> None:
-    fixes = to_fixes(pd.DataFrame({
-        "track": ["a"] * 3 + ["b"] * 4,
-        "t": [0.0, 1.0, 2.0, 0.0, 0.5, 1.0, 3.0],
-        "lat": [1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 2.0],
-        "lon": [1.0, 1.0, 1.0, 3.0, 3.0, 3.0, 3.0],
-        "speed": [1.0, 2.0, 3.0, np.nan, np.nan, np.nan, np.nan],
-    }))
+    fixes = to_fixes(
+        pd.DataFrame(
+            {
+                "track": ["a"] * 3 + ["b"] * 4,
+                "t": [0.0, 1.0, 2.0, 0.0, 0.5, 1.0, 3.0],
+                "lat": [1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 2.0],
+                "lon": [1.0, 1.0, 1.0, 3.0, 3.0, 3.0, 3.0],
+                "speed": [1.0, 2.0, 3.0, np.nan, np.nan, np.nan, np.nan],
+            }
+        )
+    )
     summary = summarize(fixes)
     a, b = summary.tracks
     assert a.speed is not None
@@ -135,17 +157,23 @@ def test_summary_reported_speed_and_totals() -> None:
 
 def test_errors_become_one_line_with_their_exit_code() -> None:
     group = ErrorReportingGroup("g")
-    raised = {"input": InputError("bad", source="f.csv", row=3, column="lat"),
-              "config": ConfigError("threshold must be positive"),
-              "model": ModelError("model directory is missing weights.npz")}
+    raised = {
+        "input": InputError("bad", source="f.csv", row=3, column="lat"),
+        "config": ConfigError("threshold must be positive"),
+        "model": ModelError("model directory is missing weights.npz"),
+    }
     for name, exc in raised.items():
+
         def command(exc: Exception = exc) -> None:
             raise exc
+
         group.add_command(click.Command(name, callback=command))
     runner = CliRunner()
-    expected = {"input": (2, "error: f.csv: row 3, column 'lat': bad\n"),
-                "config": (2, "error: threshold must be positive\n"),
-                "model": (1, "error: model directory is missing weights.npz\n")}
+    expected = {
+        "input": (2, "error: f.csv: row 3, column 'lat': bad\n"),
+        "config": (2, "error: threshold must be positive\n"),
+        "model": (1, "error: model directory is missing weights.npz\n"),
+    }
     for name, (code, text) in expected.items():
         result = runner.invoke(group, [name])
         assert (result.exit_code, result.output) == (code, text)

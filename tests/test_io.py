@@ -18,13 +18,15 @@ from gradgps._io import iter_csv_tables, read_fixes, read_table, resolve_format,
 def drive(n: int = 100) -> pd.DataFrame:
     """A small 1 Hz drive heading north-east."""
     i = np.arange(n, dtype=np.float64)
-    return pd.DataFrame({
-        "t": 1_558_644_851.0 + i,
-        "lat": 41.25 + 1e-4 * i,
-        "lon": -95.98 + 1e-4 * i,
-        "speed": np.full(n, 12.5),
-        "note": ["ok"] * n,
-    })
+    return pd.DataFrame(
+        {
+            "t": 1_558_644_851.0 + i,
+            "lat": 41.25 + 1e-4 * i,
+            "lon": -95.98 + 1e-4 * i,
+            "speed": np.full(n, 12.5),
+            "note": ["ok"] * n,
+        }
+    )
 
 
 def write_text(path: Path, text: str) -> Path:
@@ -96,7 +98,10 @@ def test_column_auto_detection(tmp_path: Path, header: str, time_value: str) -> 
 
 def test_semicolon_and_tab_delimiters(tmp_path: Path) -> None:
     for name, sep in (("a.csv", ";"), ("b.tsv", "\t")):
-        path = write_text(tmp_path / name, sep.join(["t", "lat", "lon"]) + "\n" + sep.join(["1", "2.5", "3.5"]) + "\n")
+        path = write_text(
+            tmp_path / name,
+            sep.join(["t", "lat", "lon"]) + "\n" + sep.join(["1", "2.5", "3.5"]) + "\n",
+        )
         assert read_fixes(path)[["t", "lat", "lon"]].iloc[0].tolist() == [1.0, 2.5, 3.5]
 
 
@@ -126,13 +131,21 @@ def test_channels_carried(tmp_path: Path) -> None:
         ("\n\n  \n", "empty file", None),
         ("t,lat,lon\n0,1,2\n1,1,2,9\n", "4 fields where the header has 3", 3),
         ("t,lat,lon\n0,1,2\n1,1.00", "2 fields where the header has 3", 3),  # truncated
-        ("t,lat,lon\n0,1,2\n1,\"x\"y,2\n", "malformed CSV record", 3),
-        ("t,lat,lon\n0,1,2\n1,\"open,2\n2,1,2\n", "malformed CSV record", 3),
+        ('t,lat,lon\n0,1,2\n1,"x"y,2\n', "malformed CSV record", 3),
+        ('t,lat,lon\n0,1,2\n1,"open,2\n2,1,2\n', "malformed CSV record", 3),
         ("0,41.2,-95.9\n1,41.2,-95.9\n", "no header", 1),
         ("t,y,x\n0,1,2\n", "cannot find the lat column", None),
     ],
-    ids=["empty", "blank-lines-only", "ragged-long", "truncated", "bad-quote", "unclosed-quote",
-         "no-header", "wrong-columns"],
+    ids=[
+        "empty",
+        "blank-lines-only",
+        "ragged-long",
+        "truncated",
+        "bad-quote",
+        "unclosed-quote",
+        "no-header",
+        "wrong-columns",
+    ],
 )
 def test_malformed_csv(tmp_path: Path, text: str, match: str, line: int | None) -> None:
     path = write_text(tmp_path / "m.csv", text)
@@ -208,17 +221,29 @@ def test_parquet_garbage_and_truncation(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(
     ("name", "expected"),
-    [("a.csv", "csv"), ("a.CSV.gz", "csv"), ("a.txt", "csv"), ("a.pq", "parquet"),
-     ("a.parquet", "parquet"), ("a.gpx", "gpx"), ("a.nmea", "nmea"), ("a.nma", "nmea"),
-     ("a.log", "nmea")],
+    [
+        ("a.csv", "csv"),
+        ("a.CSV.gz", "csv"),
+        ("a.txt", "csv"),
+        ("a.pq", "parquet"),
+        ("a.parquet", "parquet"),
+        ("a.gpx", "gpx"),
+        ("a.nmea", "nmea"),
+        ("a.nma", "nmea"),
+        ("a.log", "nmea"),
+    ],
 )
 def test_format_from_extension(name: str, expected: str) -> None:
     assert resolve_format(name) == expected
 
 
 def test_format_sniffed_for_unknown_extension(tmp_path: Path) -> None:
-    cases = {"a.dat": (b"<?xml version='1.0'?><gpx/>", "gpx"), "b.dat": (b"$GPGGA,", "nmea"),
-             "c.dat": (b"PAR1....", "parquet"), "d.dat": (b"t,lat,lon\n", "csv")}
+    cases = {
+        "a.dat": (b"<?xml version='1.0'?><gpx/>", "gpx"),
+        "b.dat": (b"$GPGGA,", "nmea"),
+        "c.dat": (b"PAR1....", "parquet"),
+        "d.dat": (b"t,lat,lon\n", "csv"),
+    }
     for name, (content, expected) in cases.items():
         (tmp_path / name).write_bytes(content)
         assert resolve_format(tmp_path / name) == expected
@@ -255,7 +280,13 @@ def test_chunks_keep_rows_and_lines(tmp_path: Path) -> None:
     path = bad_row_57_csv(tmp_path)
     chunks = list(iter_csv_tables(path, chunksize=20))
     assert [len(c.frame) for c in chunks] == [20, 20, 20, 20, 20]
-    assert [(c.row_offset, c.first_line) for c in chunks] == [(0, 2), (20, 22), (40, 42), (60, 62), (80, 82)]
+    assert [(c.row_offset, c.first_line) for c in chunks] == [
+        (0, 2),
+        (20, 22),
+        (40, 42),
+        (60, 62),
+        (80, 82),
+    ]
     with pytest.raises(InputError) as info:
         to_fixes(chunks[2])
     assert (info.value.row, info.value.line, info.value.column) == (57, 58, "lat")
@@ -273,14 +304,14 @@ def test_chunks_concatenate_to_the_whole(tmp_path: Path) -> None:
 def test_chunked_structure_error_comes_first(tmp_path: Path) -> None:
     path = write_text(tmp_path / "d.csv", "t,lat,lon\n" + "0,1,2\n" * 50 + "1,2\n")
     with pytest.raises(InputError, match="fields where") as info:
-        next(iter_csv_tables(path, chunksize=10))
+        iter_csv_tables(path, chunksize=10)
     assert info.value.line == 52
 
 
 @pytest.mark.parametrize("size", [0, -1, 2.5, True])
 def test_chunksize_must_be_positive_int(tmp_path: Path, size: object) -> None:
     with pytest.raises(ConfigError, match="chunksize"):
-        next(iter_csv_tables(tmp_path / "x.csv", chunksize=size))  # type: ignore[arg-type]
+        iter_csv_tables(tmp_path / "x.csv", chunksize=size)  # type: ignore[arg-type]
 
 
 # --- property ------------------------------------------------------------------
@@ -292,18 +323,45 @@ _finite = {"allow_nan": False, "allow_infinity": False}
 def frames(draw: st.DrawFn) -> pd.DataFrame:
     n = draw(st.integers(1, 30))
     floats = st.floats(width=64, **_finite)
-    return pd.DataFrame({
-        "vehicle": draw(st.lists(st.sampled_from(["a", "b b", "007", "7", "x,y", "ü"]), min_size=n, max_size=n)),
-        "t": draw(st.lists(st.floats(0, 4e9, **_finite), min_size=n, max_size=n)),
-        "lat": draw(st.lists(st.floats(-90, 90, **_finite), min_size=n, max_size=n)),
-        "lon": draw(st.lists(st.floats(-180, 180, **_finite), min_size=n, max_size=n)),
-        "speed": draw(st.lists(st.one_of(floats, st.just(float("nan"))), min_size=n, max_size=n)),
-    })
+    return pd.DataFrame(
+        {
+            "vehicle": draw(
+                st.lists(
+                    st.sampled_from(["a", "b b", "007", "7", "x,y", "ü"]), min_size=n, max_size=n
+                )
+            ),
+            "t": draw(st.lists(st.floats(0, 4e9, **_finite), min_size=n, max_size=n)),
+            "lat": draw(st.lists(st.floats(-90, 90, **_finite), min_size=n, max_size=n)),
+            "lon": draw(st.lists(st.floats(-180, 180, **_finite), min_size=n, max_size=n)),
+            "speed": draw(
+                st.lists(st.one_of(floats, st.just(float("nan"))), min_size=n, max_size=n)
+            ),
+        }
+    )
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(frame=frames())
 def test_csv_round_trip_gives_the_same_fixes(tmp_path: Path, frame: pd.DataFrame) -> None:
     path = tmp_path / "p.csv"
     write_table(frame, path)
     pd.testing.assert_frame_equal(read_fixes(path), to_fixes(frame), check_exact=True)
+
+
+def test_big_chunk_with_late_text_value(tmp_path: Path) -> None:
+    # pandas types long files in pieces unless told not to, and warns about
+    # (warnings are errors here) a column that is numbers first, text later.
+    path = write_text(tmp_path / "long.csv", "t,lat,lon\n" + "0,1,2\n" * 300_000 + "x,1,2\n")
+    (chunk,) = iter_csv_tables(path, chunksize=400_000)
+    with pytest.raises(InputError) as info:
+        to_fixes(chunk)
+    assert (info.value.row, info.value.line, info.value.column) == (300_001, 300_002, "t")
+
+
+def test_text_in_a_seconds_column_names_its_row(tmp_path: Path) -> None:
+    path = write_text(tmp_path / "t.csv", "t,lat,lon\n0,1,2\n1,1,2\nnoon,1,2\n3,1,2\n")
+    with pytest.raises(InputError, match="not a time") as info:
+        read_fixes(path)
+    assert (info.value.row, info.value.line, info.value.column) == (3, 4, "t")

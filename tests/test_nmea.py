@@ -26,13 +26,24 @@ def sentence(body: str) -> str:
     return f"${body}*{nmea_checksum(body):02X}"
 
 
-def gga(time: str, lat: str = "4807.038,N", lon: str = "01131.000,E", quality: int = 1,
-        talker: str = "GP") -> str:
+def gga(
+    time: str,
+    lat: str = "4807.038,N",
+    lon: str = "01131.000,E",
+    quality: int = 1,
+    talker: str = "GP",
+) -> str:
     return sentence(f"{talker}GGA,{time},{lat},{lon},{quality},08,0.9,545.4,M,46.9,M,,")
 
 
-def rmc(time: str, date: str = "230394", status: str = "A", talker: str = "GP",
-        lat: str = "4807.038,N", lon: str = "01131.000,E") -> str:
+def rmc(
+    time: str,
+    date: str = "230394",
+    status: str = "A",
+    talker: str = "GP",
+    lat: str = "4807.038,N",
+    lon: str = "01131.000,E",
+) -> str:
     return sentence(f"{talker}RMC,{time},{status},{lat},{lon},022.4,084.4,{date},003.1,W")
 
 
@@ -110,10 +121,15 @@ def test_unknown_sentences_and_text_are_skipped_not_counted(tmp_path: Path) -> N
         (rmc("123519", date="310294"), "impossible date"),
         (rmc("123519", status="Q"), "status must be A or V"),
         (sentence("GPGGA,123519,4807.038,N"), "GGA has 3 fields"),
-        (sentence("GPRMC,123519,A,4807.038,N,01131.000,E,abc,084.4,230394,,"), "speed is not a number"),
+        (
+            sentence("GPRMC,123519,A,4807.038,N,01131.000,E,abc,084.4,230394,,"),
+            "speed is not a number",
+        ),
     ],
 )
-def test_malformed_sentences_are_rejected_with_reason(tmp_path: Path, line: str, reason: str) -> None:
+def test_malformed_sentences_are_rejected_with_reason(
+    tmp_path: Path, line: str, reason: str
+) -> None:
     table = read_nmea(log(tmp_path, [gga("123518"), line]))
     assert table.rejected == 1
     assert table.notes is not None
@@ -123,17 +139,25 @@ def test_malformed_sentences_are_rejected_with_reason(tmp_path: Path, line: str,
 
 
 def test_any_talker(tmp_path: Path) -> None:
-    lines = [rmc("000001", talker="GN"), gga("000001", talker="GN"), gga("000002", talker="GL"),
-             gga("000003", talker="GA"), gga("000004", talker="BD")]
+    lines = [
+        rmc("000001", talker="GN"),
+        gga("000001", talker="GN"),
+        gga("000002", talker="GL"),
+        gga("000003", talker="GA"),
+        gga("000004", talker="BD"),
+    ]
     assert len(read_nmea(log(tmp_path, lines)).frame) == 4
 
 
 def test_no_fix_epochs_keep_their_row_with_missing_position(tmp_path: Path) -> None:
     lines = [
         sentence("GPGGA,,,,,,0,00,99.99,,,,,,"),  # u-blox before the first fix
-        rmc("120000", status="V"), gga("120000", quality=0),
-        rmc("120001"), gga("120001", quality=0),  # receivers disagree: no fix wins
-        rmc("120002"), gga("120002"),
+        rmc("120000", status="V"),
+        gga("120000", quality=0),
+        rmc("120001"),
+        gga("120001", quality=0),  # receivers disagree: no fix wins
+        rmc("120002"),
+        gga("120002"),
     ]
     table = read_nmea(log(tmp_path, lines))
     frame = table.frame
@@ -146,14 +170,21 @@ def test_no_fix_epochs_keep_their_row_with_missing_position(tmp_path: Path) -> N
 def test_times_without_date_roll_over_midnight(tmp_path: Path) -> None:
     table = read_nmea(log(tmp_path, [gga("235959"), gga("000000"), gga("000000.5"), gga("000001")]))
     assert table.frame["time"].tolist() == [86399.0, 86400.0, 86400.5, 86401.0]
-    assert table.notes == ["no RMC date in the log: times are seconds since midnight UTC of the first day"]
+    assert table.notes == [
+        "no RMC date in the log: times are seconds since midnight UTC of the first day"
+    ]
     assert "speed" not in table.frame.columns
     assert table.columns.speed == ""
 
 
 def test_dates_carry_to_undated_epochs_and_across_midnight(tmp_path: Path) -> None:
-    lines = [gga("235958"), rmc("235959", date="311219"), gga("235959"), gga("000000"),
-             rmc("000001", date="010120")]
+    lines = [
+        gga("235958"),
+        rmc("235959", date="311219"),
+        gga("235959"),
+        gga("000000"),
+        rmc("000001", date="010120"),
+    ]
     frame = read_nmea(log(tmp_path, lines)).frame
     midnight = calendar.timegm((2020, 1, 1, 0, 0, 0))
     assert frame["time"].tolist() == [midnight - 2.0, midnight - 1.0, midnight, midnight + 1.0]
@@ -163,10 +194,12 @@ def test_epoch_times_reference() -> None:
     tod = np.array([86000.0, np.nan, 100.0, 50.0, 200.0])
     midnight = np.array([np.nan, np.nan, np.nan, 1e9, np.nan])
     # 50 after 100 is a small step back (out-of-order fix), not a new day.
-    np.testing.assert_array_equal(epoch_times(tod, np.full(5, np.nan)),
-                                  [86000.0, np.nan, 86500.0, 86450.0, 86600.0])
-    np.testing.assert_array_equal(epoch_times(tod, midnight),
-                                  [1e9 - 400.0, np.nan, 1e9 + 100.0, 1e9 + 50.0, 1e9 + 200.0])
+    np.testing.assert_array_equal(
+        epoch_times(tod, np.full(5, np.nan)), [86000.0, np.nan, 86500.0, 86450.0, 86600.0]
+    )
+    np.testing.assert_array_equal(
+        epoch_times(tod, midnight), [1e9 - 400.0, np.nan, 1e9 + 100.0, 1e9 + 50.0, 1e9 + 200.0]
+    )
 
 
 def test_notes_are_capped(tmp_path: Path) -> None:
@@ -184,7 +217,10 @@ def test_notes_are_capped(tmp_path: Path) -> None:
         (b"", "empty file"),
         (b"t,lat,lon\n1,2,3\n", "no usable GGA or RMC sentences in 2 lines"),
         ((GGA_REF[:-2] + "00\n").encode() * 3, r"3 rejected, first: line 1: GGA checksum mismatch"),
-        (np.random.default_rng(2).integers(0, 256, 4096, dtype=np.uint8).tobytes(), "no usable GGA or RMC"),
+        (
+            np.random.default_rng(2).integers(0, 256, 4096, dtype=np.uint8).tobytes(),
+            "no usable GGA or RMC",
+        ),
     ],
     ids=["empty", "not-nmea", "all-rejected", "binary-garbage"],
 )
@@ -197,7 +233,9 @@ def test_unusable_logs(tmp_path: Path, content: bytes, match: str) -> None:
 
 def test_noise_bytes_inside_a_sentence_only_reject_it(tmp_path: Path) -> None:
     path = tmp_path / "noisy.nmea"
-    path.write_bytes(GGA_REF.encode() + b"\n" + GGA_REF.replace("4807", "48\xff7").encode("latin-1") + b"\n")
+    path.write_bytes(
+        GGA_REF.encode() + b"\n" + GGA_REF.replace("4807", "48\xff7").encode("latin-1") + b"\n"
+    )
     table = read_table(path)
     assert (len(table.frame), table.rejected) == (1, 1)
 
@@ -213,16 +251,23 @@ def test_truncated_log_and_gzip(tmp_path: Path) -> None:
 
 
 @settings(max_examples=60, deadline=None)
-@given(lat=st.floats(-89.99, 89.99), lon=st.floats(-179.99, 179.99),
-       knots=st.floats(0, 200), course=st.floats(0, 359.9))
-def test_agrees_with_pynmea2(tmp_path_factory: pytest.TempPathFactory, lat: float, lon: float,
-                             knots: float, course: float) -> None:
+@given(
+    lat=st.floats(-89.99, 89.99),
+    lon=st.floats(-179.99, 179.99),
+    knots=st.floats(0, 200),
+    course=st.floats(0, 359.9),
+)
+def test_agrees_with_pynmea2(
+    tmp_path_factory: pytest.TempPathFactory, lat: float, lon: float, knots: float, course: float
+) -> None:
     def ddmm(value: float, width: int) -> str:
         deg = int(abs(value))
         return f"{deg:0{width}d}{(abs(value) - deg) * 60:07.4f}"
 
-    body = (f"GNRMC,101112.20,A,{ddmm(lat, 2)},{'N' if lat >= 0 else 'S'},{ddmm(lon, 3)},"
-            f"{'E' if lon >= 0 else 'W'},{knots:.3f},{course:.2f},150624,,,A")
+    body = (
+        f"GNRMC,101112.20,A,{ddmm(lat, 2)},{'N' if lat >= 0 else 'S'},{ddmm(lon, 3)},"
+        f"{'E' if lon >= 0 else 'W'},{knots:.3f},{course:.2f},150624,,,A"
+    )
     line = sentence(body)
     path = tmp_path_factory.mktemp("nmea") / "one.nmea"
     path.write_text(line + "\n")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
 from ._geo import LocalFrame
+from ._io import iter_csv_tables, read_fixes, read_table, write_table
 from ._preprocess import Prepared, preprocess
 from ._track import ColumnMap, Table, to_fixes
 
@@ -25,6 +26,10 @@ __all__ = [
     "Prepared",
     "Table",
     "__version__",
+    "iter_csv_tables",
     "preprocess",
+    "read_fixes",
+    "read_table",
     "to_fixes",
+    "write_table",
 ]

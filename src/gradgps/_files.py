@@ -56,17 +56,24 @@ def text_lines(raw: io.BufferedIOBase, source: str) -> Iterator[str]:
             if number == 1 and line.startswith(b"\xef\xbb\xbf"):
                 line = line[3:]
             if b"\x00" in line:
-                raise InputError("NUL bytes in the text: a binary file, or UTF-16 text",
-                                 source=source, line=number,
-                                 hint="save the file as UTF-8 text or pass the right format")
+                raise InputError(
+                    "NUL bytes in the text: a binary file, or UTF-16 text",
+                    source=source,
+                    line=number,
+                    hint="save the file as UTF-8 text or pass the right format",
+                )
             try:
                 yield line.decode("utf-8")
             except UnicodeDecodeError as exc:
                 raise InputError(
                     f"not UTF-8 text (byte 0x{line[exc.start]:02x} at character {exc.start + 1})",
-                    source=source, line=number,
+                    source=source,
+                    line=number,
                     hint="is this a binary file? save it as UTF-8 text or pass the right format",
                 ) from None
     except READ_ERRORS as exc:
-        raise InputError(f"cannot read compressed data: {exc}", source=source,
-                         hint="the .gz file is damaged or truncated") from None
+        raise InputError(
+            f"cannot read compressed data: {exc}",
+            source=source,
+            hint="the .gz file is damaged or truncated",
+        ) from None

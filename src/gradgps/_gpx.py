@@ -59,8 +59,9 @@ class _Collector:
 
     source: str
     parser: expat.XMLParserType
-    rows: dict[str, list[object]] = field(default_factory=lambda: {
-        k: [] for k in ("track", "time", "lat", "lon", "alt", *_OPTIONAL)})
+    rows: dict[str, list[object]] = field(
+        default_factory=lambda: {k: [] for k in ("track", "time", "lat", "lon", "alt", *_OPTIONAL)}
+    )
     lines: list[int] = field(default_factory=list)
     stack: list[str] = field(default_factory=list)
     track_index: int = -1
@@ -129,8 +130,12 @@ class _Collector:
         try:
             return float(text)
         except ValueError:
-            raise InputError(f"track point {key} is not a number: {text!r}", source=self.source,
-                             line=line, hint="fix the value in the file") from None
+            raise InputError(
+                f"track point {key} is not a number: {text!r}",
+                source=self.source,
+                line=line,
+                hint="fix the value in the file",
+            ) from None
 
 
 def read_gpx(path: str | Path) -> Table:
@@ -146,19 +151,27 @@ def read_gpx(path: str | Path) -> Table:
         try:
             parser.ParseFile(raw)
         except expat.ExpatError as exc:
-            raise InputError(f"malformed XML: {expat.errors.messages[exc.code]} (column {exc.offset + 1})",
-                             source=source, line=exc.lineno,
-                             hint="the file is cut off or not GPX; repair it or pass the right format"
-                             ) from None
+            raise InputError(
+                f"malformed XML: {expat.errors.messages[exc.code]} (column {exc.offset + 1})",
+                source=source,
+                line=exc.lineno,
+                hint="the file is cut off or not GPX; repair it or pass the right format",
+            ) from None
         except READ_ERRORS as exc:
             raise InputError(f"cannot read: {exc}", source=source) from None
     rows = collector.rows
     n = len(rows["track"])
     if n == 0:
-        extra = (f" ({collector.other_points} waypoints/route points, which are plans, not recordings)"
-                 if collector.other_points else "")
-        raise InputError(f"no track points (<trkpt>) in the file{extra}", source=source,
-                         hint="export the recorded track, not a route")
+        extra = (
+            f" ({collector.other_points} waypoints/route points, which are plans, not recordings)"
+            if collector.other_points
+            else ""
+        )
+        raise InputError(
+            f"no track points (<trkpt>) in the file{extra}",
+            source=source,
+            hint="export the recorded track, not a route",
+        )
     times = _times(rows["time"], collector.lines, source)
     frame: dict[str, object] = {
         "track": np.array(rows["track"], dtype=object),
@@ -172,7 +185,11 @@ def read_gpx(path: str | Path) -> Table:
         if np.isfinite(values).any():
             frame[key] = values
     columns = ColumnMap(
-        time="time", lat="lat", lon="lon", track="track", alt="alt",
+        time="time",
+        lat="lat",
+        lon="lon",
+        track="track",
+        alt="alt",
         speed="speed" if "speed" in frame else "",
         heading="course" if "course" in frame else "",
         hdop="hdop" if "hdop" in frame else "",
@@ -185,18 +202,27 @@ def _times(texts: list[object], lines: list[int], source: str) -> pd.Series:
     series = pd.Series(texts, dtype="string")
     blank = (series == "").to_numpy()
     try:
-        parsed = pd.to_datetime(series.where(~blank, None), utc=True, format="ISO8601",
-                                errors="coerce")
+        parsed = pd.to_datetime(
+            series.where(~blank, None), utc=True, format="ISO8601", errors="coerce"
+        )
     except (ValueError, OverflowError):
         # Some strings make the vectorised parser raise instead of coerce;
         # parse one by one so the culprit can be named.
-        parsed = pd.to_datetime(pd.Series([None if b else _timestamp(str(t))
-                                           for t, b in zip(texts, blank, strict=True)]), utc=True)
+        parsed = pd.to_datetime(
+            pd.Series(
+                [None if b else _timestamp(str(t)) for t, b in zip(texts, blank, strict=True)]
+            ),
+            utc=True,
+        )
     bad = parsed.isna().to_numpy() & ~blank
     if bad.any():
         pos = int(np.flatnonzero(bad)[0])
-        raise InputError(f"track point time is not ISO-8601: {texts[pos]!r}", source=source,
-                         line=lines[pos], hint="GPX times look like 2019-05-23T20:54:11Z")
+        raise InputError(
+            f"track point time is not ISO-8601: {texts[pos]!r}",
+            source=source,
+            line=lines[pos],
+            hint="GPX times look like 2019-05-23T20:54:11Z",
+        )
     return parsed
 
 

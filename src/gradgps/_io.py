@@ -78,13 +78,9 @@ def resolve_format(path: str | Path, fmt: str | None = None) -> str:
         if name not in FORMATS:
             raise ConfigError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
         return name
-    suffixes = [s.lower() for s in path.suffixes]
-    if suffixes and suffixes[-1] == ".gz":
-        suffixes = suffixes[:-1]
-    by_extension = _EXTENSIONS.get(suffixes[-1]) if suffixes else None
+    by_extension = _extension_format(path)
     if by_extension is not None:
         return by_extension
-    check_readable(path)
     with open_bytes(path) as raw:
         try:
             head = raw.read(64).lstrip(b"\xef\xbb\xbf \t\r\n")
@@ -99,9 +95,7 @@ def resolve_format(path: str | Path, fmt: str | None = None) -> str:
     return "csv"
 
 
-def read_table(
-    path: str | Path, fmt: str | None = None, columns: ColumnMap | None = None
-) -> Table:
+def read_table(path: str | Path, fmt: str | None = None, columns: ColumnMap | None = None) -> Table:
     """Read a track file into a :class:`Table`, keeping every input column.
 
     ``columns`` names the role of columns (anything ``None`` is auto-detected
@@ -141,7 +135,7 @@ def write_table(frame: pd.DataFrame, path: str | Path, fmt: str | None = None) -
     back gives the same numbers.
     """
     path = Path(path)
-    kind = resolve_format(path, fmt) if fmt is not None or _known_extension(path) else None
+    kind = resolve_format(path, fmt) if fmt is not None else _extension_format(path)
     if kind is None:
         raise ConfigError(
             f"cannot tell the output format of {str(path)!r} from its extension; "
@@ -168,25 +162,41 @@ def iter_csv_tables(
     Memory stays bounded by the chunk size. Each chunk's ``row_offset`` and
     ``first_line`` say where it sits in the file, so value errors found in a
     later chunk name the right row and line. The structure of the whole file
-    is checked first (one streaming pass), so a ragged row near the end fails
-    before any chunk is handed out.
+    is checked here, before any chunk is handed out (one streaming pass), so
+    a ragged row near the end fails at once, not after hours of work.
     """
     if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
         raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")
     path = Path(path)
-    check_readable(path)
-    source = str(path)
     layout = _scan_csv(path)
-    cmap = _override(ColumnMap(), columns) if columns is not None else ColumnMap()
+    return _csv_chunks(path, layout, chunksize, columns or ColumnMap())
+
+
+def _csv_chunks(
+    path: Path, layout: _CsvLayout, chunksize: int, columns: ColumnMap
+) -> Iterator[Table]:
+    source = str(path)
     offset = 0
     with _pandas_errors(source):
-        reader = pd.read_csv(path, sep=layout.delimiter, encoding="utf-8", chunksize=chunksize,
-                             dtype=_label_dtypes(layout, columns, source))
+        reader = pd.read_csv(
+            path,
+            sep=layout.delimiter,
+            encoding="utf-8",
+            chunksize=chunksize,
+            # Type each chunk as a whole: no mixed-type columns, no DtypeWarning.
+            low_memory=False,
+            dtype=_label_dtypes(layout, columns, source),
+        )
         with reader:
             for chunk in reader:
                 first_line = layout.first_line + offset if layout.lines_regular else None
-                yield Table(frame=chunk, source=source, columns=cmap, first_line=first_line,
-                            row_offset=offset)
+                yield Table(
+                    frame=chunk,
+                    source=source,
+                    columns=columns,
+                    first_line=first_line,
+                    row_offset=offset,
+                )
                 offset += len(chunk)
 
 
@@ -196,11 +206,12 @@ def _override(base: ColumnMap, given: ColumnMap) -> ColumnMap:
     return ColumnMap(**chosen)
 
 
-def _known_extension(path: Path) -> bool:
+def _extension_format(path: Path) -> str | None:
+    """The format named by the extension (ignoring a final ``.gz``), or None."""
     suffixes = [s.lower() for s in path.suffixes]
     if suffixes and suffixes[-1] == ".gz":
         suffixes = suffixes[:-1]
-    return bool(suffixes) and suffixes[-1] in _EXTENSIONS
+    return _EXTENSIONS.get(suffixes[-1]) if suffixes else None
 
 
 @dataclass(frozen=True)
@@ -232,8 +243,11 @@ def _scan_csv(path: Path) -> _CsvLayout:
                 header_text = text
                 break
         if not header_text:
-            raise InputError("empty file: no header line and no data", source=source,
-                             hint="a CSV needs a header line naming the columns, then one row per fix")
+            raise InputError(
+                "empty file: no header line and no data",
+                source=source,
+                hint="a CSV needs a header line naming the columns, then one row per fix",
+            )
         delimiter = max(_DELIMITERS, key=header_text.count)
         if header_text.count(delimiter) == 0:
             delimiter = ","
@@ -258,15 +272,25 @@ def _scan_csv(path: Path) -> _CsvLayout:
                 if len(record) != len(header):
                     raise InputError(
                         f"{len(record)} fields where the header has {len(header)}",
-                        source=source, row=n_rows, line=start,
+                        source=source,
+                        row=n_rows,
+                        line=start,
                         hint="a truncated line, a stray delimiter or an unquoted text field; fix that line",
                     )
         except csv.Error as exc:
-            raise InputError(f"malformed CSV record starting here: {exc}", source=source,
-                             line=prev_end + 1,
-                             hint="check the quoting on that line (a quote must close its field)") from None
-    return _CsvLayout(delimiter=delimiter, header=tuple(header), first_line=header_line + 1,
-                      n_rows=n_rows, lines_regular=regular)
+            raise InputError(
+                f"malformed CSV record starting here: {exc}",
+                source=source,
+                line=prev_end + 1,
+                hint="check the quoting on that line (a quote must close its field)",
+            ) from None
+    return _CsvLayout(
+        delimiter=delimiter,
+        header=tuple(header),
+        first_line=header_line + 1,
+        n_rows=n_rows,
+        lines_regular=regular,
+    )
 
 
 def _check_header(header: list[str], source: str, line: int) -> None:
@@ -280,7 +304,8 @@ def _check_header(header: list[str], source: str, line: int) -> None:
     if header and all(is_number(name) for name in header):
         raise InputError(
             "the first line holds numbers, not column names: the file has no header",
-            source=source, line=line,
+            source=source,
+            line=line,
             hint="add a header line naming the columns, e.g. 't,lat,lon'",
         )
 
@@ -313,8 +338,13 @@ def _read_csv(path: Path, columns: ColumnMap | None) -> Table:
     source = str(path)
     layout = _scan_csv(path)
     with _pandas_errors(source):
-        frame = pd.read_csv(path, sep=layout.delimiter, encoding="utf-8", low_memory=False,
-                            dtype=_label_dtypes(layout, columns, source))
+        frame = pd.read_csv(
+            path,
+            sep=layout.delimiter,
+            encoding="utf-8",
+            low_memory=False,
+            dtype=_label_dtypes(layout, columns, source),
+        )
     regular = layout.lines_regular and len(frame) == layout.n_rows
     return Table(frame=frame, source=source, first_line=layout.first_line if regular else None)
 
@@ -327,8 +357,11 @@ def _read_parquet(path: Path) -> Table:
         raise ConfigError(f"reading Parquet needs pyarrow ({exc}); install gradgps[io]") from None
     except (ValueError, OSError, TypeError) as exc:
         # pyarrow's ArrowInvalid is a ValueError: not Parquet, truncated, damaged.
-        raise InputError(f"not a readable Parquet file: {exc}", source=source,
-                         hint="check the file, or pass the right format") from None
+        raise InputError(
+            f"not a readable Parquet file: {exc}",
+            source=source,
+            hint="check the file, or pass the right format",
+        ) from None
     if not isinstance(frame.index, pd.RangeIndex):
         # A stored index is data (often the time); make it a column like the rest.
         frame = frame.reset_index()

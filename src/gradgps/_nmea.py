@@ -218,14 +218,15 @@ def _sentence(text: str) -> tuple[str, list[str]] | None:
     star = text.rfind("*")
     if star < 0:
         raise _Malformed(f"{kind} sentence has no checksum (cut off?)")
-    given = text[star + 1:].strip()
+    given = text[star + 1 :].strip()
     if not re.fullmatch(r"[0-9A-Fa-f]{2}", given):
         raise _Malformed(f"{kind} checksum is not two hex digits: {given!r}")
     body = text[:star]
     computed = nmea_checksum(body)
     if computed != int(given, 16):
-        raise _Malformed(f"{kind} checksum mismatch: sentence says {given.upper()}, "
-                         f"content gives {computed:02X}")
+        raise _Malformed(
+            f"{kind} checksum mismatch: sentence says {given.upper()}, content gives {computed:02X}"
+        )
     return kind, body.split(",")[1:]
 
 
@@ -260,29 +261,43 @@ def read_nmea(path: str | Path) -> Table:
                         if len(notes) < MAX_NOTES:
                             notes.append(f"line {n_lines}: {exc}")
                         continue
-                    if (current is not None and current.tod == epoch.tod
-                            and not (current.has_gga and epoch.has_gga)
-                            and not (current.has_rmc and epoch.has_rmc)):
+                    if (
+                        current is not None
+                        and current.tod == epoch.tod
+                        and not (current.has_gga and epoch.has_gga)
+                        and not (current.has_rmc and epoch.has_rmc)
+                    ):
                         _merge(current, epoch)
                     else:
                         current = epoch
                         epochs.append(epoch)
         except READ_ERRORS as exc:
-            raise InputError(f"cannot read compressed data: {exc}", source=source,
-                             hint="the .gz file is damaged or truncated") from None
+            raise InputError(
+                f"cannot read compressed data: {exc}",
+                source=source,
+                hint="the .gz file is damaged or truncated",
+            ) from None
     if rejected > MAX_NOTES:
         notes.append(f"... and {rejected - MAX_NOTES} more rejected sentences")
     if not epochs:
         if n_lines == 0:
-            raise InputError("empty file", source=source, hint="an NMEA log has one $..*hh sentence per line")
+            raise InputError(
+                "empty file", source=source, hint="an NMEA log has one $..*hh sentence per line"
+            )
         detail = f"; {rejected} rejected, first: {notes[0]}" if rejected else ""
-        raise InputError(f"no usable GGA or RMC sentences in {n_lines} lines{detail}", source=source,
-                         hint="is this an NMEA 0183 log? otherwise pass the right format")
+        raise InputError(
+            f"no usable GGA or RMC sentences in {n_lines} lines{detail}",
+            source=source,
+            hint="is this an NMEA 0183 log? otherwise pass the right format",
+        )
     frame, time_note = _frame(epochs)
     if time_note:
         notes.append(time_note)
     columns = ColumnMap(
-        time="time", lat="lat", lon="lon", track="",
+        time="time",
+        lat="lat",
+        lon="lon",
+        track="",
         speed="speed" if "speed" in frame.columns else "",
         heading="course" if "course" in frame.columns else "",
         alt="alt" if "alt" in frame.columns else "",

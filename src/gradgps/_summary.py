@@ -59,8 +59,13 @@ class SpeedStats:
         finite = values[np.isfinite(values)]
         if finite.size == 0:
             return None
-        return cls(source=source, mean=float(finite.mean()), median=float(np.median(finite)),
-                   p95=float(np.percentile(finite, 95)), max=float(finite.max()))
+        return cls(
+            source=source,
+            mean=float(finite.mean()),
+            median=float(np.median(finite)),
+            p95=float(np.percentile(finite, 95)),
+            max=float(finite.max()),
+        )
 
 
 @dataclass(frozen=True)
@@ -126,7 +131,7 @@ def _track_facts(points: pd.DataFrame, has_speed: bool) -> _TrackFacts:
     speeds = np.empty(0)
     source: str | None = None
     if has_speed:
-        reported = points["speed"].to_numpy(dtype=np.float64)[~points["interpolated"].to_numpy()]
+        reported = points["speed"].to_numpy(dtype=np.float64)
         if np.isfinite(reported).any():
             speeds, source = reported, "reported"
     if source is None and steps.size:
@@ -137,9 +142,15 @@ def _track_facts(points: pd.DataFrame, has_speed: bool) -> _TrackFacts:
     return _TrackFacts(steps=steps, speeds=speeds, speed_source=source)
 
 
-def _summary_of(name: str, points: int, invalid: int, duration: float | None,
-                steps: list[np.ndarray], box: tuple[float, float, float, float] | None,
-                speed: SpeedStats | None) -> TrackSummary:
+def _summary_of(
+    name: str,
+    points: int,
+    invalid: int,
+    duration: float | None,
+    steps: list[np.ndarray],
+    box: tuple[float, float, float, float] | None,
+    speed: SpeedStats | None,
+) -> TrackSummary:
     """One summary from facts that may come from one track or many (``steps`` per track)."""
     all_steps = np.concatenate(steps) if steps else np.empty(0)
     median = float(np.median(all_steps)) if all_steps.size else None
@@ -153,11 +164,18 @@ def _summary_of(name: str, points: int, invalid: int, duration: float | None,
         if is_gap.any():
             longest = max(longest or 0.0, float(track_steps[is_gap].max()))
     return TrackSummary(
-        track=name, points=points, invalid=invalid, median_step_s=median,
-        rate_hz=1.0 / median if median else None, duration_s=duration, gaps=gaps,
+        track=name,
+        points=points,
+        invalid=invalid,
+        median_step_s=median,
+        rate_hz=1.0 / median if median else None,
+        duration_s=duration,
+        gaps=gaps,
         longest_gap_s=longest,
-        lat_min=box[0] if box else None, lat_max=box[1] if box else None,
-        lon_min=box[2] if box else None, lon_max=box[3] if box else None,
+        lat_min=box[0] if box else None,
+        lat_max=box[1] if box else None,
+        lon_min=box[2] if box else None,
+        lon_max=box[3] if box else None,
         speed=speed,
     )
 
@@ -188,9 +206,17 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
         t = track_points["t"].to_numpy(dtype=np.float64)
         box = _box(track_points)
         speed = SpeedStats.of(facts.speeds, facts.speed_source) if facts.speed_source else None
-        summaries.append(_summary_of(
-            str(name), int(in_track.sum()), int((in_track & invalid_rows).sum()),
-            float(t[-1] - t[0]) if facts.steps.size else None, [facts.steps], box, speed))
+        summaries.append(
+            _summary_of(
+                str(name),
+                int(in_track.sum()),
+                int((in_track & invalid_rows).sum()),
+                float(t[-1] - t[0]) if facts.steps.size else None,
+                [facts.steps],
+                box,
+                speed,
+            )
+        )
         step_lists.append(facts.steps)
         if facts.speed_source:
             speed_parts.append(facts.speeds)
@@ -202,12 +228,23 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
         total_speed = SpeedStats.of(np.concatenate(speed_parts), source)
     durations = [s.duration_s for s in summaries if s.duration_s is not None]
     total = _summary_of(
-        "total", len(fixes), int(invalid_rows.sum()), math.fsum(durations) if durations else None,
-        step_lists, _box(points), total_speed)
+        "total",
+        len(fixes),
+        int(invalid_rows.sum()),
+        math.fsum(durations) if durations else None,
+        step_lists,
+        _box(points),
+        total_speed,
+    )
     reasons = Counter(str(r) for r in prepared.row_reason if r != "")
-    return Summary(source=str(fixes.attrs.get("source", "<data>")), tracks=summaries, total=total,
-                   invalid_reasons=dict(reasons.most_common()), rejected=rejected,
-                   notes=list(notes or []))
+    return Summary(
+        source=str(fixes.attrs.get("source", "<data>")),
+        tracks=summaries,
+        total=total,
+        invalid_reasons=dict(reasons.most_common()),
+        rejected=rejected,
+        notes=list(notes or []),
+    )
 
 
 def _box(points: pd.DataFrame) -> tuple[float, float, float, float] | None:

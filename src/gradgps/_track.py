@@ -204,6 +204,11 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
     if bool(numeric.notna().all()) or bool((numeric.notna() | as_str.isna() | (as_str == "")).all()):
         return _scale_epoch(np.asarray(numeric.to_numpy(dtype=np.float64, na_value=np.nan)))
     blank = series.isna() | (as_str == "")
+    not_number = numeric.isna() & ~blank
+    if int(numeric.notna().sum()) > int(not_number.sum()):
+        # Mostly numbers: the few text values are the mistakes, not the numbers.
+        pos = int(np.flatnonzero(not_number.to_numpy())[0])
+        raise _row_error(table, pos, col, f"not a time (seconds or ISO-8601): {series.iloc[pos]!r}")
     try:
         parsed = pd.to_datetime(as_str.where(~blank, None), utc=True, format="ISO8601", errors="coerce")
     except (ValueError, TypeError):

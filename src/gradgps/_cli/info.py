@@ -102,8 +102,19 @@ def _print(console: Console, summary: Summary) -> None:
     if summary.rejected:
         console.print(f"rejected sentences: {summary.rejected:,}")
     table = Table(show_footer=False)
-    for header in ("track", "points", "invalid", "rate Hz", "duration", "gaps", "longest gap",
-                   "latitude", "longitude", "speed m/s median / p95 / max", "speed from"):
+    for header in (
+        "track",
+        "points",
+        "invalid",
+        "rate Hz",
+        "duration",
+        "gaps",
+        "longest gap",
+        "latitude",
+        "longitude",
+        "speed m/s median / p95 / max",
+        "speed from",
+    ):
         right = header in ("points", "invalid", "rate Hz", "duration", "gaps", "longest gap")
         table.add_column(header, justify="right" if right else "left")
     for track in summary.tracks:
