@@ -3,6 +3,9 @@
 Parsed with the standard library's expat parser, streaming, so that every
 problem can name its file line: expat reports the line of malformed XML, and
 the reader knows the line of each ``<trkpt>`` when a value inside it is bad.
+expat fetches no external entities and (from version 2.4, bundled with every
+supported Python) caps entity expansion, so a hostile file cannot make the
+reader fetch URLs or exhaust memory.
 
 Each ``<trkseg>`` becomes its own track, with id ``"<track>/<segment>"``:
 ``<track>`` is the ``<trk>``'s ``<name>`` (or its 0-based index when it has

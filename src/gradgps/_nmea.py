@@ -37,7 +37,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
 
@@ -230,6 +230,41 @@ def _sentence(text: str) -> tuple[str, list[str]] | None:
     return kind, body.split(",")[1:]
 
 
+@dataclass
+class _LogReader:
+    """Turns sentences, in file order, into epochs; counts and notes the rejected ones."""
+
+    epochs: list[_Epoch] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    rejected: int = 0
+
+    def add(self, text: str, line: int) -> None:
+        """Take one sentence (``text`` follows its ``$``) found on file line ``line``."""
+        try:
+            parsed = _sentence(text)
+            if parsed is None:
+                return
+            kind, fields = parsed
+            epoch = (_parse_gga if kind == "GGA" else _parse_rmc)(fields, line)
+        except _Malformed as exc:
+            self.rejected += 1
+            if len(self.notes) < MAX_NOTES:
+                self.notes.append(f"line {line}: {exc}")
+            return
+        # Same time of day as the previous epoch and the other sentence type:
+        # the same instant. NaN times never match, so they stay rows of their own.
+        current = self.epochs[-1] if self.epochs else None
+        if (
+            current is not None
+            and current.tod == epoch.tod
+            and not (current.has_gga and epoch.has_gga)
+            and not (current.has_rmc and epoch.has_rmc)
+        ):
+            _merge(current, epoch)
+        else:
+            self.epochs.append(epoch)
+
+
 def read_nmea(path: str | Path) -> Table:
     """Read an NMEA 0183 log (optionally ``.gz``) into a Table; see the module docstring.
 
@@ -239,44 +274,23 @@ def read_nmea(path: str | Path) -> Table:
     """
     path = Path(path)
     source = str(path)
-    epochs: list[_Epoch] = []
-    notes: list[str] = []
-    rejected = 0
-    current: _Epoch | None = None
+    log = _LogReader()
     n_lines = 0
     with open_bytes(path) as raw:
         try:
             for raw_line in raw:
                 n_lines += 1
-                text = raw_line.decode("ascii", errors="replace")
-                for piece in text.split("$")[1:]:
-                    try:
-                        parsed = _sentence(piece)
-                        if parsed is None:
-                            continue
-                        kind, fields = parsed
-                        epoch = (_parse_gga if kind == "GGA" else _parse_rmc)(fields, n_lines)
-                    except _Malformed as exc:
-                        rejected += 1
-                        if len(notes) < MAX_NOTES:
-                            notes.append(f"line {n_lines}: {exc}")
-                        continue
-                    if (
-                        current is not None
-                        and current.tod == epoch.tod
-                        and not (current.has_gga and epoch.has_gga)
-                        and not (current.has_rmc and epoch.has_rmc)
-                    ):
-                        _merge(current, epoch)
-                    else:
-                        current = epoch
-                        epochs.append(epoch)
+                # Several sentences may share a line (a cut-off one followed
+                # by the next); text before the first "$" is a logger's prefix.
+                for piece in raw_line.decode("ascii", errors="replace").split("$")[1:]:
+                    log.add(piece, n_lines)
         except READ_ERRORS as exc:
             raise InputError(
                 f"cannot read compressed data: {exc}",
                 source=source,
                 hint="the .gz file is damaged or truncated",
             ) from None
+    epochs, notes, rejected = log.epochs, log.notes, log.rejected
     if rejected > MAX_NOTES:
         notes.append(f"... and {rejected - MAX_NOTES} more rejected sentences")
     if not epochs:
