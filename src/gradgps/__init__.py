@@ -10,6 +10,7 @@ from __future__ import annotations
 from . import metrics
 from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
 from ._geo import LocalFrame
+from ._io import iter_csv_tables, read_fixes, read_table, write_table
 from ._preprocess import Prepared, preprocess
 from ._simulator import SimulatorParams, simulate_drive, simulate_fleet
 from ._track import ColumnMap, Table, to_fixes
@@ -28,9 +29,13 @@ __all__ = [
     "SimulatorParams",
     "Table",
     "__version__",
+    "iter_csv_tables",
     "metrics",
     "preprocess",
+    "read_fixes",
+    "read_table",
     "simulate_drive",
     "simulate_fleet",
     "to_fixes",
+    "write_table",
 ]

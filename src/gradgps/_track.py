@@ -100,7 +100,9 @@ class Table:
     ``frame`` keeps every input column with its original name and order (the
     ``detect`` output keeps them all). ``first_line`` is the file line of data
     row 1 (2 for a CSV with a header) so errors can name lines; ``None`` where
-    lines mean nothing (Parquet). ``rejected`` counts records a lenient reader
+    lines mean nothing (Parquet). ``row_offset`` is the number of input rows
+    before this table when it is one chunk of a bigger file (streaming), so
+    errors name rows of the file. ``rejected`` counts records a lenient reader
     skipped (bad NMEA checksums), with ``notes`` saying which.
     """
 
@@ -110,6 +112,7 @@ class Table:
     first_line: int | None = None
     rejected: int = 0
     notes: list[str] | None = None
+    row_offset: int = 0
 
 
 def resolve_columns(
@@ -183,7 +186,7 @@ def _numeric(
 
 def _row_error(table: Table, pos: int, col: str, reason: str) -> InputError:
     line = None if table.first_line is None else table.first_line + pos
-    return InputError(reason, source=table.source, row=pos + 1, line=line, column=col,
+    return InputError(reason, source=table.source, row=table.row_offset + pos + 1, line=line, column=col,
                       hint="fix the value or choose another column")
 
 
@@ -201,6 +204,11 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
     if bool(numeric.notna().all()) or bool((numeric.notna() | as_str.isna() | (as_str == "")).all()):
         return _scale_epoch(np.asarray(numeric.to_numpy(dtype=np.float64, na_value=np.nan)))
     blank = series.isna() | (as_str == "")
+    not_number = numeric.isna() & ~blank
+    if int(numeric.notna().sum()) > int(not_number.sum()):
+        # Mostly numbers: the few text values are the mistakes, not the numbers.
+        pos = int(np.flatnonzero(not_number.to_numpy())[0])
+        raise _row_error(table, pos, col, f"not a time (seconds or ISO-8601): {series.iloc[pos]!r}")
     try:
         parsed = pd.to_datetime(as_str.where(~blank, None), utc=True, format="ISO8601", errors="coerce")
     except (ValueError, TypeError):

@@ -10,18 +10,21 @@ from __future__ import annotations
 import click
 
 from .bench import bench
+from .errors import ErrorReportingGroup
+from .info import info
 from .inject import inject
 from .simulate import simulate
 
 __all__ = ["main"]
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=ErrorReportingGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="gradgps")
 def main() -> None:
     """Find, classify and repair faults in vehicle GPS and sensor streams (GRAD)."""
 
 
 main.add_command(bench)
+main.add_command(info)
 main.add_command(inject)
 main.add_command(simulate)

@@ -1,0 +1,44 @@
+"""Errors on the command line: one clean ``error: ...`` line, never a traceback.
+
+Every gradgps error already says what was wrong, where and what to do, so the
+CLI prints its message as is. The group class below wraps every command, so
+no command needs its own try/except. Exit codes: 2 for bad input or options
+(:class:`InputError`, :class:`ConfigError`, like click's own usage errors),
+1 for any other gradgps error (a model or dataset that cannot be loaded).
+Anything else is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+from typing import IO, Any
+
+import click
+
+from .._exceptions import ConfigError, GradGPSError, InputError
+
+__all__ = ["BadInputError", "CleanError", "ErrorReportingGroup"]
+
+
+class CleanError(click.ClickException):
+    """A gradgps error as click shows it: ``error: <message>`` on stderr, exit code 1."""
+
+    def show(self, file: IO[Any] | None = None) -> None:
+        click.echo(f"error: {self.format_message()}", file=file, err=file is None)
+
+
+class BadInputError(CleanError):
+    """Bad input data or options: exit code 2, like click's own usage errors."""
+
+    exit_code = 2
+
+
+class ErrorReportingGroup(click.Group):
+    """A click group that turns gradgps errors raised by its commands into :class:`CleanError`."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except (InputError, ConfigError) as exc:
+            raise BadInputError(str(exc)) from exc
+        except GradGPSError as exc:
+            raise CleanError(str(exc)) from exc
