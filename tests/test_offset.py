@@ -1,0 +1,63 @@
+"""Offset tracker: kernel == reference, and it holds a jump's offset until the jump ends."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gradgps import ConfigError
+from gradgps._offset import OffsetParams, offset_features, offset_features_reference
+
+
+def _drive(n: int = 300, seed: int = 0) -> tuple[np.ndarray, ...]:
+    rng = np.random.default_rng(seed)
+    dt = np.r_[0.0, np.full(n - 1, 1.0)]
+    speed = 12.0 + 3.0 * np.sin(np.arange(n) / 30.0)
+    heading = np.mod(40.0 + 0.3 * np.arange(n), 360.0)
+    ve, vn = speed * np.sin(np.radians(heading)), speed * np.cos(np.radians(heading))
+    east = np.cumsum(ve * dt) + rng.normal(0, 0.5, n)
+    north = np.cumsum(vn * dt) + rng.normal(0, 0.5, n)
+    return dt, east, north, speed, heading
+
+
+@pytest.mark.parametrize("with_velocity", [True, False])
+def test_jump_offset_is_held_for_its_whole_length_and_released(with_velocity: bool) -> None:
+    dt, east, north, speed, heading = _drive()
+    east = east.copy()
+    east[100:190] += 40.0
+    sp, hd = (speed, heading) if with_velocity else (None, None)
+    out = offset_features(dt, east, north, sp, hd)
+    norm = out[:, 2]
+    assert (norm[:100] < 3.0).all()
+    assert (norm[100:190] > 30.0).all()  # held through 90 points
+    assert (norm[190:] < 6.0).all()  # and released when the jump ends
+
+
+def test_clean_drive_keeps_offset_small() -> None:
+    dt, east, north, speed, heading = _drive(seed=3)
+    for sp, hd in ((speed, heading), (None, None)):
+        assert offset_features(dt, east, north, sp, hd)[:, 2].max() < 3.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    steps=st.lists(st.tuples(st.floats(-40, 40), st.floats(-40, 40), st.floats(0.1, 2.0),
+                             st.one_of(st.just(float("nan")), st.floats(0, 40)),
+                             st.floats(0, 360)), min_size=1, max_size=60),
+    threshold=st.floats(1.0, 20.0),
+)
+def test_kernel_matches_reference(steps: list[tuple[float, ...]], threshold: float) -> None:
+    arr = np.array(steps)
+    dt = arr[:, 2]
+    east, north = np.cumsum(arr[:, 0]), np.cumsum(arr[:, 1])
+    prm = OffsetParams(threshold_m=threshold)
+    a = offset_features(dt, east, north, arr[:, 3], arr[:, 4], prm)
+    b = offset_features_reference(dt, east, north, arr[:, 3], arr[:, 4], prm)
+    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+
+
+def test_bad_parameters() -> None:
+    with pytest.raises(ConfigError):
+        OffsetParams(threshold_m=0).to_array()
