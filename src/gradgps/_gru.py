@@ -410,7 +410,7 @@ class GRUModel:
             raise ModelError(f"weights lack {', '.join(missing)}; the model was exported incompletely, export it again")
         n_features = int(np.shape(weights["gru1.weight_ih"])[1])
         expected = weight_shapes(n_features, int(np.shape(weights["gru1.weight_hh"])[1]),
-                                 int(np.shape(weights["gru2.weight_hh"])[1]),
+                                 int(np.shape(weights["anomaly_head.weight"])[1]),
                                  int(np.shape(weights["bias_head.bias"])[0]))
         for name, shape in expected.items():
             if tuple(np.shape(weights[name])) != shape:

@@ -161,7 +161,7 @@ def save_model(directory: str | os.PathLike[str], weights: Mapping[str, np.ndarr
     arrays = {name: np.ascontiguousarray(weights[name], dtype=np.float32) for name in weights}
     _check_weights(arrays, content, f"weights for {folder}")
     buffer = io.BytesIO()
-    np.savez(buffer, **{name: arrays[name] for name in WEIGHT_NAMES})
+    np.savez(buffer, allow_pickle=False, **{name: arrays[name] for name in WEIGHT_NAMES})
     data = buffer.getvalue()
     content["format_version"] = FORMAT_VERSION
     content["weights_file"] = WEIGHTS_FILE

@@ -99,6 +99,9 @@ class GRADNet(nn.Module):
     with the module; non-finite scaled inputs become 0, as in inference.
     """
 
+    scaler_mean: torch.Tensor
+    scaler_std: torch.Tensor
+
     def __init__(self, n_features: int, n_bias_classes: int, hidden1: int = 32, hidden2: int = 16) -> None:
         super().__init__()
         self.register_buffer("scaler_mean", torch.zeros(n_features))
@@ -265,8 +268,8 @@ def _stream_lanes(packed: _Packed, n_lanes: int, chunk: int, piece_points: int, 
     n_lanes = min(n_lanes, len(pieces))
     lanes: list[list[tuple[int, bool]]] = [[] for _ in range(n_lanes)]
     for p in order:
-        lane = min(range(n_lanes), key=lambda k: len(lanes[k]))
-        lanes[lane] += [(int(c), j == 0) for j, c in enumerate(pieces[p])]
+        shortest = min(range(n_lanes), key=lambda k: len(lanes[k]))
+        lanes[shortest] += [(int(c), j == 0) for j, c in enumerate(pieces[p])]
     steps = max(len(lane) for lane in lanes)
     offsets = np.full((n_lanes, steps), -1, np.int64)
     resets = np.ones((n_lanes, steps), bool)
@@ -282,8 +285,8 @@ def _class_weights(labels: np.ndarray, n_classes: int, cap: float) -> torch.Tens
     counts = np.bincount(labels, minlength=n_classes).astype(np.float64)
     weights = np.ones(n_classes)
     present = counts > 0
-    weights[present] = labels.size / (present.sum() * counts[present])
-    weights = np.clip(weights / weights[present].min(), 1.0, cap)
+    balanced = labels.size / (present.sum() * counts[present])
+    weights[present] = np.clip(balanced / balanced.min(), 1.0, cap)  # most frequent class: 1
     return torch.tensor(weights, dtype=torch.float32)
 
 
@@ -296,7 +299,8 @@ class _Loss:
     def __call__(self, anomaly_logits: torch.Tensor, bias_logits: torch.Tensor,
                  anomaly: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
         loss: torch.Tensor = self.anomaly(anomaly_logits.reshape(-1, 2), anomaly.reshape(-1))
-        return loss + self.bias_factor * self.bias(bias_logits.reshape(-1, bias_logits.shape[-1]), bias.reshape(-1))
+        bias_loss: torch.Tensor = self.bias(bias_logits.reshape(-1, bias_logits.shape[-1]), bias.reshape(-1))
+        return loss + self.bias_factor * bias_loss
 
 
 def _predict_packed(net: GRADNet, packed: _Packed, config: TrainConfig,
