@@ -43,7 +43,9 @@ def features() -> np.ndarray:
     return x
 
 
-def _model(weights: dict[str, np.ndarray], scaler: tuple[np.ndarray, np.ndarray], **kw: object) -> GRUModel:
+def _model(
+    weights: dict[str, np.ndarray], scaler: tuple[np.ndarray, np.ndarray], **kw: object
+) -> GRUModel:
     return GRUModel(weights, scaler[0], scaler[1], **kw)  # type: ignore[arg-type]
 
 
@@ -80,10 +82,16 @@ def _torch_net(weights, scaler):
     from gradgps._training import GRADNet
 
     net = GRADNet(F, K)
-    names = {"gru1.weight_ih": "gru1.weight_ih_l0", "gru1.weight_hh": "gru1.weight_hh_l0",
-             "gru1.bias_ih": "gru1.bias_ih_l0", "gru1.bias_hh": "gru1.bias_hh_l0",
-             "gru2.weight_ih": "gru2.weight_ih_l0", "gru2.weight_hh": "gru2.weight_hh_l0",
-             "gru2.bias_ih": "gru2.bias_ih_l0", "gru2.bias_hh": "gru2.bias_hh_l0"}
+    names = {
+        "gru1.weight_ih": "gru1.weight_ih_l0",
+        "gru1.weight_hh": "gru1.weight_hh_l0",
+        "gru1.bias_ih": "gru1.bias_ih_l0",
+        "gru1.bias_hh": "gru1.bias_hh_l0",
+        "gru2.weight_ih": "gru2.weight_ih_l0",
+        "gru2.weight_hh": "gru2.weight_hh_l0",
+        "gru2.bias_ih": "gru2.bias_ih_l0",
+        "gru2.bias_hh": "gru2.bias_hh_l0",
+    }
     state = {names.get(k, k): torch.from_numpy(v) for k, v in weights.items()}
     state["scaler_mean"] = torch.from_numpy(scaler[0])
     state["scaler_std"] = torch.from_numpy(scaler[1])
@@ -98,12 +106,17 @@ def test_equals_torch_in_both_modes(weights, scaler, features):
         stream_anomaly = torch.softmax(la, -1)[0, :, 1].numpy()
         stream_bias = torch.softmax(lb, -1)[0].numpy()
         window = 6
-        win = [net(torch.from_numpy(features[max(0, i - window + 1):i + 1])[None]) for i in range(len(features))]
+        win = [
+            net(torch.from_numpy(features[max(0, i - window + 1) : i + 1])[None])
+            for i in range(len(features))
+        ]
         win_anomaly = np.array([torch.softmax(a[0, -1], -1)[1].item() for a, _, _ in win])
     model = _model(weights, scaler)
     np.testing.assert_allclose(model.predict_stream(features)[0].anomaly, stream_anomaly, atol=1e-5)
     np.testing.assert_allclose(model.predict_stream(features)[0].bias, stream_bias, atol=1e-5)
-    np.testing.assert_allclose(model.predict_windows(features, window).anomaly, win_anomaly, atol=1e-5)
+    np.testing.assert_allclose(
+        model.predict_windows(features, window).anomaly, win_anomaly, atol=1e-5
+    )
 
 
 @settings(max_examples=25, deadline=None)
@@ -143,7 +156,9 @@ def test_fleet_steps_tracks_independently(weights, scaler):
     got: list[list[float]] = [[], [], []]
     cursor = [0, 0, 0]
     for _ in range(40):  # each step, a random subset of vehicles reports
-        rows = np.array([k for k in range(3) if cursor[k] < len(tracks[k]) and rng.random() < 0.7], np.int64)
+        rows = np.array(
+            [k for k in range(3) if cursor[k] < len(tracks[k]) and rng.random() < 0.7], np.int64
+        )
         if rows.size == 0:
             continue
         prediction = fleet.step(rows, np.array([tracks[k][cursor[k]] for k in rows]))
@@ -151,7 +166,7 @@ def test_fleet_steps_tracks_independently(weights, scaler):
             got[k].append(float(p))
             cursor[k] += 1
     for k in range(3):
-        np.testing.assert_allclose(got[k], expected[k][:cursor[k]], atol=1e-6)
+        np.testing.assert_allclose(got[k], expected[k][: cursor[k]], atol=1e-6)
     fleet.reset(np.array([0]))
     assert not fleet.states[0].any()
     assert fleet.states[1].any()
@@ -171,6 +186,8 @@ def test_bad_shapes_fail_clearly(weights, scaler):
         model.predict(np.zeros((4, F + 1)))
     with pytest.raises(ConfigError, match="stream-mode"):
         _model(weights, scaler, mode="window").new_fleet(2)
+    with pytest.raises(ConfigError, match=r"shape \(7,\)"):
+        model.new_stream().update(np.zeros(F - 1, np.float32))
     with pytest.raises(ConfigError, match="rows must be in"):
         model.new_fleet(2).step(np.array([2]), np.zeros((1, F)))
 
@@ -193,7 +210,13 @@ def test_inference_never_imports_torch(tmp_path):
         print("ok")
     """)
     env = {**os.environ, "PYTHONPATH": str(SRC), "OMP_NUM_THREADS": "1"}
-    done = subprocess.run([sys.executable, "-c", script, str(tmp_path / "m"), str(Path(__file__).parent)],
-                          capture_output=True, text=True, env=env, timeout=120, check=False)
+    done = subprocess.run(
+        [sys.executable, "-c", script, str(tmp_path / "m"), str(Path(__file__).parent)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "ok"

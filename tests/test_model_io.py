@@ -50,9 +50,17 @@ def test_round_trip_keeps_every_value(model_dir: Path):
     expected = model_config(F, K, mode="window", window=50)
     assert {k: config[k] for k in expected} == expected
     assert config["format_version"] == FORMAT_VERSION
-    assert config["weights_sha256"] == hashlib.sha256((model_dir / WEIGHTS_FILE).read_bytes()).hexdigest()
+    assert (
+        config["weights_sha256"]
+        == hashlib.sha256((model_dir / WEIGHTS_FILE).read_bytes()).hexdigest()
+    )
     model = gru_model(weights, config)
-    assert (model.mode, model.window, model.n_features, model.n_bias_classes) == ("window", 50, F, K)
+    assert (model.mode, model.window, model.n_features, model.n_bias_classes) == (
+        "window",
+        50,
+        F,
+        K,
+    )
     np.testing.assert_array_equal(model.mean, np.asarray(expected["scaler"]["mean"], np.float32))
 
 
@@ -74,7 +82,9 @@ def test_truncated_weights_fail(model_dir: Path):
 
 def test_other_format_version_fails(model_dir: Path):
     _edit_config(model_dir, format_version=FORMAT_VERSION + 1)
-    with pytest.raises(ModelError, match=re.escape(str(model_dir / CONFIG_FILE)) + ".*format_version.*re-export"):
+    with pytest.raises(
+        ModelError, match=re.escape(str(model_dir / CONFIG_FILE)) + ".*format_version.*re-export"
+    ):
         load_model(model_dir)
 
 
@@ -96,17 +106,25 @@ def test_missing_directory_and_broken_json_fail(tmp_path: Path, model_dir: Path)
 def test_config_inconsistent_with_weights_fails(model_dir: Path):
     """A consistent-looking config for 7 features does not load 6-feature weights."""
     wider = model_config(F + 1, K)
-    _edit_config(model_dir, architecture=wider["architecture"], features=wider["features"], scaler=wider["scaler"])
+    _edit_config(
+        model_dir,
+        architecture=wider["architecture"],
+        features=wider["features"],
+        scaler=wider["scaler"],
+    )
     with pytest.raises(ModelError, match=r"gru1\.weight_ih.*shape \(96, 6\).*\(96, 7\)"):
         load_model(model_dir)
 
 
-@pytest.mark.parametrize(("key", "value", "message"), [
-    ("mode", "batch", "mode must be one of"),
-    ("thresholds", {"anomaly": 1.5}, "thresholds.anomaly"),
-    ("scaler", {"mean": [0.0] * F, "std": [0.0] * F}, r"scaler.std must be > 0"),
-    ("class_names", {"anomaly": ["normal", "anomaly"], "bias": ["none"]}, "class_names.bias"),
-])
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("mode", "batch", "mode must be one of"),
+        ("thresholds", {"anomaly": 1.5}, "thresholds.anomaly"),
+        ("scaler", {"mean": [0.0] * F, "std": [0.0] * F}, r"scaler.std must be > 0"),
+        ("class_names", {"anomaly": ["normal", "anomaly"], "bias": ["none"]}, "class_names.bias"),
+    ],
+)
 def test_invalid_config_values_fail(model_dir: Path, key: str, value: object, message: str):
     _edit_config(model_dir, **{key: value})
     with pytest.raises(ModelError, match=message):
@@ -115,7 +133,11 @@ def test_invalid_config_values_fail(model_dir: Path, key: str, value: object, me
 
 def test_save_refuses_inconsistent_model(tmp_path: Path):
     with pytest.raises(ModelError, match=r"features\.names must list 6"):
-        save_model(tmp_path / "m", random_weights(F, K), {**model_config(F, K), "features": {"names": [], "params": {}}})
+        save_model(
+            tmp_path / "m",
+            random_weights(F, K),
+            {**model_config(F, K), "features": {"names": [], "params": {}}},
+        )
     with pytest.raises(ModelError, match=r"bias_head\.weight.*shape"):
         save_model(tmp_path / "m", random_weights(F, K + 1), model_config(F, K))
     assert not (tmp_path / "m").exists()
@@ -144,8 +166,11 @@ def test_export_torch_names_and_shapes():
     assert all(v.dtype == np.float32 for v in exported.values())
 
 
-_UNSAFE = re.compile(r"^\s*(import pickle|from pickle)|\bpickle\.(loads?|Unpickler)|allow_pickle\s*=\s*True"
-                     r"|torch\.load\b|joblib|cloudpickle|\bdill\b", re.MULTILINE)
+_UNSAFE = re.compile(
+    r"^\s*(import pickle|from pickle)|\bpickle\.(loads?|Unpickler)|allow_pickle\s*=\s*True"
+    r"|torch\.load\b|joblib|cloudpickle|\bdill\b",
+    re.MULTILINE,
+)
 
 
 def test_no_unpickling_anywhere_in_the_package():

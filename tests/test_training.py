@@ -64,9 +64,15 @@ def test_exported_model_equals_torch(tmp_path, mode: str, window: int):
         if mode == "stream":
             logits = net(torch.from_numpy(features)[None])[0][0]
         else:
-            logits = torch.stack([net(torch.from_numpy(features[max(0, i - window + 1):i + 1])[None])[0][0, -1]
-                                  for i in range(len(features))])
-    np.testing.assert_allclose(model.predict(features).anomaly, torch.softmax(logits, -1)[:, 1].numpy(), atol=1e-5)
+            logits = torch.stack(
+                [
+                    net(torch.from_numpy(features[max(0, i - window + 1) : i + 1])[None])[0][0, -1]
+                    for i in range(len(features))
+                ]
+            )
+    np.testing.assert_allclose(
+        model.predict(features).anomaly, torch.softmax(logits, -1)[:, 1].numpy(), atol=1e-5
+    )
 
 
 def test_stops_on_patience_when_nothing_improves():
@@ -85,8 +91,12 @@ def test_stops_when_time_budget_is_spent():
 
 def test_progress_reports_every_epoch():
     out = io.StringIO()
-    train_model(TRAIN[:4], VAL[:2], _config(max_epochs=2, progress=True),
-                console=Console(file=out, width=120, force_terminal=False))
+    train_model(
+        TRAIN[:4],
+        VAL[:2],
+        _config(max_epochs=2, progress=True),
+        console=Console(file=out, width=120, force_terminal=False),
+    )
     text = out.getvalue()
     assert "epoch   1" in text
     assert "epoch   2" in text
@@ -95,14 +105,18 @@ def test_progress_reports_every_epoch():
 
 def test_every_point_is_a_window_target_exactly_once():
     sequences = toy_sequences(6, seed=5)
-    sequences.append((sequences[0][0][:3], sequences[0][1][:3], sequences[0][2][:3]))  # shorter than W
+    sequences.append(
+        (sequences[0][0][:3], sequences[0][1][:3], sequences[0][2][:3])
+    )  # shorter than W
     window = 10
     packed = _pack(sequences, window, 1)
     starts, first = _window_samples(packed, window)
     _, anomaly, _ = _window_batch(packed, starts, first, window)
     targets = starts[:, None] + np.arange(window)
     hit = targets[anomaly.numpy() != _IGNORE]
-    expected = np.concatenate([s + np.arange(n) for s, n in zip(packed.starts, packed.lengths, strict=True)])
+    expected = np.concatenate(
+        [s + np.arange(n) for s, n in zip(packed.starts, packed.lengths, strict=True)]
+    )
     np.testing.assert_array_equal(np.sort(hit), expected)
 
 
@@ -110,15 +124,21 @@ def test_stream_lanes_cover_every_chunk_once_in_order():
     packed = _pack(toy_sequences(9, seed=7), 1, 8)
     offsets, resets = _stream_lanes(packed, 4, 8, 32, np.random.default_rng(0))
     used = offsets[offsets >= 0]
-    expected = np.concatenate([s + 8 * np.arange(-(-n // 8)) for s, n in zip(packed.starts, packed.lengths, strict=True)])
+    expected = np.concatenate(
+        [s + 8 * np.arange(-(-n // 8)) for s, n in zip(packed.starts, packed.lengths, strict=True)]
+    )
     np.testing.assert_array_equal(np.sort(used), expected)
     for lane, flags in zip(offsets, resets, strict=True):
         for step in range(1, len(lane)):
-            if lane[step] >= 0 and not flags[step]:  # continuing a piece: the next chunk of the same sequence
+            if (
+                lane[step] >= 0 and not flags[step]
+            ):  # continuing a piece: the next chunk of the same sequence
                 assert lane[step] == lane[step - 1] + 8
         assert flags[0]
     # Every lane starts with a reset, so cutting the flattened lanes at resets gives the pieces.
-    longest_piece = max(len(run) for run in np.split(np.arange(resets.size), np.flatnonzero(resets.ravel())))
+    longest_piece = max(
+        len(run) for run in np.split(np.arange(resets.size), np.flatnonzero(resets.ravel()))
+    )
     assert longest_piece <= 32 // 8
 
 
@@ -126,7 +146,9 @@ def test_class_weights_balance_rare_anomalies():
     labels = np.array([0] * 90 + [1] * 10 + [_IGNORE] * 5)
     np.testing.assert_allclose(_class_weights(labels, 2, 50.0).numpy(), [1.0, 9.0])
     np.testing.assert_allclose(_class_weights(labels, 2, 4.0).numpy(), [1.0, 4.0])
-    np.testing.assert_allclose(_class_weights(np.array([0, 0, 2]), 3, 50.0).numpy(), [1.0, 1.0, 2.0])
+    np.testing.assert_allclose(
+        _class_weights(np.array([0, 0, 2]), 3, 50.0).numpy(), [1.0, 1.0, 2.0]
+    )
 
 
 def test_bad_inputs_fail_clearly():

@@ -86,7 +86,9 @@ WEIGHT_NAMES = (
 )
 
 
-def weight_shapes(n_features: int, hidden1: int, hidden2: int, n_bias_classes: int) -> dict[str, tuple[int, ...]]:
+def weight_shapes(
+    n_features: int, hidden1: int, hidden2: int, n_bias_classes: int
+) -> dict[str, tuple[int, ...]]:
     """The shape of every weight array, as PyTorch stores it (``(out, in)`` matrices)."""
     return {
         "gru1.weight_ih": (3 * hidden1, n_features),
@@ -121,44 +123,65 @@ def _softmax(logits: np.ndarray) -> np.ndarray:
 
 def scale_features(features: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
     """``(x - mean) / std`` as float32, with non-finite results replaced by 0."""
-    scaled = (np.asarray(features, dtype=np.float32) - mean.astype(np.float32)) / std.astype(np.float32)
+    scaled = (np.asarray(features, dtype=np.float32) - mean.astype(np.float32)) / std.astype(
+        np.float32
+    )
     scaled[~np.isfinite(scaled)] = 0.0
     return scaled
 
 
-def _reference_cell(x: np.ndarray, h: np.ndarray, w_ih: np.ndarray, w_hh: np.ndarray,
-                    b_ih: np.ndarray, b_hh: np.ndarray) -> np.ndarray:
+def _reference_cell(
+    x: np.ndarray,
+    h: np.ndarray,
+    w_ih: np.ndarray,
+    w_hh: np.ndarray,
+    b_ih: np.ndarray,
+    b_hh: np.ndarray,
+) -> np.ndarray:
     """One GRU step, PyTorch's equations (module docstring)."""
     size = h.shape[0]
     gi = w_ih @ x + b_ih
     gh = w_hh @ h + b_hh
     r = _sigmoid(gi[:size] + gh[:size])
-    z = _sigmoid(gi[size:2 * size] + gh[size:2 * size])
-    n = np.tanh(gi[2 * size:] + r * gh[2 * size:])
+    z = _sigmoid(gi[size : 2 * size] + gh[size : 2 * size])
+    n = np.tanh(gi[2 * size :] + r * gh[2 * size :])
     return np.asarray((1.0 - z) * n + z * h, dtype=h.dtype)
 
 
-def _reference_run(weights: Mapping[str, np.ndarray], scaled: np.ndarray,
-                   h1: np.ndarray, h2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _reference_run(
+    weights: Mapping[str, np.ndarray], scaled: np.ndarray, h1: np.ndarray, h2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Run both GRU layers over ``scaled`` rows; returns the final (h1, h2)."""
     w = {k: np.asarray(v, dtype=np.float32) for k, v in weights.items()}
     for x in scaled:
-        h1 = _reference_cell(x, h1, w["gru1.weight_ih"], w["gru1.weight_hh"], w["gru1.bias_ih"], w["gru1.bias_hh"])
-        h2 = _reference_cell(h1, h2, w["gru2.weight_ih"], w["gru2.weight_hh"], w["gru2.bias_ih"], w["gru2.bias_hh"])
+        h1 = _reference_cell(
+            x, h1, w["gru1.weight_ih"], w["gru1.weight_hh"], w["gru1.bias_ih"], w["gru1.bias_hh"]
+        )
+        h2 = _reference_cell(
+            h1, h2, w["gru2.weight_ih"], w["gru2.weight_hh"], w["gru2.bias_ih"], w["gru2.bias_hh"]
+        )
     return h1, h2
 
 
 def _reference_heads(weights: Mapping[str, np.ndarray], h2: np.ndarray) -> tuple[float, np.ndarray]:
-    anomaly = _softmax(np.asarray(weights["anomaly_head.weight"], np.float32) @ h2
-                       + np.asarray(weights["anomaly_head.bias"], np.float32))
-    bias = _softmax(np.asarray(weights["bias_head.weight"], np.float32) @ h2
-                    + np.asarray(weights["bias_head.bias"], np.float32))
+    anomaly = _softmax(
+        np.asarray(weights["anomaly_head.weight"], np.float32) @ h2
+        + np.asarray(weights["anomaly_head.bias"], np.float32)
+    )
+    bias = _softmax(
+        np.asarray(weights["bias_head.weight"], np.float32) @ h2
+        + np.asarray(weights["bias_head.bias"], np.float32)
+    )
     return float(anomaly[1]), bias
 
 
-def reference_stream(weights: Mapping[str, np.ndarray], mean: np.ndarray, std: np.ndarray,
-                     features: np.ndarray, state: np.ndarray | None = None,
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def reference_stream(
+    weights: Mapping[str, np.ndarray],
+    mean: np.ndarray,
+    std: np.ndarray,
+    features: np.ndarray,
+    state: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Streaming mode, NumPy reference: ``(anomaly prob (n,), bias probs (n, K), final state)``.
 
     ``state`` is ``h1`` and ``h2`` concatenated (zeros when None).
@@ -171,13 +194,18 @@ def reference_stream(weights: Mapping[str, np.ndarray], mean: np.ndarray, std: n
     anomaly = np.empty(len(scaled), np.float32)
     bias = np.empty((len(scaled), weights["bias_head.bias"].shape[0]), np.float32)
     for i in range(len(scaled)):
-        h1, h2 = _reference_run(weights, scaled[i:i + 1], h1, h2)
+        h1, h2 = _reference_run(weights, scaled[i : i + 1], h1, h2)
         anomaly[i], bias[i] = _reference_heads(weights, h2)
     return anomaly, bias, np.concatenate([h1, h2])
 
 
-def reference_windows(weights: Mapping[str, np.ndarray], mean: np.ndarray, std: np.ndarray,
-                      features: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
+def reference_windows(
+    weights: Mapping[str, np.ndarray],
+    mean: np.ndarray,
+    std: np.ndarray,
+    features: np.ndarray,
+    window: int,
+) -> tuple[np.ndarray, np.ndarray]:
     """Window mode, NumPy reference: each point from a zero state over its last ``window`` points."""
     hidden1 = weights["gru1.weight_hh"].shape[1]
     hidden2 = weights["gru2.weight_hh"].shape[1]
@@ -185,8 +213,12 @@ def reference_windows(weights: Mapping[str, np.ndarray], mean: np.ndarray, std: 
     anomaly = np.empty(len(scaled), np.float32)
     bias = np.empty((len(scaled), weights["bias_head.bias"].shape[0]), np.float32)
     for i in range(len(scaled)):
-        _, h2 = _reference_run(weights, scaled[max(0, i - window + 1):i + 1],
-                               np.zeros(hidden1, np.float32), np.zeros(hidden2, np.float32))
+        _, h2 = _reference_run(
+            weights,
+            scaled[max(0, i - window + 1) : i + 1],
+            np.zeros(hidden1, np.float32),
+            np.zeros(hidden2, np.float32),
+        )
         anomaly[i], bias[i] = _reference_heads(weights, h2)
     return anomaly, bias
 
@@ -203,8 +235,11 @@ def reference_windows(weights: Mapping[str, np.ndarray], mean: np.ndarray, std: 
 # ----------------------------------------------------------------------------
 
 
-def pack_parameters(weights: Mapping[str, np.ndarray], mean: np.ndarray, std: np.ndarray,
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def pack_parameters(
+    weights: Mapping[str, np.ndarray],
+    mean: np.ndarray,
+    std: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """``(params float32 (P,), dims int64 [F, H1, H2, K])`` for the numba kernels."""
     n_features = int(weights["gru1.weight_ih"].shape[1])
     hidden1 = int(weights["gru1.weight_hh"].shape[1])
@@ -212,8 +247,12 @@ def pack_parameters(weights: Mapping[str, np.ndarray], mean: np.ndarray, std: np
     n_bias = int(weights["bias_head.bias"].shape[0])
     parts = [np.asarray(mean, np.float32), (1.0 / np.asarray(std, np.float64)).astype(np.float32)]
     for layer in ("gru1", "gru2"):
-        parts += [weights[f"{layer}.weight_ih"].T, weights[f"{layer}.weight_hh"].T,
-                  weights[f"{layer}.bias_ih"], weights[f"{layer}.bias_hh"]]
+        parts += [
+            weights[f"{layer}.weight_ih"].T,
+            weights[f"{layer}.weight_hh"].T,
+            weights[f"{layer}.bias_ih"],
+            weights[f"{layer}.bias_hh"],
+        ]
     for head in ("anomaly_head", "bias_head"):
         parts += [weights[f"{head}.weight"].T, weights[f"{head}.bias"]]
     params = np.concatenate([np.asarray(p, np.float32).ravel() for p in parts])
@@ -241,16 +280,16 @@ def _cell(params: Any, o_wih: int, n_in: int, size: int, x: Any, h: Any, gi: Any
     o_bhh = o_bih + g
     # Row views (not params[base + i]) let LLVM prove the indices are in
     # range and vectorise the loops: about 5x faster.
-    gi[:g] = params[o_bih:o_bih + g]
-    gh[:g] = params[o_bhh:o_bhh + g]
+    gi[:g] = params[o_bih : o_bih + g]
+    gh[:g] = params[o_bhh : o_bhh + g]
     for j in range(n_in):
         xj = x[j]
-        row = params[o_wih + j * g:o_wih + (j + 1) * g]
+        row = params[o_wih + j * g : o_wih + (j + 1) * g]
         for i in range(g):
             gi[i] += row[i] * xj
     for j in range(size):
         hj = h[j]
-        row = params[o_whh + j * g:o_whh + (j + 1) * g]
+        row = params[o_whh + j * g : o_whh + (j + 1) * g]
         for i in range(g):
             gh[i] += row[i] * hj
     for i in range(size):
@@ -273,23 +312,23 @@ def _recurrent_step(params: Any, dims: Any, x: Any, state: Any, scratch: Any) ->
     for j in range(n_features):
         v = (x[j] - params[j]) * params[n_features + j]
         scaled[j] = v if math.isfinite(v) else 0.0
-    gi = scratch[n_features:n_features + 3 * hidden1]
-    gh = scratch[n_features + 3 * hidden1:n_features + 6 * hidden1]
+    gi = scratch[n_features : n_features + 3 * hidden1]
+    gh = scratch[n_features + 3 * hidden1 : n_features + 6 * hidden1]
     o1 = 2 * n_features
     h1 = state[:hidden1]
     _cell(params, o1, n_features, hidden1, scaled, h1, gi, gh)
     o2 = o1 + _layer_size(n_features, hidden1)
-    _cell(params, o2, hidden1, hidden2, h1, state[hidden1:hidden1 + hidden2], gi, gh)
+    _cell(params, o2, hidden1, hidden2, h1, state[hidden1 : hidden1 + hidden2], gi, gh)
 
 
 @numba.njit(cache=True)
 def _softmax_head(params: Any, offset: int, h: Any, n_out: int, out: Any) -> None:
     """``out = softmax(W h + b)`` with W^T (len(h) x n_out) then b at ``params[offset:]``."""
     o_b = offset + h.shape[0] * n_out
-    out[:n_out] = params[o_b:o_b + n_out]
+    out[:n_out] = params[o_b : o_b + n_out]
     for j in range(h.shape[0]):
         hj = h[j]
-        row = params[offset + j * n_out:offset + (j + 1) * n_out]
+        row = params[offset + j * n_out : offset + (j + 1) * n_out]
         for i in range(n_out):
             out[i] += row[i] * hj
     top = out[0]
@@ -308,11 +347,11 @@ def _heads(params: Any, dims: Any, state: Any, scratch: Any, out: Any) -> None:
     """``out[0]`` = P(anomaly), ``out[1:1+K]`` = bias-class probabilities."""
     n_features, hidden1, hidden2, n_bias = dims[0], dims[1], dims[2], dims[3]
     o_heads = 2 * n_features + _layer_size(n_features, hidden1) + _layer_size(hidden1, hidden2)
-    h2 = state[hidden1:hidden1 + hidden2]
+    h2 = state[hidden1 : hidden1 + hidden2]
     two = scratch[:2]
     _softmax_head(params, o_heads, h2, 2, two)
     out[0] = two[1]
-    _softmax_head(params, o_heads + 2 * hidden2 + 2, h2, n_bias, out[1:1 + n_bias])
+    _softmax_head(params, o_heads + 2 * hidden2 + 2, h2, n_bias, out[1 : 1 + n_bias])
 
 
 @numba.njit(cache=True)
@@ -349,8 +388,9 @@ def window_sequence_kernel(params: Any, dims: Any, features: Any, window: int, o
 
 
 @numba.njit(cache=True)
-def window_step_kernel(params: Any, dims: Any, ring: Any, count: int, state: Any, scratch: Any,
-                       out: Any) -> None:
+def window_step_kernel(
+    params: Any, dims: Any, ring: Any, count: int, state: Any, scratch: Any, out: Any
+) -> None:
     """Window mode for one track online: ``ring`` (W, F) holds the last points, the newest at
     ``(count - 1) % W``; runs the window from zero state (``state`` is scratch here)."""
     window = ring.shape[0]
@@ -362,7 +402,9 @@ def window_step_kernel(params: Any, dims: Any, ring: Any, count: int, state: Any
 
 
 @numba.njit(cache=True)
-def fleet_step_kernel(params: Any, dims: Any, rows: Any, features: Any, states: Any, out: Any) -> None:
+def fleet_step_kernel(
+    params: Any, dims: Any, rows: Any, features: Any, states: Any, out: Any
+) -> None:
     """(d) One streaming step for many tracks: ``states[rows[i]]`` advanced with ``features[i]``."""
     scratch = np.empty(_scratch_size(dims), np.float32)
     for i in range(rows.shape[0]):
@@ -399,27 +441,43 @@ class GRUModel:
     would read out of bounds instead of failing.
     """
 
-    def __init__(self, weights: Mapping[str, np.ndarray], mean: np.ndarray, std: np.ndarray, *,
-                 mode: str = "stream", window: int = 10) -> None:
+    def __init__(
+        self,
+        weights: Mapping[str, np.ndarray],
+        mean: np.ndarray,
+        std: np.ndarray,
+        *,
+        mode: str = "stream",
+        window: int = 10,
+    ) -> None:
         if mode not in MODES:
             raise ModelError(f"unknown model mode {mode!r}; expected one of {', '.join(MODES)}")
         if window < 1:
             raise ModelError(f"window must be >= 1, got {window}")
         missing = [name for name in WEIGHT_NAMES if name not in weights]
         if missing:
-            raise ModelError(f"weights lack {', '.join(missing)}; the model was exported incompletely, export it again")
+            raise ModelError(
+                f"weights lack {', '.join(missing)}; the model was exported incompletely, export it again"
+            )
         n_features = int(np.shape(weights["gru1.weight_ih"])[1])
-        expected = weight_shapes(n_features, int(np.shape(weights["gru1.weight_hh"])[1]),
-                                 int(np.shape(weights["anomaly_head.weight"])[1]),
-                                 int(np.shape(weights["bias_head.bias"])[0]))
+        expected = weight_shapes(
+            n_features,
+            int(np.shape(weights["gru1.weight_hh"])[1]),
+            int(np.shape(weights["anomaly_head.weight"])[1]),
+            int(np.shape(weights["bias_head.bias"])[0]),
+        )
         for name, shape in expected.items():
             if tuple(np.shape(weights[name])) != shape:
-                raise ModelError(f"weight {name!r} has shape {np.shape(weights[name])}, expected {shape}")
+                raise ModelError(
+                    f"weight {name!r} has shape {np.shape(weights[name])}, expected {shape}"
+                )
         mean = np.asarray(mean, np.float32)
         std = np.asarray(std, np.float32)
         if mean.shape != (n_features,) or std.shape != (n_features,):
-            raise ModelError(f"scaler mean/std must have {n_features} values (one per feature), "
-                             f"got {mean.shape} and {std.shape}")
+            raise ModelError(
+                f"scaler mean/std must have {n_features} values (one per feature), "
+                f"got {mean.shape} and {std.shape}"
+            )
         if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std)) and np.all(std > 0)):
             raise ModelError("scaler mean must be finite and std finite and > 0")
         self.weights = {name: np.asarray(weights[name], np.float32) for name in WEIGHT_NAMES}
@@ -454,8 +512,11 @@ class GRUModel:
             return self.predict_windows(features)
         return self.predict_stream(features)[0]
 
-    def predict_stream(self, features: np.ndarray, state: np.ndarray | None = None,
-                       ) -> tuple[GRUPrediction, np.ndarray]:
+    def predict_stream(
+        self,
+        features: np.ndarray,
+        state: np.ndarray | None = None,
+    ) -> tuple[GRUPrediction, np.ndarray]:
         """Streaming mode over a segment; returns the outputs and the final state (a new array)."""
         x = self._features(features)
         h = np.zeros(self.state_size, np.float32) if state is None else self._state(state)
@@ -467,7 +528,9 @@ class GRUModel:
         """Window mode over a segment: W GRU steps per point (O(n W)); W defaults to the model's."""
         x = self._features(features)
         out = np.empty((len(x), 1 + self.n_bias_classes), np.float32)
-        window_sequence_kernel(self.params, self.dims, x, self.window if window is None else int(window), out)
+        window_sequence_kernel(
+            self.params, self.dims, x, self.window if window is None else int(window), out
+        )
         return _split_out(out)
 
     def _state(self, state: np.ndarray) -> np.ndarray:
@@ -498,7 +561,9 @@ class GRUStream:
     def __init__(self, model: GRUModel) -> None:
         self.model = model
         self._state = np.zeros(model.state_size, np.float32)
-        self._scratch = np.empty(model.n_features + 6 * int(max(model.dims[1], model.dims[2])), np.float32)
+        self._scratch = np.empty(
+            model.n_features + 6 * int(max(model.dims[1], model.dims[2])), np.float32
+        )
         self._out = np.empty(1 + model.n_bias_classes, np.float32)
         self._ring = np.zeros((model.window, model.n_features), np.float32)
         self._count = 0
@@ -511,13 +576,23 @@ class GRUStream:
     def update(self, features: np.ndarray) -> np.ndarray:
         """Feed one point's features (F,); returns ``[P(anomaly), P(bias class 0..K-1)]``."""
         model = self.model
+        x = features if isinstance(features, np.ndarray) else np.asarray(features, np.float32)
+        if x.shape != self._ring.shape[1:]:  # the kernel would read out of bounds
+            raise ConfigError(f"features must have shape ({model.n_features},), got {x.shape}")
         if model.mode == "stream":
-            stream_step_kernel(model.params, model.dims, features, self._state, self._scratch, self._out)
+            stream_step_kernel(model.params, model.dims, x, self._state, self._scratch, self._out)
         else:
-            self._ring[self._count % model.window] = features
+            self._ring[self._count % model.window] = x
             self._count += 1
-            window_step_kernel(model.params, model.dims, self._ring, self._count, self._state,
-                               self._scratch, self._out)
+            window_step_kernel(
+                model.params,
+                model.dims,
+                self._ring,
+                self._count,
+                self._state,
+                self._scratch,
+                self._out,
+            )
         return self._out
 
     def get_state(self) -> dict[str, Any]:
@@ -525,13 +600,18 @@ class GRUStream:
         if self.model.mode == "stream":
             return {"mode": "stream", "h": self._state.tolist()}
         window = self.model.window
-        last = [self._ring[t % window].tolist() for t in range(max(0, self._count - window), self._count)]
+        last = [
+            self._ring[t % window].tolist()
+            for t in range(max(0, self._count - window), self._count)
+        ]
         return {"mode": "window", "count": self._count, "last": last}
 
     def set_state(self, state: Mapping[str, Any]) -> None:
         """Restore what :meth:`get_state` returned (for the same model)."""
         if state.get("mode") != self.model.mode:
-            raise ConfigError(f"state is for mode {state.get('mode')!r}, this model streams in {self.model.mode!r}")
+            raise ConfigError(
+                f"state is for mode {state.get('mode')!r}, this model streams in {self.model.mode!r}"
+            )
         if self.model.mode == "stream":
             self._state[:] = self.model._state(np.asarray(state["h"], np.float32))
             return
@@ -553,8 +633,10 @@ class GRUFleet:
 
     def __init__(self, model: GRUModel, n_tracks: int) -> None:
         if model.mode != "stream":
-            raise ConfigError("fleet stepping needs a stream-mode model; window-mode models "
-                              "rerun W points per step, use one GRUStream per track")
+            raise ConfigError(
+                "fleet stepping needs a stream-mode model; window-mode models "
+                "rerun W points per step, use one GRUStream per track"
+            )
         self.model = model
         self.states = np.zeros((n_tracks, model.state_size), np.float32)
 
@@ -562,7 +644,7 @@ class GRUFleet:
         self.states[np.asarray(rows, np.int64)] = 0.0
 
     def step(self, rows: np.ndarray, features: np.ndarray) -> GRUPrediction:
-        """Advance track ``rows[i]`` with ``features[i]`` (rows must be distinct and in range)."""
+        """Advance track ``rows[i]`` with ``features[i]``, in order (a repeated row takes its points in turn)."""
         rows = np.ascontiguousarray(rows, dtype=np.int64)
         x = self.model._features(features)
         if rows.shape != (len(x),):

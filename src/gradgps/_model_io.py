@@ -74,8 +74,10 @@ def export_torch(model: Any) -> dict[str, np.ndarray]:
     :meth:`gradgps._training.TrainedModel.model_config`).
     """
     state = model.state_dict()
-    return {name: state[path].detach().cpu().numpy().astype(np.float32, copy=True)
-            for name, path in _TORCH_NAMES.items()}
+    return {
+        name: state[path].detach().cpu().numpy().astype(np.float32, copy=True)
+        for name, path in _TORCH_NAMES.items()
+    }
 
 
 def _sha256(data: bytes) -> str:
@@ -84,10 +86,20 @@ def _sha256(data: bytes) -> str:
 
 def _check_config(config: Mapping[str, Any], source: str) -> None:
     """Structure and consistency of a config (without the file bookkeeping keys)."""
+
     def fail(what: str) -> ModelError:
         return ModelError(f"{source}: {what}; {_RETRAIN}")
 
-    for key in ("architecture", "mode", "window", "features", "scaler", "thresholds", "rema", "class_names"):
+    for key in (
+        "architecture",
+        "mode",
+        "window",
+        "features",
+        "scaler",
+        "thresholds",
+        "rema",
+        "class_names",
+    ):
         if key not in config:
             raise fail(f"missing key {key!r}")
     arch = config["architecture"]
@@ -105,17 +117,24 @@ def _check_config(config: Mapping[str, Any], source: str) -> None:
     names = config["features"].get("names") if isinstance(config["features"], Mapping) else None
     if not isinstance(names, list) or len(names) != n or not all(isinstance(x, str) for x in names):
         raise fail(f"features.names must list {n} feature names")
-    if not isinstance(config["features"].get("params"), Mapping) or not isinstance(config["rema"], Mapping):
+    if not isinstance(config["features"].get("params"), Mapping) or not isinstance(
+        config["rema"], Mapping
+    ):
         raise fail("features.params and rema must be objects")
     scaler = config["scaler"]
     for key in ("mean", "std"):
         values = scaler.get(key) if isinstance(scaler, Mapping) else None
-        if (not isinstance(values, list) or len(values) != n
-                or not all(isinstance(v, int | float) and math.isfinite(v) for v in values)):
+        if (
+            not isinstance(values, list)
+            or len(values) != n
+            or not all(isinstance(v, int | float) and math.isfinite(v) for v in values)
+        ):
             raise fail(f"scaler.{key} must hold {n} finite numbers")
     if not all(v > 0 for v in scaler["std"]):
         raise fail("scaler.std must be > 0")
-    threshold = config["thresholds"].get("anomaly") if isinstance(config["thresholds"], Mapping) else None
+    threshold = (
+        config["thresholds"].get("anomaly") if isinstance(config["thresholds"], Mapping) else None
+    )
     if not isinstance(threshold, int | float) or not 0.0 <= threshold <= 1.0:
         raise fail(f"thresholds.anomaly must be a probability in [0, 1], got {threshold!r}")
     classes = config["class_names"]
@@ -126,9 +145,13 @@ def _check_config(config: Mapping[str, Any], source: str) -> None:
         raise fail("class_names.anomaly must list 2 class names")
 
 
-def _check_weights(weights: Mapping[str, np.ndarray], config: Mapping[str, Any], source: str) -> None:
+def _check_weights(
+    weights: Mapping[str, np.ndarray], config: Mapping[str, Any], source: str
+) -> None:
     arch = config["architecture"]
-    expected = weight_shapes(arch["n_features"], arch["hidden1"], arch["hidden2"], arch["n_bias_classes"])
+    expected = weight_shapes(
+        arch["n_features"], arch["hidden1"], arch["hidden2"], arch["n_bias_classes"]
+    )
     unexpected = sorted(set(weights) - set(expected))
     if unexpected:
         raise ModelError(f"{source}: unexpected arrays {', '.join(unexpected)}; {_RETRAIN}")
@@ -137,16 +160,21 @@ def _check_weights(weights: Mapping[str, np.ndarray], config: Mapping[str, Any],
             raise ModelError(f"{source}: array {name!r} is missing; {_RETRAIN}")
         array = weights[name]
         if array.dtype.kind != "f":
-            raise ModelError(f"{source}: array {name!r} has dtype {array.dtype}, expected floats; {_RETRAIN}")
+            raise ModelError(
+                f"{source}: array {name!r} has dtype {array.dtype}, expected floats; {_RETRAIN}"
+            )
         if array.shape != shape:
-            raise ModelError(f"{source}: array {name!r} has shape {array.shape}, "
-                             f"config.json says {shape}; {_RETRAIN}")
+            raise ModelError(
+                f"{source}: array {name!r} has shape {array.shape}, "
+                f"config.json says {shape}; {_RETRAIN}"
+            )
         if not np.all(np.isfinite(array)):
             raise ModelError(f"{source}: array {name!r} holds NaN or infinite values; {_RETRAIN}")
 
 
-def save_model(directory: str | os.PathLike[str], weights: Mapping[str, np.ndarray],
-               config: Mapping[str, Any]) -> None:
+def save_model(
+    directory: str | os.PathLike[str], weights: Mapping[str, np.ndarray], config: Mapping[str, Any]
+) -> None:
     """Write ``weights.npz`` and ``config.json`` into ``directory`` (created if needed).
 
     ``config`` is checked against the weights first, so an inconsistent model
@@ -156,7 +184,11 @@ def save_model(directory: str | os.PathLike[str], weights: Mapping[str, np.ndarr
     under the real name.
     """
     folder = Path(directory)
-    content = {k: v for k, v in config.items() if k not in ("format_version", "weights_file", "weights_sha256")}
+    content = {
+        k: v
+        for k, v in config.items()
+        if k not in ("format_version", "weights_file", "weights_sha256")
+    }
     _check_config(content, f"config for {folder}")
     arrays = {name: np.ascontiguousarray(weights[name], dtype=np.float32) for name in weights}
     _check_weights(arrays, content, f"weights for {folder}")
@@ -168,7 +200,9 @@ def save_model(directory: str | os.PathLike[str], weights: Mapping[str, np.ndarr
     content["weights_sha256"] = _sha256(data)
     folder.mkdir(parents=True, exist_ok=True)
     _write_atomic(folder / WEIGHTS_FILE, data)
-    _write_atomic(folder / CONFIG_FILE, (json.dumps(content, indent=2, allow_nan=False) + "\n").encode())
+    _write_atomic(
+        folder / CONFIG_FILE, (json.dumps(content, indent=2, allow_nan=False) + "\n").encode()
+    )
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -189,11 +223,15 @@ def load_model(directory: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray]
     folder = Path(directory)
     config_path = folder / CONFIG_FILE
     if not folder.is_dir():
-        raise ModelError(f"{folder}: model directory not found; pass the directory that holds "
-                         f"{CONFIG_FILE} and {WEIGHTS_FILE}")
+        raise ModelError(
+            f"{folder}: model directory not found; pass the directory that holds "
+            f"{CONFIG_FILE} and {WEIGHTS_FILE}"
+        )
     if not config_path.is_file():
-        raise ModelError(f"{config_path}: file not found; a model directory needs {CONFIG_FILE} "
-                         f"and {WEIGHTS_FILE}; {_RETRAIN}")
+        raise ModelError(
+            f"{config_path}: file not found; a model directory needs {CONFIG_FILE} "
+            f"and {WEIGHTS_FILE}; {_RETRAIN}"
+        )
     try:
         config = json.loads(config_path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
@@ -202,24 +240,32 @@ def load_model(directory: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray]
         raise ModelError(f"{config_path}: expected a JSON object; {_RETRAIN}")
     version = config.get("format_version")
     if version != FORMAT_VERSION:
-        raise ModelError(f"{config_path}: format_version {version!r}, this gradgps reads version "
-                         f"{FORMAT_VERSION}; re-export the model with this gradgps version")
+        raise ModelError(
+            f"{config_path}: format_version {version!r}, this gradgps reads version "
+            f"{FORMAT_VERSION}; re-export the model with this gradgps version"
+        )
     _check_config(config, str(config_path))
     weights_name = config.get("weights_file")
     if weights_name != WEIGHTS_FILE:
-        raise ModelError(f"{config_path}: weights_file must be {WEIGHTS_FILE!r}, got {weights_name!r}; {_RETRAIN}")
+        raise ModelError(
+            f"{config_path}: weights_file must be {WEIGHTS_FILE!r}, got {weights_name!r}; {_RETRAIN}"
+        )
     weights_path = folder / WEIGHTS_FILE
     if not weights_path.is_file():
         raise ModelError(f"{weights_path}: file not found; {_RETRAIN}")
     data = weights_path.read_bytes()
     if _sha256(data) != config.get("weights_sha256"):
-        raise ModelError(f"{weights_path}: sha256 checksum does not match config.json (the file is "
-                         f"truncated or was modified); {_RETRAIN}")
+        raise ModelError(
+            f"{weights_path}: sha256 checksum does not match config.json (the file is "
+            f"truncated or was modified); {_RETRAIN}"
+        )
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as archive:
             weights = {name: np.asarray(archive[name]) for name in archive.files}
     except (ValueError, OSError, KeyError, EOFError) as error:
-        raise ModelError(f"{weights_path}: not a readable weights archive ({error}); {_RETRAIN}") from None
+        raise ModelError(
+            f"{weights_path}: not a readable weights archive ({error}); {_RETRAIN}"
+        ) from None
     _check_weights(weights, config, str(weights_path))
     return {name: weights[name].astype(np.float32) for name in WEIGHT_NAMES}, config
 
@@ -227,5 +273,10 @@ def load_model(directory: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray]
 def gru_model(weights: Mapping[str, np.ndarray], config: Mapping[str, Any]) -> GRUModel:
     """The torch-free inference network for a loaded ``(weights, config)`` pair."""
     scaler = config["scaler"]
-    return GRUModel(weights, np.asarray(scaler["mean"], np.float32), np.asarray(scaler["std"], np.float32),
-                    mode=config["mode"], window=config["window"])
+    return GRUModel(
+        weights,
+        np.asarray(scaler["mean"], np.float32),
+        np.asarray(scaler["std"], np.float32),
+        mode=config["mode"],
+        window=config["window"],
+    )

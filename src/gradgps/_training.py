@@ -60,10 +60,10 @@ class TrainConfig:
     mode: str = "window"
     window: int = 10
     chunk_length: int = 200
-    stream_piece_length: int = 2000
+    stream_piece_length: int = 1000
     hidden1: int = 32
     hidden2: int = 16
-    batch_size: int = 64
+    batch_size: int = 256  # windows per step (window mode) or TBPTT lanes (stream mode)
     learning_rate: float = 3e-3
     max_epochs: int = 100
     patience: int = 6
@@ -82,14 +82,29 @@ class TrainConfig:
             raise ConfigError(f"early_stopping must be 'loss' or 'f1', got {self.early_stopping!r}")
         if len(self.bias_classes) < 2:
             raise ConfigError("bias_classes needs 'none' plus at least one fault type")
-        for name in ("window", "chunk_length", "stream_piece_length", "hidden1", "hidden2", "batch_size",
-                     "max_epochs", "patience", "max_samples_per_epoch"):
+        for name in (
+            "window",
+            "chunk_length",
+            "stream_piece_length",
+            "hidden1",
+            "hidden2",
+            "batch_size",
+            "max_epochs",
+            "patience",
+            "max_samples_per_epoch",
+        ):
             if int(getattr(self, name)) < 1:
                 raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)}")
-        if not (self.learning_rate > 0 and self.time_budget_s > 0 and self.max_class_weight >= 1
-                and self.bias_loss_weight >= 0):
-            raise ConfigError("learning_rate and time_budget_s must be > 0, max_class_weight >= 1, "
-                              "bias_loss_weight >= 0")
+        if not (
+            self.learning_rate > 0
+            and self.time_budget_s > 0
+            and self.max_class_weight >= 1
+            and self.bias_loss_weight >= 0
+        ):
+            raise ConfigError(
+                "learning_rate and time_budget_s must be > 0, max_class_weight >= 1, "
+                "bias_loss_weight >= 0"
+            )
 
 
 class GRADNet(nn.Module):
@@ -102,7 +117,9 @@ class GRADNet(nn.Module):
     scaler_mean: torch.Tensor
     scaler_std: torch.Tensor
 
-    def __init__(self, n_features: int, n_bias_classes: int, hidden1: int = 32, hidden2: int = 16) -> None:
+    def __init__(
+        self, n_features: int, n_bias_classes: int, hidden1: int = 32, hidden2: int = 16
+    ) -> None:
         super().__init__()
         self.register_buffer("scaler_mean", torch.zeros(n_features))
         self.register_buffer("scaler_std", torch.ones(n_features))
@@ -111,8 +128,11 @@ class GRADNet(nn.Module):
         self.anomaly_head = nn.Linear(hidden2, 2)
         self.bias_head = nn.Linear(hidden2, n_bias_classes)
 
-    def forward(self, x: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor] | None = None,
-                ) -> tuple[torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+    def forward(
+        self,
+        x: torch.Tensor,
+        state: tuple[torch.Tensor, torch.Tensor] | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
         """``x`` (B, T, F) raw features -> anomaly logits (B, T, 2), bias logits (B, T, K), final states."""
         scaled = (x - self.scaler_mean) / self.scaler_std
         scaled = torch.where(torch.isfinite(scaled), scaled, torch.zeros_like(scaled))
@@ -151,28 +171,45 @@ class TrainedModel:
         """Network weights as float32 arrays named as in :data:`gradgps._gru.WEIGHT_NAMES`."""
         return export_torch(self.network)
 
-    def model_config(self, feature_names: Sequence[str], feature_params: dict[str, Any],
-                     rema_params: dict[str, Any]) -> dict[str, Any]:
+    def model_config(
+        self,
+        feature_names: Sequence[str],
+        feature_params: dict[str, Any],
+        rema_params: dict[str, Any],
+    ) -> dict[str, Any]:
         """The ``config.json`` content for :func:`gradgps._model_io.save_model`.
 
         ``feature_params`` and ``rema_params`` are opaque here: whatever the
         feature extractor and REMA need to reproduce the training features.
         """
         if len(feature_names) != self.n_features:
-            raise ConfigError(f"{len(feature_names)} feature names for a model with {self.n_features} features")
+            raise ConfigError(
+                f"{len(feature_names)} feature names for a model with {self.n_features} features"
+            )
         cfg = self.config
         return {
-            "architecture": {"n_features": self.n_features, "hidden1": cfg.hidden1, "hidden2": cfg.hidden2,
-                             "n_bias_classes": len(cfg.bias_classes)},
+            "architecture": {
+                "n_features": self.n_features,
+                "hidden1": cfg.hidden1,
+                "hidden2": cfg.hidden2,
+                "n_bias_classes": len(cfg.bias_classes),
+            },
             "mode": cfg.mode,
             "window": cfg.window,
             "features": {"names": list(feature_names), "params": dict(feature_params)},
-            "scaler": {"mean": self.network.scaler_mean.tolist(), "std": self.network.scaler_std.tolist()},
+            "scaler": {
+                "mean": self.network.scaler_mean.tolist(),
+                "std": self.network.scaler_std.tolist(),
+            },
             "thresholds": {"anomaly": self.anomaly_threshold},
             "rema": dict(rema_params),
             "class_names": {"anomaly": ["normal", "anomaly"], "bias": list(cfg.bias_classes)},
-            "training": {"best_epoch": self.best_epoch, "stop_reason": self.stop_reason, "seed": cfg.seed,
-                         "history": [vars(m) for m in self.history]},
+            "training": {
+                "best_epoch": self.best_epoch,
+                "stop_reason": self.stop_reason,
+                "seed": cfg.seed,
+                "history": [vars(m) for m in self.history],
+            },
         }
 
 
@@ -197,21 +234,31 @@ def _check_sequences(sequences: Sequence[LabelledSequence], n_bias: int, what: s
     n_features = -1
     for i, seq in enumerate(sequences):
         if len(seq) != 3:
-            raise ConfigError(f"{what}[{i}]: expected (features, anomaly, bias), got {len(seq)} items")
+            raise ConfigError(
+                f"{what}[{i}]: expected (features, anomaly, bias), got {len(seq)} items"
+            )
         features, anomaly, bias = (np.asarray(a) for a in seq)
         if features.ndim != 2 or features.shape[0] == 0:
-            raise ConfigError(f"{what}[{i}]: features must be a non-empty (n, F) array, got shape {features.shape}")
+            raise ConfigError(
+                f"{what}[{i}]: features must be a non-empty (n, F) array, got shape {features.shape}"
+            )
         if n_features < 0:
             n_features = features.shape[1]
         if features.shape[1] != n_features:
-            raise ConfigError(f"{what}[{i}]: {features.shape[1]} features, sequence 0 has {n_features}")
+            raise ConfigError(
+                f"{what}[{i}]: {features.shape[1]} features, sequence 0 has {n_features}"
+            )
         if anomaly.shape != (len(features),) or bias.shape != (len(features),):
-            raise ConfigError(f"{what}[{i}]: need one anomaly and one bias label per row "
-                              f"({len(features)}), got {anomaly.shape} and {bias.shape}")
+            raise ConfigError(
+                f"{what}[{i}]: need one anomaly and one bias label per row "
+                f"({len(features)}), got {anomaly.shape} and {bias.shape}"
+            )
         if not np.isin(anomaly, (0, 1)).all():
             raise ConfigError(f"{what}[{i}]: anomaly labels must be 0 or 1")
         if bias.size and (bias.min() < 0 or bias.max() >= n_bias):
-            raise ConfigError(f"{what}[{i}]: bias labels must be in 0..{n_bias - 1} (one per bias class)")
+            raise ConfigError(
+                f"{what}[{i}]: bias labels must be in 0..{n_bias - 1} (one per bias class)"
+            )
     return n_features
 
 
@@ -227,9 +274,9 @@ def _pack(sequences: Sequence[LabelledSequence], min_length: int, multiple: int)
     anomaly = np.full(total, _IGNORE, np.int64)
     bias = np.full(total, _IGNORE, np.int64)
     for (f, a, b), s, n in zip(sequences, starts, lengths, strict=True):
-        features[s:s + n] = f
-        anomaly[s:s + n] = a
-        bias[s:s + n] = b
+        features[s : s + n] = f
+        anomaly[s : s + n] = a
+        bias[s : s + n] = b
     return _Packed(features, anomaly, bias, starts, lengths)
 
 
@@ -243,8 +290,12 @@ def _window_samples(packed: _Packed, window: int) -> tuple[np.ndarray, np.ndarra
     return np.concatenate(starts), np.concatenate(first)
 
 
-def _window_batch(packed: _Packed, starts: np.ndarray, first: np.ndarray, window: int,
-                  ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def _window_batch(
+    packed: _Packed,
+    starts: np.ndarray,
+    first: np.ndarray,
+    window: int,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     idx = starts[:, None] + np.arange(window)
     target = first[:, None] | (np.arange(window) == window - 1)
     anomaly = np.where(target, packed.anomaly[idx], _IGNORE)
@@ -252,8 +303,13 @@ def _window_batch(packed: _Packed, starts: np.ndarray, first: np.ndarray, window
     return torch.from_numpy(packed.features[idx]), torch.from_numpy(anomaly), torch.from_numpy(bias)
 
 
-def _stream_lanes(packed: _Packed, n_lanes: int, chunk: int, piece_points: int, rng: np.random.Generator,
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def _stream_lanes(
+    packed: _Packed,
+    n_lanes: int,
+    chunk: int,
+    piece_points: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
     """Chunk start offsets (lanes, steps) and reset flags; pieces shuffled, lanes balanced greedily.
 
     Sequences are packed padded to a multiple of ``chunk``; a piece is a run of
@@ -274,8 +330,8 @@ def _stream_lanes(packed: _Packed, n_lanes: int, chunk: int, piece_points: int, 
     offsets = np.full((n_lanes, steps), -1, np.int64)
     resets = np.ones((n_lanes, steps), bool)
     for k, lane in enumerate(lanes):
-        offsets[k, :len(lane)] = [c for c, _ in lane]
-        resets[k, :len(lane)] = [r for _, r in lane]
+        offsets[k, : len(lane)] = [c for c, _ in lane]
+        resets[k, : len(lane)] = [r for _, r in lane]
     return offsets, resets
 
 
@@ -291,34 +347,53 @@ def _class_weights(labels: np.ndarray, n_classes: int, cap: float) -> torch.Tens
 
 
 class _Loss:
-    def __init__(self, anomaly_weights: torch.Tensor, bias_weights: torch.Tensor, bias_factor: float) -> None:
+    def __init__(
+        self, anomaly_weights: torch.Tensor, bias_weights: torch.Tensor, bias_factor: float
+    ) -> None:
         self.anomaly = nn.CrossEntropyLoss(weight=anomaly_weights, ignore_index=_IGNORE)
         self.bias = nn.CrossEntropyLoss(weight=bias_weights, ignore_index=_IGNORE)
         self.bias_factor = bias_factor
 
-    def __call__(self, anomaly_logits: torch.Tensor, bias_logits: torch.Tensor,
-                 anomaly: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
+    def __call__(
+        self,
+        anomaly_logits: torch.Tensor,
+        bias_logits: torch.Tensor,
+        anomaly: torch.Tensor,
+        bias: torch.Tensor,
+    ) -> torch.Tensor:
         loss: torch.Tensor = self.anomaly(anomaly_logits.reshape(-1, 2), anomaly.reshape(-1))
-        bias_loss: torch.Tensor = self.bias(bias_logits.reshape(-1, bias_logits.shape[-1]), bias.reshape(-1))
+        bias_loss: torch.Tensor = self.bias(
+            bias_logits.reshape(-1, bias_logits.shape[-1]), bias.reshape(-1)
+        )
         return loss + self.bias_factor * bias_loss
 
 
-def _predict_packed(net: GRADNet, packed: _Packed, config: TrainConfig,
-                    ) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray]:
+def _predict_packed(
+    net: GRADNet,
+    packed: _Packed,
+    config: TrainConfig,
+) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray]:
     """Logits for every real point of ``packed`` fed the config's way; labels alongside."""
     with torch.no_grad():
         if config.mode == "window":
             starts, first = _window_samples(packed, config.window)
             a_logits, b_logits, a_labels, b_labels = [], [], [], []
             for lo in range(0, len(starts), 4096):
-                x, a, b = _window_batch(packed, starts[lo:lo + 4096], first[lo:lo + 4096], config.window)
+                x, a, b = _window_batch(
+                    packed, starts[lo : lo + 4096], first[lo : lo + 4096], config.window
+                )
                 la, lb, _ = net(x)
                 keep = a != _IGNORE
                 a_logits.append(la[keep])
                 b_logits.append(lb[keep])
                 a_labels.append(a[keep].numpy())
                 b_labels.append(b[keep].numpy())
-            return (torch.cat(a_logits), torch.cat(b_logits), np.concatenate(a_labels), np.concatenate(b_labels))
+            return (
+                torch.cat(a_logits),
+                torch.cat(b_logits),
+                np.concatenate(a_labels),
+                np.concatenate(b_labels),
+            )
         longest = int(packed.lengths.max())
         idx = packed.starts[:, None] + np.arange(longest)
         idx = np.minimum(idx, len(packed.features) - 1)
@@ -344,8 +419,13 @@ def _best_threshold(truth: np.ndarray, probability: np.ndarray) -> float:
     return float(grid[best[np.argmin(np.abs(grid[best] - 0.5))]])
 
 
-def train_model(sequences: Sequence[LabelledSequence], val_sequences: Sequence[LabelledSequence],
-                config: TrainConfig | None = None, *, console: Console | None = None) -> TrainedModel:
+def train_model(
+    sequences: Sequence[LabelledSequence],
+    val_sequences: Sequence[LabelledSequence],
+    config: TrainConfig | None = None,
+    *,
+    console: Console | None = None,
+) -> TrainedModel:
     """Train the GRAD network on labelled feature sequences; early-stop on the validation set.
 
     Returns the weights of the best validation epoch, with the anomaly
@@ -370,15 +450,22 @@ def train_model(sequences: Sequence[LabelledSequence], val_sequences: Sequence[L
         torch.use_deterministic_algorithms(deterministic)
 
 
-def _train(sequences: Sequence[LabelledSequence], val_sequences: Sequence[LabelledSequence],
-           config: TrainConfig, n_features: int, console: Console | None) -> TrainedModel:
+def _train(
+    sequences: Sequence[LabelledSequence],
+    val_sequences: Sequence[LabelledSequence],
+    config: TrainConfig,
+    n_features: int,
+    console: Console | None,
+) -> TrainedModel:
     n_bias = len(config.bias_classes)
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     began = time.perf_counter()
 
     is_window = config.mode == "window"
-    train = _pack(sequences, config.window if is_window else 1, 1 if is_window else config.chunk_length)
+    train = _pack(
+        sequences, config.window if is_window else 1, 1 if is_window else config.chunk_length
+    )
     val = _pack(val_sequences, config.window if is_window else 1, 1)
 
     net = GRADNet(n_features, n_bias, config.hidden1, config.hidden2)
@@ -390,33 +477,52 @@ def _train(sequences: Sequence[LabelledSequence], val_sequences: Sequence[Labell
     net.scaler_mean.copy_(torch.from_numpy(mean.astype(np.float32)))
     net.scaler_std.copy_(torch.from_numpy(std.astype(np.float32)))
 
-    loss_fn = _Loss(_class_weights(train.anomaly, 2, config.max_class_weight),
-                    _class_weights(train.bias, n_bias, config.max_class_weight), config.bias_loss_weight)
+    loss_fn = _Loss(
+        _class_weights(train.anomaly, 2, config.max_class_weight),
+        _class_weights(train.bias, n_bias, config.max_class_weight),
+        config.bias_loss_weight,
+    )
     optimizer = torch.optim.Adam(net.parameters(), lr=config.learning_rate)
 
     if is_window:
         all_starts, all_first = _window_samples(train, config.window)
-        steps_per_epoch = math.ceil(min(len(all_starts), config.max_samples_per_epoch) / config.batch_size)
+        steps_per_epoch = math.ceil(
+            min(len(all_starts), config.max_samples_per_epoch) / config.batch_size
+        )
     else:
-        steps_per_epoch = _stream_lanes(train, config.batch_size, config.chunk_length,
-                                        config.stream_piece_length, np.random.default_rng(0))[0].shape[1]
+        steps_per_epoch = _stream_lanes(
+            train,
+            config.batch_size,
+            config.chunk_length,
+            config.stream_piece_length,
+            np.random.default_rng(0),
+        )[0].shape[1]
 
     history: list[EpochMetrics] = []
     best_score, best_epoch, best_state = math.inf, 0, None
     stop_reason = "max_epochs"
     out_of_time = False
-    progress = Progress(TextColumn("[bold]training GRU[/]"), BarColumn(), TextColumn("{task.description}"),
-                        TimeElapsedColumn(), console=console, disable=not config.progress, transient=False)
+    progress = Progress(
+        TextColumn("[bold]training GRU[/]"),
+        BarColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=console,
+        disable=not config.progress,
+        transient=False,
+    )
     with progress:
         task = progress.add_task("epoch 1", total=config.max_epochs * steps_per_epoch)
         for epoch in range(1, config.max_epochs + 1):
             net.train()
             losses: list[float] = []
             if is_window:
-                pick = rng.permutation(len(all_starts))[:config.max_samples_per_epoch]
+                pick = rng.permutation(len(all_starts))[: config.max_samples_per_epoch]
                 for lo in range(0, len(pick), config.batch_size):
-                    chosen = pick[lo:lo + config.batch_size]
-                    x, a, b = _window_batch(train, all_starts[chosen], all_first[chosen], config.window)
+                    chosen = pick[lo : lo + config.batch_size]
+                    x, a, b = _window_batch(
+                        train, all_starts[chosen], all_first[chosen], config.window
+                    )
                     la, lb, _ = net(x)
                     losses.append(_optimise(optimizer, loss_fn(la, lb, a, b)))
                     progress.advance(task)
@@ -424,8 +530,9 @@ def _train(sequences: Sequence[LabelledSequence], val_sequences: Sequence[Labell
                         out_of_time = True
                         break
             else:
-                offsets, resets = _stream_lanes(train, config.batch_size, config.chunk_length,
-                                                 config.stream_piece_length, rng)
+                offsets, resets = _stream_lanes(
+                    train, config.batch_size, config.chunk_length, config.stream_piece_length, rng
+                )
                 state: tuple[torch.Tensor, torch.Tensor] | None = None
                 for step in range(offsets.shape[1]):
                     idx = np.maximum(offsets[:, step], 0)[:, None] + np.arange(config.chunk_length)
@@ -448,16 +555,28 @@ def _train(sequences: Sequence[LabelledSequence], val_sequences: Sequence[Labell
             p_anomaly = torch.softmax(la, -1)[:, 1].numpy()
             val_f1 = _f1(a_true == 1, p_anomaly >= 0.5)
             on_anomaly = a_true == 1
-            bias_acc = float(np.mean(lb.argmax(-1).numpy()[on_anomaly] == b_true[on_anomaly])) \
-                if on_anomaly.any() else math.nan
-            metrics = EpochMetrics(epoch, float(np.mean(losses)) if losses else math.nan, val_loss, val_f1,
-                                   bias_acc, time.perf_counter() - began)
+            bias_acc = (
+                float(np.mean(lb.argmax(-1).numpy()[on_anomaly] == b_true[on_anomaly]))
+                if on_anomaly.any()
+                else math.nan
+            )
+            metrics = EpochMetrics(
+                epoch,
+                float(np.mean(losses)) if losses else math.nan,
+                val_loss,
+                val_f1,
+                bias_acc,
+                time.perf_counter() - began,
+            )
             history.append(metrics)
-            progress.update(task, description=f"epoch {epoch} val loss {val_loss:.4f} F1 {val_f1:.3f}")
+            progress.update(
+                task, description=f"epoch {epoch} val loss {val_loss:.4f} F1 {val_f1:.3f}"
+            )
             if config.progress:
                 progress.console.print(
                     f"epoch {epoch:3d}  train loss {metrics.train_loss:.4f}  val loss {val_loss:.4f}  "
-                    f"val F1 {val_f1:.4f}  bias acc {bias_acc:.3f}  {metrics.seconds:6.1f}s")
+                    f"val F1 {val_f1:.4f}  bias acc {bias_acc:.3f}  {metrics.seconds:6.1f}s"
+                )
             score = val_loss if config.early_stopping == "loss" else -val_f1
             if score < best_score:
                 best_score, best_epoch = score, epoch
