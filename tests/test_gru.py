@@ -69,6 +69,20 @@ def test_numba_windows_equal_reference(weights, scaler, features, window):
     np.testing.assert_allclose(prediction.bias, bias, atol=1e-6)
 
 
+def test_any_layer_sizes(features):
+    """Nothing assumes 32/16: a second layer wider than the first uses the same kernels."""
+    weights = random_weights(F, 3, seed=5, hidden1=5, hidden2=11)
+    mean, std = np.zeros(F, np.float32), np.ones(F, np.float32)
+    model = GRUModel(weights, mean, std)
+    assert model.state_size == 16
+    np.testing.assert_allclose(
+        model.predict_stream(features)[0].anomaly, reference_stream(weights, mean, std, features)[0], atol=1e-6
+    )
+    np.testing.assert_allclose(
+        model.new_stream().update(features[0])[1:], reference_stream(weights, mean, std, features[:1])[1][0], atol=1e-6
+    )
+
+
 def test_window_longer_than_segment_is_streaming(weights, scaler, features):
     """Every point sees the whole prefix when W >= n: window mode == stream mode from zero."""
     model = _model(weights, scaler)

@@ -140,6 +140,10 @@ def test_save_refuses_inconsistent_model(tmp_path: Path):
         )
     with pytest.raises(ModelError, match=r"bias_head\.weight.*shape"):
         save_model(tmp_path / "m", random_weights(F, K + 1), model_config(F, K))
+    with pytest.raises(ModelError, match="cannot be written as JSON"):
+        save_model(
+            tmp_path / "m", random_weights(F, K), {**model_config(F, K), "rema": {"alpha": np.nan}}
+        )
     assert not (tmp_path / "m").exists()
 
 

@@ -19,6 +19,7 @@ from gradgps._training import (  # noqa: E402
     _IGNORE,
     TrainConfig,
     _class_weights,
+    _fit_scaler,
     _pack,
     _stream_lanes,
     _window_batch,
@@ -163,3 +164,21 @@ def test_bad_inputs_fail_clearly():
         train_model(TRAIN, [(features[:, :3], anomaly, bias)], _config())
     with pytest.raises(ConfigError, match="val_sequences: no sequences"):
         train_model(TRAIN, [], _config())
+
+
+def test_scaler_ignores_non_finite_values_and_constant_features():
+    features = np.array([[1.0, np.nan, 5.0], [3.0, np.nan, 5.0], [np.inf, np.nan, 5.0]], np.float32)
+    mean, std = _fit_scaler(features)
+    np.testing.assert_allclose(mean, [2.0, 0.0, 5.0])
+    np.testing.assert_allclose(std, [1.0, 1.0, 1.0])
+    assert mean.dtype == std.dtype == np.float32
+
+
+def test_trains_with_nan_features_and_segments_of_one_point():
+    sequences = toy_sequences(6, seed=8)
+    sequences[0][0][:, 3] = np.nan
+    sequences.append((sequences[1][0][:1], sequences[1][1][:1], sequences[1][2][:1]))
+    for mode in ("window", "stream"):
+        model = train_model(sequences, VAL, _config(mode=mode, max_epochs=1))
+        assert np.isfinite(model.history[0].val_loss)
+        assert all(np.isfinite(w).all() for w in model.weights().values())

@@ -312,8 +312,9 @@ def _recurrent_step(params: Any, dims: Any, x: Any, state: Any, scratch: Any) ->
     for j in range(n_features):
         v = (x[j] - params[j]) * params[n_features + j]
         scaled[j] = v if math.isfinite(v) else 0.0
-    gi = scratch[n_features : n_features + 3 * hidden1]
-    gh = scratch[n_features + 3 * hidden1 : n_features + 6 * hidden1]
+    widest = max(hidden1, hidden2)  # gate buffers shared by both layers
+    gi = scratch[n_features : n_features + 3 * widest]
+    gh = scratch[n_features + 3 * widest : n_features + 6 * widest]
     o1 = 2 * n_features
     h1 = state[:hidden1]
     _cell(params, o1, n_features, hidden1, scaled, h1, gi, gh)

@@ -198,11 +198,16 @@ def save_model(
     content["format_version"] = FORMAT_VERSION
     content["weights_file"] = WEIGHTS_FILE
     content["weights_sha256"] = _sha256(data)
+    try:  # before writing anything: a config that cannot be stored must not leave new weights behind
+        text = json.dumps(content, indent=2, allow_nan=False) + "\n"
+    except (TypeError, ValueError) as error:
+        raise ModelError(
+            f"config for {folder} cannot be written as JSON ({error}); "
+            "feature and REMA parameters must be plain numbers, strings, lists and dicts"
+        ) from None
     folder.mkdir(parents=True, exist_ok=True)
     _write_atomic(folder / WEIGHTS_FILE, data)
-    _write_atomic(
-        folder / CONFIG_FILE, (json.dumps(content, indent=2, allow_nan=False) + "\n").encode()
-    )
+    _write_atomic(folder / CONFIG_FILE, text.encode())
 
 
 def _write_atomic(path: Path, data: bytes) -> None:

@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -207,8 +207,14 @@ class TrainedModel:
             "training": {
                 "best_epoch": self.best_epoch,
                 "stop_reason": self.stop_reason,
-                "seed": cfg.seed,
-                "history": [vars(m) for m in self.history],
+                "config": {**asdict(cfg), "bias_classes": list(cfg.bias_classes)},
+                "history": [
+                    {
+                        k: None if isinstance(v, float) and math.isnan(v) else v
+                        for k, v in vars(m).items()
+                    }
+                    for m in self.history
+                ],
             },
         }
 
@@ -335,6 +341,21 @@ def _stream_lanes(
     return offsets, resets
 
 
+def _fit_scaler(features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-feature mean and std over the finite values (float32).
+
+    A feature with no finite value gets mean 0; a (near) constant one gets
+    std 1, so scaling never divides by zero and such a feature scales to ~0.
+    """
+    finite = np.isfinite(features)
+    count = np.maximum(finite.sum(axis=0), 1)
+    values = np.where(finite, features, 0.0).astype(np.float64)
+    mean = values.sum(axis=0) / count
+    std = np.sqrt((np.where(finite, values - mean, 0.0) ** 2).sum(axis=0) / count)
+    std[std < 1e-6 * np.maximum(1.0, np.abs(mean))] = 1.0
+    return mean.astype(np.float32), std.astype(np.float32)
+
+
 def _class_weights(labels: np.ndarray, n_classes: int, cap: float) -> torch.Tensor:
     """Inverse-frequency ("balanced") weights, capped; classes absent from training get 1."""
     labels = labels[labels != _IGNORE]
@@ -394,13 +415,26 @@ def _predict_packed(
                 np.concatenate(a_labels),
                 np.concatenate(b_labels),
             )
-        longest = int(packed.lengths.max())
-        idx = packed.starts[:, None] + np.arange(longest)
-        idx = np.minimum(idx, len(packed.features) - 1)
-        valid = np.arange(longest) < packed.lengths[:, None]
-        la, lb, _ = net(torch.from_numpy(packed.features[idx]))
-        keep = torch.from_numpy(valid)
-        return la[keep], lb[keep], packed.anomaly[idx][valid], packed.bias[idx][valid]
+        # Whole sequences from zero state, in groups of similar length so
+        # right-padding (harmless: the GRU is causal) wastes little memory.
+        order = np.argsort(packed.lengths, kind="stable")
+        parts: list[tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray]] = []
+        for lo in range(0, len(order), 64):
+            group = order[lo : lo + 64]
+            longest = int(packed.lengths[group].max())
+            idx = np.minimum(
+                packed.starts[group, None] + np.arange(longest), len(packed.features) - 1
+            )
+            valid = np.arange(longest) < packed.lengths[group, None]
+            la, lb, _ = net(torch.from_numpy(packed.features[idx]))
+            keep = torch.from_numpy(valid)
+            parts.append((la[keep], lb[keep], packed.anomaly[idx][valid], packed.bias[idx][valid]))
+        return (
+            torch.cat([p[0] for p in parts]),
+            torch.cat([p[1] for p in parts]),
+            np.concatenate([p[2] for p in parts]),
+            np.concatenate([p[3] for p in parts]),
+        )
 
 
 def _f1(truth: np.ndarray, predicted: np.ndarray) -> float:
@@ -469,13 +503,9 @@ def _train(
     val = _pack(val_sequences, config.window if is_window else 1, 1)
 
     net = GRADNet(n_features, n_bias, config.hidden1, config.hidden2)
-    real = train.anomaly != _IGNORE
-    finite = np.where(np.isfinite(train.features[real]), train.features[real], np.nan)
-    mean = np.nan_to_num(np.nanmean(finite, axis=0)) if finite.size else np.zeros(n_features)
-    std = np.nan_to_num(np.nanstd(finite, axis=0))
-    std[std < 1e-6 * np.maximum(1.0, np.abs(mean))] = 1.0
-    net.scaler_mean.copy_(torch.from_numpy(mean.astype(np.float32)))
-    net.scaler_std.copy_(torch.from_numpy(std.astype(np.float32)))
+    mean, std = _fit_scaler(train.features[train.anomaly != _IGNORE])
+    net.scaler_mean.copy_(torch.from_numpy(mean))
+    net.scaler_std.copy_(torch.from_numpy(std))
 
     loss_fn = _Loss(
         _class_weights(train.anomaly, 2, config.max_class_weight),
