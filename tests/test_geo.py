@@ -54,3 +54,20 @@ def test_local_distance_matches_haversine() -> None:
 def test_bad_origin_is_a_config_error(lat0: float, lon0: float) -> None:
     with pytest.raises(ConfigError):
         LocalFrame(lat0, lon0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(lat0=lat0s, lon0=lon0s, de=st.floats(-1e5, 1e5), dn=st.floats(-1e5, 1e5))
+def test_scalar_kernels_match_the_vectorised_frame(lat0: float, lon0: float, de: float, dn: float) -> None:
+    from gradgps._geo import to_geodetic_scalar, to_local_scalar
+
+    frame = LocalFrame(lat0, lon0)
+    c = frame.constants()
+    lat, lon = frame.to_geodetic(de, dn)
+    lat_s, lon_s = to_geodetic_scalar(c, de, dn)
+    assert abs(lat_s - float(lat)) < 1e-11
+    assert abs(((lon_s - float(lon)) + 180.0) % 360.0 - 180.0) < 1e-11
+    e, n = frame.to_local(lat, lon)
+    e_s, n_s = to_local_scalar(c, float(lat), float(lon))
+    assert abs(e_s - float(e)) < 1e-6
+    assert abs(n_s - float(n)) < 1e-6

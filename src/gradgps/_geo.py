@@ -16,14 +16,24 @@ the project promises. Altitude is carried through untouched, not projected.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._exceptions import ConfigError
 
-__all__ = ["WGS84_A", "WGS84_F", "LocalFrame", "haversine_m"]
+__all__ = [
+    "N_FRAME_CONSTANTS",
+    "WGS84_A",
+    "WGS84_F",
+    "LocalFrame",
+    "haversine_m",
+    "to_geodetic_scalar",
+    "to_local_scalar",
+]
 
 WGS84_A = 6378137.0
 WGS84_F = 1.0 / 298.257223563
@@ -74,6 +84,11 @@ class LocalFrame:
         origin = np.array([float(x0), float(y0), float(z0)])
         return origin, east, north, up
 
+    def constants(self) -> FloatArray:
+        """The frame as 12 numbers (origin, east, north, up axes in ECEF) for the scalar kernels."""
+        origin, e_ax, n_ax, u_ax = self._axes
+        return np.concatenate([origin, e_ax, n_ax, u_ax])
+
     def to_local(self, lat: ArrayLike, lon: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Degrees -> (east, north) metres in this frame."""
         lat_a = np.asarray(lat, dtype=np.float64)
@@ -122,3 +137,44 @@ def haversine_m(lat1: ArrayLike, lon1: ArrayLike, lat2: ArrayLike, lon2: ArrayLi
     dl = np.radians(np.asarray(lon2, dtype=np.float64) - np.asarray(lon1, dtype=np.float64))
     h = np.sin(dp / 2.0) ** 2 + np.cos(p1) * np.cos(p2) * np.sin(dl / 2.0) ** 2
     return np.asarray(2.0 * r * np.arcsin(np.sqrt(np.clip(h, 0.0, 1.0))), dtype=np.float64)
+
+
+# Scalar kernels for per-point pipelines: the same formulas as LocalFrame (the
+# readable, vectorised reference; a test keeps them equal), one fix at a time
+# inside compiled code, where a NumPy call per fix would cost microseconds.
+N_FRAME_CONSTANTS = 12
+
+
+@numba.njit(cache=True)
+def to_local_scalar(c: FloatArray, lat: float, lon: float) -> tuple[float, float]:
+    """Degrees -> (east, north) metres, ``c`` from :meth:`LocalFrame.constants`."""
+    phi = math.radians(lat)
+    lam = math.radians(lon)
+    sin_phi = math.sin(phi)
+    n = WGS84_A / math.sqrt(1.0 - _E2 * sin_phi * sin_phi)
+    dx = n * math.cos(phi) * math.cos(lam) - c[0]
+    dy = n * math.cos(phi) * math.sin(lam) - c[1]
+    dz = n * (1.0 - _E2) * sin_phi - c[2]
+    east = dx * c[3] + dy * c[4]
+    north = dx * c[6] + dy * c[7] + dz * c[8]
+    return east, north
+
+
+@numba.njit(cache=True)
+def to_geodetic_scalar(c: FloatArray, east: float, north: float) -> tuple[float, float]:
+    """(east, north) metres -> degrees (latitude, longitude), ``c`` from :meth:`LocalFrame.constants`."""
+    px = c[0] + east * c[3] + north * c[6]
+    py = c[1] + east * c[4] + north * c[7]
+    pz = c[2] + north * c[8]
+    a2 = WGS84_A * WGS84_A
+    b2 = _B * _B
+    qa = (c[9] * c[9] + c[10] * c[10]) / a2 + c[11] * c[11] / b2
+    qb = 2.0 * ((px * c[9] + py * c[10]) / a2 + pz * c[11] / b2)
+    qc = (px * px + py * py) / a2 + pz * pz / b2 - 1.0
+    disc = math.sqrt(max(qb * qb - 4.0 * qa * qc, 0.0))
+    q = -0.5 * (qb + math.copysign(disc, qb))
+    u = qc / q if q != 0.0 else 0.0
+    x = px + u * c[9]
+    y = py + u * c[10]
+    z = pz + u * c[11]
+    return math.degrees(math.atan2(z, math.hypot(x, y) * (1.0 - _E2))), math.degrees(math.atan2(y, x))

@@ -8,21 +8,32 @@ steps and then re-acquire the shifted track within seconds, yet protocol
 several bursts (intermittent). A detector with a short memory misses most of
 it. The tracker gives the model that memory explicitly.
 
-Per channel (east, north) and per point:
+Per channel (east, north: the two are tracked separately, because faults
+hit them separately and a prediction error in one must not leak into the
+other) and per point:
 
 * the *predicted step* is what the vehicle should have moved since the last
-  point: from the reported speed and heading when both are present at both
-  ends (trapezoid rule), else from a constant-velocity estimate (an EMA of
-  the *explained* steps' velocities);
+  point: from the reported speed and heading when both ends have them
+  (trapezoid rule), else from a constant-velocity estimate (an EMA of the
+  *explained* steps' velocities);
 * the *residual* is the observed step minus the predicted one;
-* a residual larger than ``threshold_m`` in norm is *unexplained*: it is
-  added to the running ``offset``; otherwise the offset leaks towards zero
-  at ``leak_per_s`` (so an unexplained real manoeuvre is forgotten in a few
-  minutes) and the constant-velocity estimate learns from the step.
+* a residual larger than ``threshold_m`` is *unexplained* (a fault starts,
+  changes or ends) and is added to the offset; while a fault is suspected
+  (offset beyond ``threshold_m``), a step that brings the offset within
+  ``threshold_m`` of zero or to under a quarter of what it was ends it: the
+  offset snaps to zero, what is left being prediction error;
+* a smaller residual is explained: the offset leaks towards zero, slowly
+  (``leak_per_s``) while a fault is suspected, so a real unexplained
+  manoeuvre is forgotten in minutes while a 100 s jump fault stays visible,
+  and fast (``fast_leak_per_s``) otherwise; the constant-velocity estimate
+  learns from the step.
 
 So ``offset`` is approximately the current fault offset: it jumps to ``d``
 when a jump of ``d`` starts and back to about zero when it ends. Outputs per
-point: offset east/north (m), its norm (m), and the residual east/north (m).
+point: offset east/north (m), its norm (m), the change of the norm at this
+point (m; negative when the step took the track back towards where it should
+be, which is what tells the *end* of a fault from the start of one, both
+being big unexplained steps), and the residual east/north (m).
 
 Everything is causal and translation-invariant (only differences enter).
 :func:`offset_features_reference` is the readable version; the numba kernel
@@ -51,8 +62,11 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-OFFSET_FEATURES = ("offset_east", "offset_north", "offset_norm", "residual_east", "residual_north")
+OFFSET_FEATURES = ("offset_east", "offset_north", "offset_norm", "offset_change", "residual_east",
+                   "residual_north")
 N_OFFSET_FEATURES = len(OFFSET_FEATURES)
+N_OFFSET_PARAMS = 4
+SNAP_FRACTION = 0.25
 # State: count, last east, last north, last ve, last vn (reported, NaN if none),
 # cv ve, cv vn, offset east, offset north.
 S_COUNT, S_E, S_N, S_VE, S_VN, S_CVE, S_CVN, S_OE, S_ON = range(9)
@@ -66,16 +80,19 @@ class OffsetParams:
     weight of the constant-velocity estimate."""
 
     threshold_m: float = 6.0
-    leak_per_s: float = 0.001
+    leak_per_s: float = 0.002
     cv_alpha: float = 0.5
+    fast_leak_per_s: float = 0.1
 
     def to_array(self) -> FloatArray:
-        if not (self.threshold_m > 0 and 0 <= self.leak_per_s < 1 and 0 < self.cv_alpha <= 1):
+        if not (self.threshold_m > 0 and 0 <= self.leak_per_s < 1 and 0 < self.cv_alpha <= 1
+                and 0 <= self.fast_leak_per_s < 1):
             raise ConfigError(
-                "offset tracker needs threshold_m > 0, 0 <= leak_per_s < 1, 0 < cv_alpha <= 1; got "
-                f"{self.threshold_m}, {self.leak_per_s}, {self.cv_alpha}"
+                "offset tracker needs threshold_m > 0, 0 <= leak_per_s < 1, 0 < cv_alpha <= 1, "
+                f"0 <= fast_leak_per_s < 1; got {self.threshold_m}, {self.leak_per_s}, "
+                f"{self.cv_alpha}, {self.fast_leak_per_s}"
             )
-        return np.array([self.threshold_m, self.leak_per_s, self.cv_alpha])
+        return np.array([self.threshold_m, self.leak_per_s, self.cv_alpha, self.fast_leak_per_s])
 
 
 def _velocity(speed: float, heading: float) -> tuple[float, float]:
@@ -91,7 +108,7 @@ def offset_features_reference(
 ) -> FloatArray:
     """Readable version of the tracker over one segment; ``dt[i]`` = t[i] - t[i-1] (dt[0] unused)."""
     prm = params or OffsetParams()
-    threshold, leak, alpha = (float(v) for v in prm.to_array())
+    threshold, leak, alpha, fast_leak = (float(v) for v in prm.to_array())
     d = np.asarray(dt, dtype=np.float64)
     e = np.asarray(east, dtype=np.float64)
     n = np.asarray(north, dtype=np.float64)
@@ -115,15 +132,36 @@ def offset_features_reference(
         residual = (step[0] - predicted[0], step[1] - predicted[1])
         if i == 1:
             cv = [step[0] / d[i], step[1] / d[i]]  # the velocity estimate starts from it too
-        elif math.hypot(*residual) > threshold:
-            offset = [offset[0] + residual[0], offset[1] + residual[1]]
-        else:
-            keep = max(0.0, 1.0 - leak * d[i])
-            offset = [offset[0] * keep, offset[1] * keep]
-            cv = [alpha * step[0] / d[i] + (1 - alpha) * cv[0],
-                  alpha * step[1] / d[i] + (1 - alpha) * cv[1]]
-        out[i] = (offset[0], offset[1], math.hypot(*offset), residual[0], residual[1])
+            out[i] = (0.0, 0.0, 0.0, 0.0, residual[0], residual[1])
+            continue
+        norm_before = math.hypot(*offset)
+        for c in range(2):
+            before = offset[c]
+            in_fault = abs(before) > threshold
+            if abs(residual[c]) > threshold:  # a fault starts, changes or ends
+                offset[c] = before + residual[c]
+                if in_fault and abs(offset[c]) < max(threshold, SNAP_FRACTION * abs(before)):
+                    offset[c] = 0.0  # it ended: what is left is prediction error
+            else:
+                offset[c] = before * max(0.0, 1.0 - (leak if in_fault else fast_leak) * d[i])
+                cv[c] = alpha * step[c] / d[i] + (1 - alpha) * cv[c]
+        out[i] = (offset[0], offset[1], math.hypot(*offset), math.hypot(*offset) - norm_before,
+                  residual[0], residual[1])
     return out
+
+
+@numba.njit(cache=True)
+def _channel(p: FloatArray, state: FloatArray, o: int, cv: int, residual: float, step: float,
+             dt: float) -> None:
+    before = state[o]
+    in_fault = abs(before) > p[0]
+    if abs(residual) > p[0]:
+        state[o] = before + residual
+        if in_fault and abs(state[o]) < max(p[0], SNAP_FRACTION * abs(before)):
+            state[o] = 0.0
+    else:
+        state[o] = before * max(0.0, 1.0 - (p[1] if in_fault else p[3]) * dt)
+        state[cv] = p[2] * step / dt + (1.0 - p[2]) * state[cv]
 
 
 @numba.njit(cache=True)
@@ -145,34 +183,27 @@ def offset_step(p: FloatArray, state: FloatArray, dt: float, east: float, north:
         step_e = east - state[S_E]
         step_n = north - state[S_N]
         if np.isfinite(ve) and np.isfinite(state[S_VE]):
-            pred_e = 0.5 * (state[S_VE] + ve) * dt
-            pred_n = 0.5 * (state[S_VN] + vn) * dt
+            res_e = step_e - 0.5 * (state[S_VE] + ve) * dt
+            res_n = step_n - 0.5 * (state[S_VN] + vn) * dt
         elif count == 1.0:
-            pred_e = step_e
-            pred_n = step_n
+            res_e = 0.0
+            res_n = 0.0
         else:
-            pred_e = state[S_CVE] * dt
-            pred_n = state[S_CVN] * dt
-        res_e = step_e - pred_e
-        res_n = step_n - pred_n
+            res_e = step_e - state[S_CVE] * dt
+            res_n = step_n - state[S_CVN] * dt
+        norm_before = np.hypot(state[S_OE], state[S_ON])
         if count == 1.0:
             state[S_CVE] = step_e / dt
             state[S_CVN] = step_n / dt
-        elif np.hypot(res_e, res_n) > p[0]:
-            state[S_OE] += res_e
-            state[S_ON] += res_n
         else:
-            keep = max(0.0, 1.0 - p[1] * dt)
-            state[S_OE] *= keep
-            state[S_ON] *= keep
-            a = p[2]
-            state[S_CVE] = a * step_e / dt + (1.0 - a) * state[S_CVE]
-            state[S_CVN] = a * step_n / dt + (1.0 - a) * state[S_CVN]
+            _channel(p, state, S_OE, S_CVE, res_e, step_e, dt)
+            _channel(p, state, S_ON, S_CVN, res_n, step_n, dt)
         out[0] = state[S_OE]
         out[1] = state[S_ON]
         out[2] = np.hypot(state[S_OE], state[S_ON])
-        out[3] = res_e
-        out[4] = res_n
+        out[3] = out[2] - norm_before
+        out[4] = res_e
+        out[5] = res_n
     state[S_COUNT] = count + 1.0
     state[S_E] = east
     state[S_N] = north

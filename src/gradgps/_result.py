@@ -21,7 +21,9 @@ class PointResult:
 
     ``anomaly`` and ``alert`` are 0/1; ``score`` in [0, 1] (nan for an
     unusable fix); ``bias_type``/``time_type`` ``None`` when the detector does
-    not classify; ``lat_clean``/``lon_clean`` the position to use instead.
+    not classify; ``lat_clean``/``lon_clean`` the position to use instead;
+    ``invalid_reason`` is empty for a usable fix, else why it could not be
+    used (it is then flagged and never enters the detector's state).
     """
 
     anomaly: int
@@ -31,3 +33,4 @@ class PointResult:
     lat_clean: float
     lon_clean: float
     alert: int
+    invalid_reason: str = ""

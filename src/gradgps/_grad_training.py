@@ -1,0 +1,175 @@
+"""Training the GRAD detector end to end: clean drives -> injected faults -> features -> GRU -> model directory.
+
+The network only ever sees what the deployed pipeline computes: features come
+from :func:`gradgps._grad_pipeline.grad_features`, the very kernel the
+:class:`~gradgps.Detector` runs, over the same preprocessing (sorted, merged,
+split at long gaps, no interpolation). Labels come from the injection
+protocol ``grad`` (:func:`gradgps._inject.inject_grad`), one pass per
+injection seed, so several seeds give the network more faults to learn from
+without touching the validation data (its own seed, disjoint from training's).
+
+This module imports torch (through :mod:`gradgps._training`); inference never
+does.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ._exceptions import ConfigError
+from ._grad_pipeline import PipelineParams, grad_features, pipeline_feature_names
+from ._inject import inject_grad
+from ._model_io import save_model
+from ._preprocess import preprocess
+from ._track import ColumnMap, to_fixes
+
+__all__ = ["GradTrainingSet", "labelled_sequences", "train_grad"]
+
+LabelledSequence = tuple[np.ndarray, np.ndarray, np.ndarray]
+GRAD_BIAS_CLASSES = ("none", "noise", "jump")
+
+
+def labelled_sequences(
+    labelled: pd.DataFrame,
+    params: PipelineParams,
+    columns: ColumnMap | None = None,
+    bias_classes: Sequence[str] = GRAD_BIAS_CLASSES,
+) -> list[LabelledSequence]:
+    """Per segment: (features (n, F) float32, anomaly (n,) int64, bias class (n,) int64).
+
+    ``labelled`` is a table with ``label_anomaly`` and ``label_bias`` columns
+    (an injection protocol's output). A point that merges several rows takes
+    the strongest label among them.
+    """
+    for col in ("label_anomaly", "label_bias"):
+        if col not in labelled.columns:
+            raise ConfigError(f"labelled table lacks {col!r}; produce it with an injection protocol")
+    fixes = to_fixes(labelled, columns)
+    prepared = preprocess(fixes, max_gap_s=params.max_gap_s, interpolate=False)
+    n_pts = len(prepared.points)
+    ok = prepared.row_point >= 0
+    anomaly = np.zeros(n_pts, np.int64)
+    np.maximum.at(anomaly, prepared.row_point[ok],
+                  labelled["label_anomaly"].to_numpy(np.int64)[ok])
+    index = {name: i for i, name in enumerate(bias_classes)}
+    try:
+        bias_rows = np.array([index[str(v)] for v in labelled["label_bias"].to_numpy(object)],
+                             dtype=np.int64)
+    except KeyError as exc:
+        raise ConfigError(f"bias label {exc} is not one of {list(bias_classes)}") from exc
+    bias = np.zeros(n_pts, np.int64)
+    np.maximum.at(bias, prepared.row_point[ok], bias_rows[ok])
+    pts = prepared.points
+    nan = np.full(n_pts, np.nan)
+    speed = pts["speed"].to_numpy(np.float64) if "speed" in pts else nan
+    heading = pts["heading"].to_numpy(np.float64) if "heading" in pts else nan
+    t = pts["t"].to_numpy(np.float64)
+    lat = pts["lat"].to_numpy(np.float64)
+    lon = pts["lon"].to_numpy(np.float64)
+    tracks = pts["track"].to_numpy(object)
+    out: list[LabelledSequence] = []
+    for _, sl in prepared.segment_slices():
+        feats = grad_features(params, prepared.frames[str(tracks[sl.start])], t[sl], lat[sl],
+                              lon[sl], speed[sl], heading[sl])
+        out.append((feats.astype(np.float32), anomaly[sl], bias[sl]))
+    return out
+
+
+@dataclass(frozen=True)
+class GradTrainingSet:
+    """How training data is made from clean tables: injection seeds and magnitude scales.
+
+    Each (seed, scale) pair injects the whole table once; validation uses
+    ``val_seed`` at scale 1 (the benchmark's setting).
+    """
+
+    seeds: tuple[int, ...] = tuple(range(101, 111))
+    scales: tuple[float, ...] = (1.0,)
+    val_seed: int = 7
+
+
+@dataclass(frozen=True)
+class TrainReport:
+    """What a training run did, for logs and the model card."""
+
+    n_train_points: int
+    n_val_points: int
+    best_epoch: int
+    stop_reason: str
+    threshold: float
+    history: list[dict[str, Any]] = field(default_factory=list)
+
+
+def _sequences(tables: Sequence[pd.DataFrame], params: PipelineParams, seeds: Sequence[int],
+               scales: Sequence[float]) -> list[LabelledSequence]:
+    out: list[LabelledSequence] = []
+    for table in tables:
+        cmap: ColumnMap = to_fixes(table).attrs["columns"]
+        for seed in seeds:
+            for scale in scales:
+                labelled = inject_grad(table, seed=seed, scale=scale, columns=cmap)
+                out += labelled_sequences(labelled, params, cmap)
+    return out
+
+
+def train_grad(
+    train_tables: Sequence[pd.DataFrame],
+    val_tables: Sequence[pd.DataFrame],
+    directory: str | os.PathLike[str],
+    *,
+    params: PipelineParams | None = None,
+    data: GradTrainingSet | None = None,
+    mode: str = "stream",
+    window: int = 10,
+    time_budget_s: float = 180.0,
+    seed: int = 0,
+    progress: bool = True,
+    notes: dict[str, Any] | None = None,
+    patience: int = 25,
+    learning_rate: float = 3e-3,
+    max_epochs: int = 400,
+) -> TrainReport:
+    """Train on clean tables with injected ``grad`` faults and write a model directory.
+
+    Returns a :class:`TrainReport`; the directory holds ``weights.npz`` and
+    ``config.json`` (pipeline settings, scaler, tuned threshold, history).
+    """
+    import torch
+
+    from ._model_io import export_torch
+    from ._training import TrainConfig, train_model
+
+    prm = params or PipelineParams()
+    spec = data or GradTrainingSet()
+    train = _sequences(train_tables, prm, spec.seeds, spec.scales)
+    val = _sequences(val_tables, prm, (spec.val_seed,), (1.0,))
+    if not train or not val:
+        raise ConfigError("training needs at least one training and one validation segment")
+    config = TrainConfig(bias_classes=GRAD_BIAS_CLASSES, mode=mode, window=window,
+                         time_budget_s=time_budget_s, seed=seed, progress=progress,
+                         early_stopping="f1", patience=patience, learning_rate=learning_rate,
+                         max_epochs=max_epochs)
+    with torch.random.fork_rng():
+        trained = train_model(train, val, config)
+    threshold = float(trained.anomaly_threshold)
+    tuned = PipelineParams(**{**prm.__dict__, "threshold": threshold})
+    cfg = trained.model_config(pipeline_feature_names(tuned), {"pipeline": tuned.to_dict()},
+                               tuned.rema.__dict__)
+    cfg["training"]["data"] = {"seeds": list(spec.seeds), "scales": list(spec.scales),
+                               "val_seed": spec.val_seed, **(notes or {})}
+    save_model(Path(directory), export_torch(trained.network), cfg)
+    return TrainReport(
+        n_train_points=sum(len(s[1]) for s in train),
+        n_val_points=sum(len(s[1]) for s in val),
+        best_epoch=trained.best_epoch,
+        stop_reason=trained.stop_reason,
+        threshold=threshold,
+        history=[h.__dict__ for h in trained.history],
+    )
