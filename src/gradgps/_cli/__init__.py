@@ -10,10 +10,13 @@ from __future__ import annotations
 import click
 
 from .bench import bench
+from .demo import demo
+from .detect import detect
 from .errors import ErrorReportingGroup
 from .info import info
 from .inject import inject
 from .simulate import simulate
+from .train import train
 
 __all__ = ["main"]
 
@@ -25,6 +28,9 @@ def main() -> None:
 
 
 main.add_command(bench)
+main.add_command(demo)
+main.add_command(detect)
 main.add_command(info)
 main.add_command(inject)
 main.add_command(simulate)
+main.add_command(train)

@@ -14,16 +14,10 @@ __all__ = ["inject"]
 
 
 def _read_input(path: Path, fmt: str | None) -> Table:
-    """Read the input table. CSV only for now; the one place to swap in ``gradgps._io.read_table``."""
-    import pandas as pd
+    """Read the input table in any format the readers accept (CSV, Parquet, GPX, NMEA)."""
+    from .._io import read_table
 
-    kind = (fmt or path.suffix.lstrip(".") or "csv").lower()
-    if kind != "csv":
-        raise click.UsageError(
-            f"{path}: inject reads CSV only for now (got format {kind!r}); "
-            "convert the file to CSV first"
-        )
-    return Table(frame=pd.read_csv(path), source=str(path), first_line=2)
+    return read_table(path, fmt)
 
 
 @click.command()
@@ -92,7 +86,9 @@ def inject(
             rates = sensor_grid_rates(labelled)
     except GradGPSError as exc:
         raise click.ClickException(str(exc)) from exc
-    labelled.to_csv(output, index=False)
+    from .._io import write_table
+
+    write_table(labelled, output)
     shown = RichTable(title=f"achieved fault rates, % of {len(labelled)} rows ({protocol})")
     shown.add_column("")
     for c in rates.columns:

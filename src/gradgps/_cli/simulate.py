@@ -71,10 +71,9 @@ def simulate(
                 imu=not no_imu,
                 on_track=lambda _: progress.advance(task),
             )
-    if suffix == ".csv":
-        frame.to_csv(output, index=False)
-    else:
-        frame.to_parquet(output, index=False)
+    from .._io import write_table
+
+    write_table(frame, output)
     stopped = float((frame["speed"] < 0.5).mean())
     click.echo(
         f"wrote {output}: {tracks} track(s), {len(frame)} fixes, {minutes:g} min at {rate_hz:g} Hz, "

@@ -1,0 +1,179 @@
+"""The end-to-end Detector: batch == streaming, checkpoint/restore, invalid fixes, model checks.
+
+These tests use a model with random weights (the pipeline's arithmetic does
+not care whether the network is any good); the shipped default model's
+accuracy is measured by the benchmarks, and loaded once here.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from _gru_support import random_weights
+from gradgps import ConfigError, ModelError, simulate_fleet, to_fixes
+from gradgps._detector import Detector
+from gradgps._grad_pipeline import PipelineParams, pipeline_feature_names
+from gradgps._inject import inject_grad
+from gradgps._model_io import save_model
+
+RESULT = ["anomaly", "score", "bias_type", "time_type", "lat_clean", "lon_clean", "alert",
+          "invalid_reason"]
+
+
+def _random_model(directory: Path, threshold: float = 0.5, seed: int = 0) -> Path:
+    params = PipelineParams(threshold=threshold)
+    names = pipeline_feature_names(params)
+    rng = np.random.default_rng(seed)
+    config = {
+        "architecture": {"n_features": len(names), "hidden1": 32, "hidden2": 16,
+                         "n_bias_classes": 3},
+        "mode": "stream",
+        "window": 10,
+        "features": {"names": names, "params": {"pipeline": params.to_dict()}},
+        "scaler": {"mean": rng.normal(0, 0.5, len(names)).tolist(),
+                   "std": rng.uniform(0.5, 2.0, len(names)).tolist()},
+        "thresholds": {"anomaly": threshold},
+        "rema": {},
+        "class_names": {"anomaly": ["normal", "anomaly"], "bias": ["none", "noise", "jump"]},
+    }
+    save_model(directory, random_weights(len(names), 3, seed=seed, scale=0.6), config)
+    return directory
+
+
+@pytest.fixture(scope="module")
+def model_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _random_model(tmp_path_factory.mktemp("model"), threshold=0.5)
+
+
+@pytest.fixture(scope="module")
+def drives() -> pd.DataFrame:
+    clean = simulate_fleet(3, 4.0, 1.0, seed=5)
+    return to_fixes(inject_grad(clean, seed=3))
+
+
+def _stream(det: Detector, fixes: pd.DataFrame) -> pd.DataFrame:
+    rows = []
+    for r in fixes.itertuples(index=False):
+        res = det.update(r.t, r.lat, r.lon, speed=r.speed, heading=r.heading)
+        rows.append([res.anomaly, res.score, res.bias_type, res.time_type, res.lat_clean,
+                     res.lon_clean, res.alert, res.invalid_reason])
+    return pd.DataFrame(rows, columns=RESULT)
+
+
+def _assert_same(a: pd.DataFrame, b: pd.DataFrame) -> None:
+    for col in RESULT:
+        x, y = a[col].to_numpy(), b[col].to_numpy()
+        if x.dtype.kind == "f" or y.dtype.kind == "f":
+            np.testing.assert_array_equal(np.asarray(x, float), np.asarray(y, float), err_msg=col)
+        else:
+            assert list(x) == list(y), col
+
+
+def test_batch_equals_streaming_bit_for_bit(model_dir: Path, drives: pd.DataFrame) -> None:
+    batch = Detector(model_dir).detect(drives)
+    assert list(batch.columns) == RESULT
+    assert len(batch) == len(drives)
+    assert batch["anomaly"].sum() > 0  # the random net flags something: the test has teeth
+    for track in drives["track"].unique():
+        mine = drives[drives["track"] == track]
+        streamed = _stream(Detector(model_dir), mine)
+        _assert_same(batch.loc[mine.index].reset_index(drop=True), streamed)
+
+
+def test_batch_equals_streaming_at_5_hz_with_gaps(model_dir: Path) -> None:
+    fixes = to_fixes(simulate_fleet(1, 2.0, 5.0, seed=9))
+    keep = np.ones(len(fixes), bool)
+    keep[100:115] = False  # a 3 s gap (kept in one segment)
+    keep[300:340] = False  # an 8 s gap (a new segment)
+    fixes = fixes[keep].reset_index(drop=True)
+    _assert_same(Detector(model_dir).detect(fixes), _stream(Detector(model_dir), fixes))
+
+
+@settings(max_examples=25, deadline=None)
+@given(cut=st.integers(0, 239))
+def test_checkpoint_in_json_and_restore_continues_identically(model_dir: Path, cut: int) -> None:
+    fixes = to_fixes(inject_grad(simulate_fleet(1, 4.0, 1.0, seed=2), seed=1))
+    whole = _stream(Detector(model_dir), fixes)
+    first = Detector(model_dir)
+    head = _stream(first, fixes.iloc[:cut])
+    state = json.loads(json.dumps(first.get_state()))
+    rest = _stream(Detector(model_dir).set_state(state), fixes.iloc[cut:])
+    _assert_same(whole, pd.concat([head, rest], ignore_index=True))
+
+
+def test_invalid_fixes_are_flagged_and_do_not_touch_state(model_dir: Path) -> None:
+    fixes = to_fixes(simulate_fleet(1, 1.0, 1.0, seed=4))
+    det, ref = Detector(model_dir), Detector(model_dir)
+    bad = [(math.nan, 41.0, -96.0, "time missing or not finite"),
+           (1e12, math.nan, -96.0, "latitude missing or not finite"),
+           (1e12, 95.0, -96.0, "latitude outside +-90"),
+           (1e12, 41.0, 181.0, "longitude outside +-180")]
+    for i, r in enumerate(fixes.itertuples(index=False)):
+        a = det.update(r.t, r.lat, r.lon, r.speed, r.heading)
+        b = ref.update(r.t, r.lat, r.lon, r.speed, r.heading)
+        assert a == b
+        if i in (5, 30):
+            for t, lat, lon, reason in bad:
+                res = det.update(t, lat, lon)
+                assert res.anomaly == 1
+                assert res.invalid_reason == reason
+            back = det.update(r.t, r.lat, r.lon)  # the same time again: not after the previous fix
+            assert back.invalid_reason == "time not after the previous fix"
+
+
+def test_batch_reports_invalid_rows_in_place(model_dir: Path) -> None:
+    fixes = to_fixes(simulate_fleet(1, 1.0, 1.0, seed=4))
+    fixes.loc[7, "lat"] = np.nan
+    fixes.loc[9, "lon"] = 500.0
+    out = Detector(model_dir).detect(fixes)
+    assert len(out) == len(fixes)
+    assert out.loc[7, "invalid_reason"] == "latitude missing or not finite"
+    assert out.loc[9, "invalid_reason"] == "longitude outside +-180"
+    assert out.loc[[7, 9], "anomaly"].tolist() == [1, 1]
+    assert (out.drop(index=[7, 9])["invalid_reason"] == "").all()
+
+
+def test_threshold_override_changes_decisions(model_dir: Path, drives: pd.DataFrame) -> None:
+    low = Detector(model_dir, threshold=0.05).detect(drives)["anomaly"].sum()
+    high = Detector(model_dir, threshold=0.95).detect(drives)["anomaly"].sum()
+    assert low > high
+    with pytest.raises(ConfigError):
+        Detector(model_dir, threshold=1.5)
+
+
+def test_state_from_another_model_is_refused(model_dir: Path, tmp_path: Path) -> None:
+    other = _random_model(tmp_path / "other", seed=1)
+    det = Detector(model_dir)
+    det.update(0.0, 41.0, -96.0)
+    with pytest.raises(ConfigError, match="another model"):
+        Detector(other).set_state(det.get_state())
+    with pytest.raises(ConfigError, match="not a detector state"):
+        Detector(model_dir).set_state({"format": 1})
+
+
+def test_missing_model_and_wrong_features_are_clear_errors(tmp_path: Path, model_dir: Path) -> None:
+    with pytest.raises(ModelError, match="no such model directory"):
+        Detector(tmp_path / "nope")
+    cfg = json.loads((model_dir / "config.json").read_text())
+    cfg["features"]["names"] = cfg["features"]["names"][::-1]
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "weights.npz").write_bytes((model_dir / "weights.npz").read_bytes())
+    (bad / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(ModelError, match="retrain"):
+        Detector(bad)
+
+
+def test_default_model_ships_and_loads() -> None:
+    det = Detector()
+    res = det.update(1_700_000_000.0, 41.25, -95.98, speed=10.0, heading=90.0)
+    assert res.anomaly in (0, 1)
+    assert 0.0 <= res.score <= 1.0
