@@ -9,7 +9,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 export NUMBA_NUM_THREADS ?= 1
 
-.PHONY: demo test bench lint fuzz clean
+.PHONY: demo test bench lint clean default-model
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -39,5 +39,15 @@ lint: $(VENV)/.stamp-test
 bench: $(VENV)/.stamp-test
 	$(PY) benchmarks/run_all.py
 
+# The model shipped in the package: simulator drives only, fixed epochs, so
+# anyone can reproduce it byte for byte (see docs/model-card.md).
+default-model: $(VENV)/.stamp-test
+	$(VENV)/bin/gradgps train --dataset simulated --max-epochs $(DEFAULT_EPOCHS) --time-budget 3600 \
+		-o src/gradgps/models/default
+DEFAULT_EPOCHS ?= 90
+
+# numba caches compiled kernels next to the sources and does not notice when a
+# kernel's callee in another module changes: clear them after editing kernels.
 clean:
 	rm -rf $(VENV) build .pytest_cache .mypy_cache .ruff_cache
+	find src -name '*.nbi' -delete -o -name '*.nbc' -delete

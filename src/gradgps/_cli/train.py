@@ -38,11 +38,14 @@ __all__ = ["train"]
               help="model directory to write")
 @click.option("--time-budget", type=float, default=180.0, show_default=True,
               help="seconds of training at most")
+@click.option("--max-epochs", type=int, default=400, show_default=True,
+              help="epochs at most (a fixed count, with a large --time-budget, makes the run "
+                   "reproducible byte for byte)")
 @click.option("--seed", type=int, default=0, show_default=True, help="training seed")
 @column_options
 def train(data_paths: tuple[Path, ...], val_paths: tuple[Path, ...], dataset: str | None,
-          data_dir: Path | None, protocol: str, output: Path, time_budget: float, seed: int,
-          fmt: str | None, **cols: Any) -> None:
+          data_dir: Path | None, protocol: str, output: Path, time_budget: float,
+          max_epochs: int, seed: int, fmt: str | None, **cols: Any) -> None:
     """Train the GRU detector on clean drives with injected faults; write a model directory."""
     import pandas as pd
 
@@ -67,7 +70,7 @@ def train(data_paths: tuple[Path, ...], val_paths: tuple[Path, ...], dataset: st
             train_tables, val_tables = _hold_out(pd.concat(train_tables, ignore_index=True))
         source = ", ".join(str(p) for p in data_paths)
     report = train_grad(train_tables, val_tables, output, time_budget_s=time_budget, seed=seed,
-                        notes={"source": source, "protocol": protocol})
+                        max_epochs=max_epochs, notes={"source": source, "protocol": protocol})
     click.echo(f"wrote {output}: {report.n_train_points:,} training points, "
                f"{report.n_val_points:,} validation points; best epoch {report.best_epoch} "
                f"({report.stop_reason}); threshold {report.threshold:.2f}")
