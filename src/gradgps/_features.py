@@ -113,8 +113,12 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
                           rema_row: FloatArray, out: FloatArray) -> None:
     """Features of one channel at the newest point from ``win``, the recent values (oldest first).
 
-    Sums run over values relative to the newest one (translation invariance
-    and small magnitudes, so the one-pass formulas lose no precision).
+    Values enter relative to the newest one (translation invariance). The
+    spreads (the fit's standard error, the std of the steps) are computed in
+    two passes over the window, from explicit residuals: a one-pass
+    ``E[x^2] - E[x]^2`` cancels catastrophically on a clean straight drive,
+    where the spread is ~0 but the squares are large, and the square root
+    then turns a 1e-16 relative error into a visible 1e-8 m.
     """
     total = win.size
     newest = win[total - 1]
@@ -123,12 +127,10 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
     first = total - m
     sy = 0.0
     sky = 0.0
-    syy = 0.0
     for k in range(m):
         y = win[first + k] - newest
         sy += y
         sky += k * y
-        syy += y * y
     mean_y = sy / m
     mean_j = (m - 1) / 2.0
     sxx = m * (m * m - 1.0) / 12.0
@@ -136,22 +138,27 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
     slope_pt = sxy / sxx if sxx > 0.0 else 0.0
     se = 0.0
     if m > 2:
-        se = np.sqrt(max(syy - sy * mean_y - slope_pt * sxy, 0.0) / (m - 2))
+        # Residuals from the line through (mean_j, mean_y) with slope slope_pt.
+        offset = newest + mean_y - slope_pt * mean_j
+        ssr = 0.0
+        for k in range(m):
+            r = win[first + k] - offset - slope_pt * k
+            ssr += r * r
+        se = np.sqrt(ssr / (m - 2))
     out[0] = slope_pt / period
     out[1] = mean_y + slope_pt * (m - 1 - mean_j)
     out[2] = se
     # Short window: the last short_n steps (fewer at the start).
     n_steps = min(total - 1, short_n)
+    start = total - n_steps
     sd = 0.0
-    sdd = 0.0
     gain = 0.0
     loss = 0.0
     lo = newest
     hi = newest
-    for k in range(total - n_steps, total):
+    for k in range(start, total):
         d = win[k] - win[k - 1]
         sd += d
-        sdd += d * d
         if d > 0.0:
             gain += d
         else:
@@ -161,7 +168,11 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
     std_v = 0.0
     if n_steps > 0:
         mean_d = sd / n_steps
-        std_v = np.sqrt(max(sdd / n_steps - mean_d * mean_d, 0.0)) / period
+        sdd = 0.0
+        for k in range(start, total):
+            r = win[k] - win[k - 1] - mean_d
+            sdd += r * r
+        std_v = np.sqrt(sdd / n_steps) / period
     out[3] = std_v
     out[4] = 100.0 * gain / (gain + loss) if gain + loss > 0.0 else 50.0
     out[5] = hi - lo
