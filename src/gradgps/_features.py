@@ -139,10 +139,9 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
     se = 0.0
     if m > 2:
         # Residuals from the line through (mean_j, mean_y) with slope slope_pt.
-        offset = newest + mean_y - slope_pt * mean_j
         ssr = 0.0
         for k in range(m):
-            r = win[first + k] - offset - slope_pt * k
+            r = (win[first + k] - newest) - (mean_y + slope_pt * (k - mean_j))
             ssr += r * r
         se = np.sqrt(ssr / (m - 2))
     out[0] = slope_pt / period
