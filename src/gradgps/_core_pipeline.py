@@ -36,6 +36,7 @@ from ._features import (
     channel_features_step,
     cross_features_step,
     history_push,
+    velocity_step,
 )
 from ._recovery import N_RECOVERY_STATE, RecoveryParams, recovery_step
 from ._rema import (
@@ -122,8 +123,9 @@ def core_step(P: FloatArray, S: FloatArray, east: float, north: float, speed: fl
     rema_p = P[:N_PARAMS]
     row_e = out[N_RESULT:N_RESULT + N_OUT]
     row_n = out[N_RESULT + N_OUT:N_RESULT + 2 * N_OUT]
-    rema_step(rema_p, S[rs_e:rs_e + N_STATE], S[rr_e:rr_e + ss], east, row_e)
-    rema_step(rema_p, S[rs_n:rs_n + N_STATE], S[rr_n:rr_n + ss], north, row_n)
+    step_e, step_n = velocity_step(speed, heading, period)
+    rema_step(rema_p, S[rs_e:rs_e + N_STATE], S[rr_e:rr_e + ss], east, step_e, row_e)
+    rema_step(rema_p, S[rs_n:rs_n + N_STATE], S[rr_n:rr_n + ss], north, step_n, row_n)
     count = int(S[cnt]) + 1
     S[cnt] = count
     win_e = history_push(S[h_e:h_n], count, east)
@@ -147,8 +149,11 @@ def core_step(P: FloatArray, S: FloatArray, east: float, north: float, speed: fl
     recovery_step(P[_P_REC:_P_REC + 2], S[rec:rec + N_RECOVERY_STATE], code, period, east, north,
                   row_e[O_EMA], row_n[O_EMA], speed, heading, out[R_EAST:R_ALERT + 1])
     if P[_P_FEED] != 0.0 and code in (TRANSIENT, INTERMITTENT):
-        S[rs_e + S_LAST] = out[R_EAST]
-        S[rs_n + S_LAST] = out[R_NORTH]
+        # Only into the channel that flagged: the other one accepted its value.
+        if row_e[O_FLAG] != 0.0:
+            S[rs_e + S_LAST] = out[R_EAST]
+        if row_n[O_FLAG] != 0.0:
+            S[rs_n + S_LAST] = out[R_NORTH]
     out[R_FLAG] = flag
     out[R_CODE] = code
     out[R_SCORE] = max(_score(row_e), _score(row_n))

@@ -186,6 +186,29 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
 
 
 @numba.njit(cache=True)
+def velocity_step(speed: float, heading: float, period: float) -> tuple[float, float]:
+    """(east, north) metres a car at ``speed`` m/s on course ``heading`` degrees moves in ``period`` s.
+
+    NaN when either is missing: REMA's ``trend`` mode then predicts from its
+    own step EMA alone.
+    """
+    if not (np.isfinite(speed) and np.isfinite(heading)):
+        return np.nan, np.nan
+    h = np.radians(heading)
+    return speed * np.sin(h) * period, speed * np.cos(h) * period
+
+
+def velocity_steps(speed: ArrayLike | None, heading: ArrayLike | None, period: float,
+                   n: int) -> tuple[FloatArray, FloatArray]:
+    """:func:`velocity_step` over arrays (all NaN when speed or heading is absent)."""
+    if speed is None or heading is None:
+        return np.full(n, np.nan), np.full(n, np.nan)
+    sp = _optional(speed, n, "speed")
+    h = np.radians(_optional(heading, n, "heading"))
+    return sp * np.sin(h) * period, sp * np.cos(h) * period
+
+
+@numba.njit(cache=True)
 def cross_features_step(step_e: float, step_n: float, period: float, speed: float,
                         heading: float, out: FloatArray) -> None:
     """Implied-vs-reported speed (m/s) and course (degrees) from the last step."""
@@ -205,8 +228,12 @@ def features_batch_kernel(east: FloatArray, north: FloatArray, speed: FloatArray
     n = east.size
     width = 2 * N_CHANNEL + (2 if cross else 0)
     out = np.empty((n, width))
-    rema_e = rema_batch_kernel(rema_p, east)
-    rema_n = rema_batch_kernel(rema_p, north)
+    step_e = np.empty(n)
+    step_n = np.empty(n)
+    for i in range(n):
+        step_e[i], step_n[i] = velocity_step(speed[i], heading[i], period)
+    rema_e = rema_batch_kernel(rema_p, east, step_e)
+    rema_n = rema_batch_kernel(rema_p, north, step_n)
     size = 2 * max(long_n, short_n + 1)
     hist_e = np.zeros(size)
     hist_n = np.zeros(size)
@@ -321,9 +348,10 @@ def features_reference(
     period = _segment_period(t_a)
     long_n, short_n = prm.points(period)
     rp = (rema_params or RemaParams()).to_array()
+    step_e, step_n = velocity_steps(speed, heading, period, e.size)
     parts = [
-        _channel_reference(e, period, long_n, short_n, rema_batch_kernel(rp, e)),
-        _channel_reference(nn, period, long_n, short_n, rema_batch_kernel(rp, nn)),
+        _channel_reference(e, period, long_n, short_n, rema_batch_kernel(rp, e, step_e)),
+        _channel_reference(nn, period, long_n, short_n, rema_batch_kernel(rp, nn, step_n)),
     ]
     if prm.speed_heading:
         sp = _optional(speed, e.size, "speed")

@@ -99,8 +99,9 @@ FloatArray = NDArray[np.float64]
 REMA_MODES = ("paper", "trend")
 
 # Layout of the parameter array handed to the kernels.
-P_ALPHA, P_ALPHA_MIN, P_ALPHA_MAX, P_PUNISH, P_REWARD, P_SS, P_SENS, P_MIN_MARGIN, P_MODE = range(9)
-N_PARAMS = 9
+(P_ALPHA, P_ALPHA_MIN, P_ALPHA_MAX, P_PUNISH, P_REWARD, P_SS, P_SENS, P_MIN_MARGIN, P_MODE,
+ P_RUN_GROWTH) = range(10)
+N_PARAMS = 10
 # Layout of the scalar state array: alpha, points seen, last fed value (paper)
 # or level (trend), step EMA, consecutive outliers and accepted steps (trend).
 S_ALPHA, S_COUNT, S_LAST, S_STEP, S_RUN, S_NSTEPS = range(6)
@@ -126,6 +127,7 @@ class RemaParams:
     sensitivity: float = 3.0
     min_margin: float = 0.0
     mode: str = "paper"
+    run_growth: float = 1.0
 
     def checked(self) -> RemaParams:
         if self.mode not in REMA_MODES:
@@ -143,6 +145,8 @@ class RemaParams:
             raise ConfigError(f"sensitivity must be a positive number, got {self.sensitivity}")
         if not (self.min_margin >= 0 and np.isfinite(self.min_margin)):
             raise ConfigError(f"min_margin must be >= 0 (channel units), got {self.min_margin}")
+        if not (self.run_growth >= 0 and np.isfinite(self.run_growth)):
+            raise ConfigError(f"run_growth must be >= 0 (channel units per point), got {self.run_growth}")
         return self
 
     def to_array(self) -> FloatArray:
@@ -151,7 +155,7 @@ class RemaParams:
         return np.array(
             [self.alpha, self.alpha_min, self.alpha_max, self.punish, self.reward,
              float(self.slide_size), self.sensitivity, self.min_margin,
-             float(REMA_MODES.index(self.mode))],
+             float(REMA_MODES.index(self.mode)), self.run_growth],
             dtype=np.float64,
         )
 
@@ -228,12 +232,15 @@ def rema_new_state(p: FloatArray) -> tuple[FloatArray, FloatArray]:
 
 @numba.njit(cache=True)
 def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
-              out: FloatArray) -> None:
+              known_step: float, out: FloatArray) -> None:
     """Advance REMA by one value ``x``; write one output row into ``out`` (see module doc).
 
-    ``ring`` (length slide_size) holds the last ss EMA values (paper) or the
-    last ss accepted steps (trend); the absolute index of point ``t`` is
-    ``t % ss`` (paper) or the accepted-step count modulo ss (trend).
+    ``known_step`` is the step expected from an independent source (reported
+    speed and heading times the period, channel units), NaN when there is none;
+    only ``trend`` mode uses it. ``ring`` (length slide_size) holds the last ss
+    EMA values (paper) or the last ss accepted step residuals (trend); the
+    absolute index of point ``t`` is ``t % ss`` (paper) or the accepted-step
+    count modulo ss (trend).
     """
     ss = int(p[P_SS])
     t = int(state[S_COUNT])
@@ -267,24 +274,24 @@ def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
         ring[t % ss] = ema
         state[S_LAST] = x
     else:
+        base_step = known_step if np.isfinite(known_step) else 0.0
         if t == 0:
             ema = x
             distance = 0.0
             state[S_LAST] = x
         elif t < ss:
-            step = x - state[S_LAST]
-            state[S_STEP] = step if t == 1 else a * step + (1.0 - a) * state[S_STEP]
+            residual = x - state[S_LAST] - base_step
+            state[S_STEP] = residual if t == 1 else a * residual + (1.0 - a) * state[S_STEP]
             ema = x
             distance = 0.0
-            _push_step(state, ring, step)
+            _push_step(state, ring, residual)
             state[S_LAST] = x
         else:
-            ema = state[S_LAST] + state[S_STEP]
+            ema = state[S_LAST] + base_step + state[S_STEP]
             n_steps = int(state[S_NSTEPS])
             count = min(n_steps, ss)
             _, thr = _window_mean_std(ring, n_steps - count, count)
-            base = thr * p[P_SENS]
-            margin = max(base, p[P_MIN_MARGIN]) + base * state[S_RUN]
+            margin = max(thr * p[P_SENS], p[P_MIN_MARGIN]) + p[P_RUN_GROWTH] * state[S_RUN]
             lower = ema - margin
             upper = ema + margin
             distance = abs(x - ema)
@@ -294,9 +301,9 @@ def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
                 state[S_RUN] += 1.0
                 a = max(a - p[P_PUNISH], p[P_ALPHA_MIN])
             else:
-                step = x - state[S_LAST]
-                state[S_STEP] = a * step + (1.0 - a) * state[S_STEP]
-                _push_step(state, ring, step)
+                residual = x - state[S_LAST] - base_step
+                state[S_STEP] = a * residual + (1.0 - a) * state[S_STEP]
+                _push_step(state, ring, residual)
                 state[S_LAST] = x
                 state[S_RUN] = 0.0
                 a = min(a + p[P_REWARD], p[P_ALPHA_MAX])
@@ -311,12 +318,12 @@ def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
 
 
 @numba.njit(cache=True)
-def rema_batch_kernel(p: FloatArray, x: FloatArray) -> FloatArray:
+def rema_batch_kernel(p: FloatArray, x: FloatArray, known_step: FloatArray) -> FloatArray:
     """REMA over a whole array from a fresh state; (n, 6) output rows."""
     state, ring = rema_new_state(p)
     out = np.empty((x.size, N_OUT))
     for i in range(x.size):
-        rema_step(p, state, ring, x[i], out[i])
+        rema_step(p, state, ring, x[i], known_step[i], out[i])
     return out
 
 
@@ -331,18 +338,35 @@ def _split(rows: FloatArray) -> RemaOutput:
     )
 
 
-def rema_batch(x: ArrayLike, params: RemaParams | None = None) -> RemaOutput:
-    """REMA over one channel of one segment (compiled kernel)."""
-    values = np.ascontiguousarray(x, dtype=np.float64)
+def _known_steps(values: FloatArray, known_step: ArrayLike | None) -> FloatArray:
     if values.ndim != 1:
         raise ConfigError(f"REMA takes one channel as a 1-D array, got shape {values.shape}")
-    return _split(rema_batch_kernel((params or RemaParams()).to_array(), values))
+    if known_step is None:
+        return np.full(values.size, np.nan)
+    steps = np.ascontiguousarray(known_step, dtype=np.float64)
+    if steps.shape != values.shape:
+        raise ConfigError(f"known_step must have one value per point ({values.size}), got shape {steps.shape}")
+    return steps
 
 
-def rema_reference(x: ArrayLike, params: RemaParams | None = None) -> RemaOutput:
+def rema_batch(x: ArrayLike, params: RemaParams | None = None,
+               known_step: ArrayLike | None = None) -> RemaOutput:
+    """REMA over one channel of one segment (compiled kernel).
+
+    ``known_step``: optional expected step per point from speed and heading
+    (channel units, NaN where unknown); used by ``trend`` mode only.
+    """
+    values = np.ascontiguousarray(x, dtype=np.float64)
+    steps = _known_steps(values, known_step)
+    return _split(rema_batch_kernel((params or RemaParams()).to_array(), values, steps))
+
+
+def rema_reference(x: ArrayLike, params: RemaParams | None = None,
+                   known_step: ArrayLike | None = None) -> RemaOutput:
     """Readable full-array REMA, written from the algorithm text; tests compare the kernel to it."""
     prm = (params or RemaParams()).checked()
     x = np.asarray(x, dtype=np.float64)
+    base_steps = np.nan_to_num(_known_steps(x, known_step), nan=0.0)
     n, ss, a = x.size, prm.slide_size, prm.alpha
     flag = np.zeros(n, dtype=np.int8)
     ema = np.zeros(n)
@@ -373,19 +397,19 @@ def rema_reference(x: ArrayLike, params: RemaParams | None = None) -> RemaOutput
         return RemaOutput(flag, ema, lower, upper, distance, alphas)
     level = 0.0
     step_ema = 0.0
-    steps: list[float] = []  # accepted steps, newest last
+    residuals: list[float] = []  # accepted step minus known step, newest last
     run = 0
     for t in range(n):
         if t < ss:
             if t > 0:
-                step = x[t] - level
-                step_ema = step if t == 1 else a * step + (1 - a) * step_ema
-                steps.append(step)
+                residual = x[t] - level - base_steps[t]
+                step_ema = residual if t == 1 else a * residual + (1 - a) * step_ema
+                residuals.append(residual)
             level = ema[t] = x[t]
         else:
-            ema[t] = level + step_ema
-            base = float(np.std(steps[-ss:])) * prm.sensitivity
-            margin = max(base, prm.min_margin) + base * run
+            ema[t] = level + base_steps[t] + step_ema
+            base = float(np.std(residuals[-ss:])) * prm.sensitivity
+            margin = max(base, prm.min_margin) + prm.run_growth * run
             lower[t], upper[t] = ema[t] - margin, ema[t] + margin
             distance[t] = abs(x[t] - ema[t])
             if abs(x[t] - ema[t]) > margin:
@@ -394,9 +418,9 @@ def rema_reference(x: ArrayLike, params: RemaParams | None = None) -> RemaOutput
                 run += 1
                 a = max(a - prm.punish, prm.alpha_min)
             else:
-                step = x[t] - level
-                step_ema = a * step + (1 - a) * step_ema
-                steps.append(step)
+                residual = x[t] - level - base_steps[t]
+                step_ema = a * residual + (1 - a) * step_ema
+                residuals.append(residual)
                 level = x[t]
                 run = 0
                 a = min(a + prm.reward, prm.alpha_max)
@@ -418,9 +442,9 @@ class Rema:
         self._state, self._ring = rema_new_state(self._p)
         self._out = np.zeros(N_OUT)
 
-    def update(self, x: float) -> tuple[int, float, float, float, float, float]:
-        """Feed one value; return ``(flag, ema, lower, upper, distance, alpha)``."""
-        rema_step(self._p, self._state, self._ring, float(x), self._out)
+    def update(self, x: float, known_step: float = np.nan) -> tuple[int, float, float, float, float, float]:
+        """Feed one value (and optionally its expected step); return ``(flag, ema, lower, upper, distance, alpha)``."""
+        rema_step(self._p, self._state, self._ring, float(x), float(known_step), self._out)
         o = self._out
         return (int(o[O_FLAG]), float(o[O_EMA]), float(o[O_LOWER]), float(o[O_UPPER]),
                 float(o[O_DISTANCE]), float(o[O_ALPHA]))

@@ -12,19 +12,23 @@ that are not usable fixes get ``anomaly=0``, NaN clean positions and their
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+import json
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from ._core_pipeline import CoreParams, core_batch
+from ._exceptions import ConfigError
 from ._features import FeatureParams
 from ._preprocess import preprocess
 from ._recovery import RecoveryParams
 from ._rema import RemaParams
 from ._time_classifier import TIME_TYPES, TimeParams
 
-__all__ = ["RemaDetector"]
+__all__ = ["RemaDetector", "paper_detector"]
 
 
 @dataclass
@@ -42,6 +46,56 @@ class RemaDetector:
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
     feed_recovered: bool = True
     max_gap_s: float = 5.0
+    use_speed_heading: bool = True
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able settings (what ``gradgps tune-rema`` writes)."""
+        return {"rema": asdict(self.rema), "time": asdict(self.time),
+                "recovery": asdict(self.recovery), "feed_recovered": self.feed_recovered,
+                "max_gap_s": self.max_gap_s, "use_speed_heading": self.use_speed_heading}
+
+    @classmethod
+    def from_dict(cls, data: Any) -> RemaDetector:
+        """Settings from :meth:`to_dict`; missing sections keep their defaults, unknown keys fail."""
+        known = {"rema", "time", "recovery", "feed_recovered", "max_gap_s", "use_speed_heading",
+                 "scores"}
+        if not isinstance(data, dict) or set(data) - known:
+            extra = sorted(set(data) - known) if isinstance(data, dict) else type(data).__name__
+            raise ConfigError(f"unknown REMA detector settings {extra}; expected keys {sorted(known)}")
+        out = cls()
+        try:
+            if "rema" in data:
+                out = replace(out, rema=RemaParams.from_dict(data["rema"]))
+            if "time" in data:
+                time = TimeParams(**data["time"])
+                time.to_array()
+                out = replace(out, time=time)
+            if "recovery" in data:
+                recovery = RecoveryParams(**data["recovery"])
+                recovery.to_array()
+                out = replace(out, recovery=recovery)
+        except TypeError as exc:
+            raise ConfigError(f"bad REMA detector settings: {exc}") from exc
+        if "feed_recovered" in data:
+            out = replace(out, feed_recovered=bool(data["feed_recovered"]))
+        if "use_speed_heading" in data:
+            out = replace(out, use_speed_heading=bool(data["use_speed_heading"]))
+        if "max_gap_s" in data:
+            out = replace(out, max_gap_s=float(data["max_gap_s"]))
+        return out
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> RemaDetector:
+        """Settings from a JSON file written by ``gradgps tune-rema``."""
+        try:
+            text = Path(path).read_text()
+        except OSError as exc:
+            raise ConfigError(f"cannot read REMA settings {path}: {exc.strerror}") from exc
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"REMA settings {path} are not valid JSON: {exc}") from exc
+        return cls.from_dict(data)
 
     def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
         prepared = preprocess(fixes, max_gap_s=self.max_gap_s)
@@ -58,7 +112,7 @@ class RemaDetector:
                           feed_recovered=self.feed_recovered)
         columns = {c: pts[c].to_numpy(dtype=np.float64) for c in ("t", "east", "north")}
         for c in ("speed", "heading"):
-            if c in pts.columns:
+            if c in pts.columns and self.use_speed_heading:
                 columns[c] = pts[c].to_numpy(dtype=np.float64)
         tracks = pts["track"].to_numpy(dtype=object)
         for _, sl in prepared.segment_slices():
@@ -86,3 +140,9 @@ class RemaDetector:
             index=fixes.index,
         )
         return result
+
+
+def paper_detector() -> RemaDetector:
+    """Algorithm 1 as printed: ``paper`` mode with the paper's recovery (EMA), no speed/heading."""
+    return RemaDetector(rema=RemaParams(), recovery=RecoveryParams(method="ema"),
+                        use_speed_heading=False)
