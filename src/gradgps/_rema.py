@@ -100,12 +100,14 @@ REMA_MODES = ("paper", "trend")
 
 # Layout of the parameter array handed to the kernels.
 (P_ALPHA, P_ALPHA_MIN, P_ALPHA_MAX, P_PUNISH, P_REWARD, P_SS, P_SENS, P_MIN_MARGIN, P_MODE,
- P_RUN_GROWTH) = range(10)
-N_PARAMS = 10
+ P_RUN_GROWTH, P_REACQUIRE) = range(11)
+N_PARAMS = 11
 # Layout of the scalar state array: alpha, points seen, last fed value (paper)
 # or level (trend), step EMA, consecutive outliers and accepted steps (trend).
-S_ALPHA, S_COUNT, S_LAST, S_STEP, S_RUN, S_NSTEPS = range(6)
-N_STATE = 6
+# Trend mode also keeps the previous observed value and how many flagged
+# points in a row moved consistently from their predecessor.
+S_ALPHA, S_COUNT, S_LAST, S_STEP, S_RUN, S_NSTEPS, S_PREV, S_CONSISTENT = range(8)
+N_STATE = 8
 # Layout of one output row.
 O_FLAG, O_EMA, O_LOWER, O_UPPER, O_DISTANCE, O_ALPHA = range(6)
 N_OUT = 6
@@ -127,7 +129,8 @@ class RemaParams:
     sensitivity: float = 3.0
     min_margin: float = 0.0
     mode: str = "paper"
-    run_growth: float = 1.0
+    run_growth: float = 0.0
+    reacquire_after: int = 0
 
     def checked(self) -> RemaParams:
         if self.mode not in REMA_MODES:
@@ -147,6 +150,9 @@ class RemaParams:
             raise ConfigError(f"min_margin must be >= 0 (channel units), got {self.min_margin}")
         if not (self.run_growth >= 0 and np.isfinite(self.run_growth)):
             raise ConfigError(f"run_growth must be >= 0 (channel units per point), got {self.run_growth}")
+        if int(self.reacquire_after) != self.reacquire_after or self.reacquire_after < 0:
+            raise ConfigError(f"reacquire_after must be an integer >= 0 (points; 0 = never), "
+                              f"got {self.reacquire_after}")
         return self
 
     def to_array(self) -> FloatArray:
@@ -155,7 +161,7 @@ class RemaParams:
         return np.array(
             [self.alpha, self.alpha_min, self.alpha_max, self.punish, self.reward,
              float(self.slide_size), self.sensitivity, self.min_margin,
-             float(REMA_MODES.index(self.mode)), self.run_growth],
+             float(REMA_MODES.index(self.mode)), self.run_growth, float(self.reacquire_after)],
             dtype=np.float64,
         )
 
@@ -178,8 +184,9 @@ class RemaParams:
             extra = sorted(set(data) - names) if isinstance(data, dict) else data
             raise ConfigError(f"unknown REMA parameters {extra}; expected keys {sorted(names)}")
         values = dict(data)
-        if "slide_size" in values:
-            values["slide_size"] = int(values["slide_size"])
+        for key in ("slide_size", "reacquire_after"):
+            if key in values:
+                values[key] = int(values[key])
         return cls(**values).checked()
 
 
@@ -291,22 +298,33 @@ def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
             n_steps = int(state[S_NSTEPS])
             count = min(n_steps, ss)
             _, thr = _window_mean_std(ring, n_steps - count, count)
-            margin = max(thr * p[P_SENS], p[P_MIN_MARGIN]) + p[P_RUN_GROWTH] * state[S_RUN]
+            base = max(thr * p[P_SENS], p[P_MIN_MARGIN])
+            margin = base + p[P_RUN_GROWTH] * state[S_RUN]
             lower = ema - margin
             upper = ema + margin
             distance = abs(x - ema)
-            if x < lower or x > upper:
+            outside = x < lower or x > upper
+            own_step = x - state[S_PREV] - base_step
+            if outside and state[S_RUN] > 0.0 and abs(own_step - state[S_STEP]) <= base:
+                state[S_CONSISTENT] += 1.0
+            else:
+                state[S_CONSISTENT] = 0.0
+            reacquire = p[P_REACQUIRE] > 0.0 and state[S_CONSISTENT] >= p[P_REACQUIRE]
+            if outside and not reacquire:
                 flag = 1.0
                 state[S_LAST] = ema
                 state[S_RUN] += 1.0
                 a = max(a - p[P_PUNISH], p[P_ALPHA_MIN])
             else:
-                residual = x - state[S_LAST] - base_step
+                # On re-acquisition the step is the track's own, not the jump to it.
+                residual = own_step if outside else x - state[S_LAST] - base_step
+                state[S_CONSISTENT] = 0.0
                 state[S_STEP] = a * residual + (1.0 - a) * state[S_STEP]
                 _push_step(state, ring, residual)
                 state[S_LAST] = x
                 state[S_RUN] = 0.0
                 a = min(a + p[P_REWARD], p[P_ALPHA_MAX])
+    state[S_PREV] = x
     state[S_ALPHA] = a
     state[S_COUNT] = t + 1
     out[O_FLAG] = flag
@@ -399,6 +417,7 @@ def rema_reference(x: ArrayLike, params: RemaParams | None = None,
     step_ema = 0.0
     residuals: list[float] = []  # accepted step minus known step, newest last
     run = 0
+    consistent = 0  # flagged points in a row that moved consistently from the one before
     for t in range(n):
         if t < ss:
             if t > 0:
@@ -412,13 +431,18 @@ def rema_reference(x: ArrayLike, params: RemaParams | None = None,
             margin = max(base, prm.min_margin) + prm.run_growth * run
             lower[t], upper[t] = ema[t] - margin, ema[t] + margin
             distance[t] = abs(x[t] - ema[t])
-            if abs(x[t] - ema[t]) > margin:
+            outside = abs(x[t] - ema[t]) > margin
+            own_step = x[t] - x[t - 1] - base_steps[t]
+            moved_as_expected = abs(own_step - step_ema) <= max(base, prm.min_margin)
+            consistent = consistent + 1 if outside and run > 0 and moved_as_expected else 0
+            if outside and not (prm.reacquire_after > 0 and consistent >= prm.reacquire_after):
                 flag[t] = 1
                 level = ema[t]
                 run += 1
                 a = max(a - prm.punish, prm.alpha_min)
             else:
-                residual = x[t] - level - base_steps[t]
+                residual = own_step if outside else x[t] - level - base_steps[t]
+                consistent = 0
                 step_ema = a * residual + (1 - a) * step_ema
                 residuals.append(residual)
                 level = x[t]

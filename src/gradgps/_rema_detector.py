@@ -35,14 +35,17 @@ __all__ = ["RemaDetector", "paper_detector"]
 class RemaDetector:
     """Batch REMA detector; parameters as in :class:`CoreParams` plus ``max_gap_s`` for preprocessing.
 
-    The default REMA parameters are the best of the few measured in
-    ``benchmarks/rema_quality.py`` (trend mode, 5 m floor, sensitivity 4),
-    not yet a full grid search (``tune_rema``).
+    The defaults are what ``gradgps tune-rema --dataset driveplotr`` chose on
+    the driveplotr validation split (injection seeds 0, 1, 2; docs/rema.md):
+    trend mode with speed/heading, 8 m floor, sensitivity 5, bounds growing
+    0.5 m per consecutive outlier; permanent after 6 flagged points.
     """
 
-    rema: RemaParams = field(default_factory=lambda: RemaParams(mode="trend", min_margin=5.0,
-                                                                   sensitivity=4.0))
-    time: TimeParams = field(default_factory=TimeParams)
+    rema: RemaParams = field(default_factory=lambda: RemaParams(
+        alpha=0.3, alpha_min=0.2, alpha_max=0.9, punish=0.2, reward=0.02, slide_size=6,
+        sensitivity=5.0, min_margin=8.0, mode="trend", run_growth=0.5, reacquire_after=0))
+    time: TimeParams = field(default_factory=lambda: TimeParams(permanent_run=6, episode_gap=15,
+                                                                intermittent_bursts=2))
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
     feed_recovered: bool = True
     max_gap_s: float = 5.0

@@ -14,6 +14,7 @@ from .errors import ErrorReportingGroup
 from .info import info
 from .inject import inject
 from .simulate import simulate
+from .tune_rema import tune_rema
 
 __all__ = ["main"]
 
@@ -28,3 +29,4 @@ main.add_command(bench)
 main.add_command(info)
 main.add_command(inject)
 main.add_command(simulate)
+main.add_command(tune_rema)
