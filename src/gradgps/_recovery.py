@@ -60,7 +60,7 @@ class RecoveryParams:
         return np.array([float(RECOVERY_METHODS.index(self.method)), self.velocity_alpha])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def recovery_step(p: FloatArray, state: FloatArray, code: int, period: float,
                   east: float, north: float, ema_e: float, ema_n: float,
                   speed: float, heading: float, out: FloatArray) -> None:

@@ -201,27 +201,34 @@ class RemaOutput(NamedTuple):
     alpha: FloatArray
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, fastmath={"reassoc", "contract"})
 def _window_mean_std(ring: FloatArray, start: int, count: int) -> tuple[float, float]:
-    """Mean and population std of ``count`` ring values from absolute index ``start``."""
+    """Mean and population std of ``count`` ring values from absolute index ``start``.
+
+    Two passes (no cancellation), each over the at most two contiguous pieces
+    of the ring, so the loops carry no modulo or wrap-around branch.
+    """
     size = ring.size
     first = start % size
+    head = min(count, size - first)
+    tail = count - head
     total = 0.0
-    i = first
-    for _ in range(count):
+    for i in range(first, first + head):
         total += ring[i]
-        i = i + 1 if i + 1 < size else 0
+    for i in range(tail):
+        total += ring[i]
     mean = total / count
     sq = 0.0
-    i = first
-    for _ in range(count):
+    for i in range(first, first + head):
         d = ring[i] - mean
         sq += d * d
-        i = i + 1 if i + 1 < size else 0
+    for i in range(tail):
+        d = ring[i] - mean
+        sq += d * d
     return mean, np.sqrt(sq / count)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _push_step(state: FloatArray, ring: FloatArray, step: float) -> None:
     """Trend mode: append an accepted step to the ring (indexed by accepted-step count)."""
     n_steps = int(state[S_NSTEPS])
@@ -237,7 +244,7 @@ def rema_new_state(p: FloatArray) -> tuple[FloatArray, FloatArray]:
     return state, np.zeros(int(p[P_SS]))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
               known_step: float, out: FloatArray) -> None:
     """Advance REMA by one value ``x``; write one output row into ``out`` (see module doc).

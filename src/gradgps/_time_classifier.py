@@ -77,7 +77,7 @@ def time_new_state() -> NDArray[np.float64]:
     return state
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def time_step(p: NDArray[np.float64], state: NDArray[np.float64], flag: float) -> int:
     """Advance by one point's anomaly flag; return its type code (index into TIME_TYPES)."""
     if flag == 0.0:
