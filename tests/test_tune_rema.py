@@ -89,7 +89,8 @@ def test_reacquire_after_consistent_shift_but_not_after_noise() -> None:
     shifted[100:] += 60.0  # a lasting shift: the new track moves consistently
     prm = RemaParams(mode="trend", min_margin=5.0, reacquire_after=5)
     flags = rema_batch(shifted, prm).flag
-    assert flags[100:105].all() and not flags[106:].any()
+    assert flags[100:105].all()
+    assert not flags[106:].any()
     noisy = x.copy()
     noisy[100:150] += rng.choice([-1, 1], 50) * rng.uniform(10, 50, 50)
     assert rema_batch(noisy, prm).flag[100:150].sum() >= 45
@@ -101,7 +102,8 @@ def test_reacquire_after_consistent_shift_but_not_after_noise() -> None:
 def test_make_detector_knows_the_rema_detectors() -> None:
     assert isinstance(make_detector("rema"), RemaDetector)
     paper = make_detector("rema-paper")
-    assert isinstance(paper, RemaDetector) and paper.rema.mode == "paper"
+    assert isinstance(paper, RemaDetector)
+    assert paper.rema.mode == "paper"
     with pytest.raises(ConfigError, match="rema-paper"):
         make_detector("rema2")
 
