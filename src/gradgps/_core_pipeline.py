@@ -174,8 +174,11 @@ def _core_batch_kernel(P: FloatArray, east: FloatArray, north: FloatArray, speed
     emas = np.empty((n, 2))
     for i in range(n):
         core_step(P, S, east[i], north[i], speed[i], heading[i], row)
-        features[i] = row[f0:]
-        results[i] = row[:N_RESULT]
+        # Element loops: a slice assignment may copy through a temporary array.
+        for k in range(width - f0):
+            features[i, k] = row[f0 + k]
+        for k in range(N_RESULT):
+            results[i, k] = row[k]
         emas[i, 0] = row[N_RESULT + O_EMA]
         emas[i, 1] = row[N_RESULT + N_OUT + O_EMA]
     return features, results, emas

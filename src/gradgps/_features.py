@@ -136,7 +136,7 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
     for k in range(m):
         y = win[first + k] - newest
         sy += y
-        sky += k * y
+        sky += float(k) * y
     mean_y = sy / m
     mean_j = (m - 1) / 2.0
     sxx = m * (m * m - 1.0) / 12.0
@@ -147,29 +147,26 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
         # Residuals from the line through (mean_j, mean_y) with slope slope_pt.
         ssr = 0.0
         for k in range(m):
-            r = (win[first + k] - newest) - (mean_y + slope_pt * (k - mean_j))
+            r = (win[first + k] - newest) - (mean_y + slope_pt * (float(k) - mean_j))
             ssr += r * r
         se = np.sqrt(ssr / (m - 2))
     out[0] = slope_pt / period
     out[1] = mean_y + slope_pt * (m - 1 - mean_j)
     out[2] = se
-    # Short window: the last short_n steps (fewer at the start).
+    # Short window: the last short_n steps (fewer at the start). The steps
+    # telescope, so their sum is one difference; gains + losses = sum |step|.
     n_steps = min(total - 1, short_n)
     start = total - n_steps
-    sd = 0.0
-    gain = 0.0
-    loss = 0.0
+    sd = newest - win[start - 1] if n_steps > 0 else 0.0
+    moved = 0.0
     lo = newest
     hi = newest
     for k in range(start, total):
-        d = win[k] - win[k - 1]
-        sd += d
-        if d > 0.0:
-            gain += d
-        else:
-            loss -= d
+        moved += abs(win[k] - win[k - 1])
         lo = min(lo, win[k - 1])
         hi = max(hi, win[k - 1])
+    gain = 0.5 * (moved + sd)
+    loss = 0.5 * (moved - sd)
     std_v = 0.0
     if n_steps > 0:
         mean_d = sd / n_steps
