@@ -92,7 +92,7 @@ def feature_names(params: FeatureParams | None = None) -> list[str]:
     return names
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def history_push(hist: FloatArray, count: int, x: float) -> FloatArray:
     """Append the ``count``-th value (1-based) to a doubled ring; return the recent window.
 
@@ -114,7 +114,7 @@ def history_push(hist: FloatArray, count: int, x: float) -> FloatArray:
 SUM_FASTMATH = {"reassoc", "contract"}
 
 
-@numba.njit(cache=True, fastmath=SUM_FASTMATH)
+@numba.njit(cache=True, error_model="numpy", fastmath=SUM_FASTMATH)
 def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: float,
                           rema_row: FloatArray, out: FloatArray) -> None:
     """Features of one channel at the newest point from ``win``, the recent values (oldest first).
@@ -188,7 +188,7 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
 
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def velocity_step(speed: float, heading: float, period: float) -> tuple[float, float]:
     """(east, north) metres a car at ``speed`` m/s on course ``heading`` degrees moves in ``period`` s.
 
@@ -211,7 +211,7 @@ def velocity_steps(speed: ArrayLike | None, heading: ArrayLike | None, period: f
     return sp * np.sin(h) * period, sp * np.cos(h) * period
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def cross_features_step(step_e: float, step_n: float, period: float, speed: float,
                         heading: float, out: FloatArray) -> None:
     """Implied-vs-reported speed (m/s) and course (degrees) from the last step."""
@@ -224,7 +224,7 @@ def cross_features_step(step_e: float, step_n: float, period: float, speed: floa
     out[1] = gap
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def features_batch_kernel(east: FloatArray, north: FloatArray, speed: FloatArray,
                           heading: FloatArray, period: float, long_n: int, short_n: int,
                           rema_p: FloatArray, cross: bool) -> FloatArray:

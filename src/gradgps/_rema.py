@@ -201,7 +201,7 @@ class RemaOutput(NamedTuple):
     alpha: FloatArray
 
 
-@numba.njit(cache=True, fastmath={"reassoc", "contract"})
+@numba.njit(cache=True, error_model="numpy", fastmath={"reassoc", "contract"})
 def _window_mean_std(ring: FloatArray, start: int, count: int) -> tuple[float, float]:
     """Mean and population std of ``count`` ring values from absolute index ``start``.
 
@@ -228,7 +228,7 @@ def _window_mean_std(ring: FloatArray, start: int, count: int) -> tuple[float, f
     return mean, np.sqrt(sq / count)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _push_step(state: FloatArray, ring: FloatArray, step: float) -> None:
     """Trend mode: append an accepted step to the ring (indexed by accepted-step count)."""
     n_steps = int(state[S_NSTEPS])
@@ -236,7 +236,7 @@ def _push_step(state: FloatArray, ring: FloatArray, step: float) -> None:
     state[S_NSTEPS] = n_steps + 1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def rema_new_state(p: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Fresh (scalar state, ring) arrays for parameters ``p``."""
     state = np.zeros(N_STATE)
@@ -244,7 +244,7 @@ def rema_new_state(p: FloatArray) -> tuple[FloatArray, FloatArray]:
     return state, np.zeros(int(p[P_SS]))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
               known_step: float, out: FloatArray) -> None:
     """Advance REMA by one value ``x``; write one output row into ``out`` (see module doc).
@@ -342,7 +342,7 @@ def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
     out[O_ALPHA] = a
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def rema_batch_kernel(p: FloatArray, x: FloatArray, known_step: FloatArray) -> FloatArray:
     """REMA over a whole array from a fresh state; (n, 6) output rows."""
     state, ring = rema_new_state(p)
