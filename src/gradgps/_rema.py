@@ -40,30 +40,38 @@ Two modes, one kernel:
 vehicle. A raw EMA of a position lags a car at 15 m/s by metres every second,
 and the std of a moving EMA grows with speed, so ``paper`` bounds are wide
 when moving and ~0 when stopped. ``trend`` applies the same reinforced EMA to
-the *step* (velocity per point) and predicts ``x[t] = level[t-1] +
-step_ema``, where ``level`` is the last accepted (or recovered) value::
+the *step* and predicts from ``level``, the last accepted (or, during a fault,
+dead-reckoned) value. ``known`` is the step expected from an independent
+source -- the reported speed and heading times the period -- or 0 where there
+is none; the EMA then follows the *residual* step (step minus ``known``), a
+bias such as a lagging heading, or the whole step without speed/heading::
 
-    pred   = level + step_ema
-    thr    = std(last ss accepted steps)
-    margin = max(thr * sensitivity, min_margin) + thr * sensitivity * run
-    flag   = |x[t] - pred| > margin
-    if flag: level = pred (constant-velocity recovery); a punished; run += 1
-    else:    step_ema = a * (x[t] - level) + (1 - a) * step_ema; level = x[t];
+    pred   = level + known + step_ema
+    thr    = std(last ss accepted residual steps)
+    base   = max(thr * sensitivity, min_margin)
+    margin = base + run_growth * run
+    flag   = |x[t] - pred| > margin,  unless re-acquired (below)
+    if flag: level = pred (dead reckoning); a punished; run += 1
+    else:    residual = x[t] - level - known
+             step_ema = a * residual + (1 - a) * step_ema; level = x[t];
              a rewarded; run = 0
 
-  ``run`` (consecutive outliers) widens the bounds like the error of a
-  constant-velocity prediction grows, so the detector re-acquires a track
-  whose true path turned away during a long fault instead of flagging forever.
-  Warm-up: the first ``ss`` points are accepted unchecked (``step_ema`` starts
-  at the first step).
+  ``run`` counts consecutive outliers; ``run_growth`` (channel units per
+  outlier, default 0) widens the bounds as dead reckoning drifts.
+  **Re-acquisition** (``reacquire_after`` = K > 0): a lasting shift of the
+  whole track (the truth moved, or the anchor was the bad value) would
+  otherwise be flagged forever, but growing bounds alone also accept
+  single noisy values inside a long noise fault and then lose the track.
+  So a flagged point whose own step from the previous *observed* value is
+  as expected (``|x[t] - x[t-1] - known - step_ema| <= base``) counts as
+  consistent; the K-th consistent flagged point in a row is accepted
+  (``level = x[t]``, its residual is its own step, not the jump). Noise
+  faults (independent offsets per point) almost never move consistently K
+  times. Warm-up: the first ``ss`` points are accepted unchecked
+  (``step_ema`` starts at the first residual).
 
-  Measured (``benchmarks/rema_quality.py``: driveplotr validation drives,
-  self-made 10-50 m offsets in the protocol's transient/intermittent/
-  permanent shapes, 3,320 points, 313 faulty; anomaly F1 / normal F1):
-  ``paper`` defaults 0.18 / 0.08 and ``paper`` with ``min_margin=3`` 0.19 /
-  0.20 (after the first outlier the reset EMA falls behind the moving car and
-  nearly every later point is flagged); ``trend`` with ``min_margin=3`` 0.22 /
-  0.67; ``trend`` with ``min_margin=5, sensitivity=4`` 0.66 / 0.97.
+  Measured: docs/rema.md (benchmark ``grad`` on driveplotr and tuc test,
+  tuned on validation with ``gradgps tune-rema``).
 
 Implementation: :func:`rema_step` (numba) advances one point given the state
 in two small arrays, so a whole pipeline can call it from one compiled loop;

@@ -243,6 +243,7 @@ def tune_on_dataset(
     split: str = "validation",
     seeds: Sequence[int] = (0, 1, 2),
     mode: str = "trend",
+    use_speed_heading: bool = True,
     grid: Mapping[str, Sequence[object]] | None = None,
     time_grid: Mapping[str, Sequence[int]] | None = None,
     data_dir: str | Path | None = None,
@@ -257,7 +258,9 @@ def tune_on_dataset(
 
     Returns ``(settings, rema_table, time_table)``; ``settings`` is
     ``RemaDetector.to_dict()`` of the tuned detector plus a ``scores`` block,
-    ready for ``RemaDetector.from_dict``.
+    ready for ``RemaDetector.from_dict``. ``use_speed_heading=False`` tunes
+    for streams without reported speed and heading (``paper`` mode never uses
+    them).
     """
     from ._core_pipeline import CoreParams, core_batch
     from ._datasets import load_dataset
@@ -270,8 +273,9 @@ def tune_on_dataset(
         raise ConfigError(f"REMA mode must be one of {REMA_MODES}, got {mode!r}")
     table = load_dataset(dataset, split, data_dir=data_dir)
     cmap = to_fixes(table).attrs["columns"]
-    detector = RemaDetector() if mode == "trend" else RemaDetector(
-        rema=RemaParams(mode="paper"), use_speed_heading=False)
+    detector = RemaDetector(use_speed_heading=use_speed_heading and mode == "trend")
+    if mode == "paper":
+        detector = replace(detector, rema=RemaParams(mode="paper"))
     if not seeds:
         raise ConfigError("tune_on_dataset needs at least one injection seed")
     segments = []

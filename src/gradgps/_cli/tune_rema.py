@@ -20,6 +20,8 @@ __all__ = ["tune_rema"]
               help="injection seeds, pooled (several draws make the choice less lucky)")
 @click.option("--mode", type=click.Choice(["trend", "paper"]), default="trend", show_default=True,
               help="REMA mode to tune")
+@click.option("--speed-heading/--no-speed-heading", default=True, show_default=True,
+              help="trend mode: predict steps from reported speed and heading")
 @click.option("--data-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="folder with the shared drives; default $GRADGPS_DATA, then ../shared/data")
 @click.option("--grid", "grid_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
@@ -29,7 +31,7 @@ __all__ = ["tune_rema"]
               help="also write every REMA combination's scores here (CSV)")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="JSON file for the best settings (gradgps bench --rema-params FILE)")
-def tune_rema(protocol: str, dataset: str, split: str, seeds: str, mode: str,
+def tune_rema(protocol: str, dataset: str, split: str, seeds: str, mode: str, speed_heading: bool,
               data_dir: Path | None, grid_path: Path | None, table_path: Path | None,
               output: Path) -> None:
     """Inject faults into a split, grid-search REMA (per-channel F1) then the time classifier."""
@@ -52,7 +54,7 @@ def tune_rema(protocol: str, dataset: str, split: str, seeds: str, mode: str,
                                      param_hint="--grid")
     try:
         settings, rema_table, _ = tune_on_dataset(dataset, split=split, seeds=seed_list, mode=mode,
-                                                  grid=grid, data_dir=data_dir, progress=True)
+                                                  use_speed_heading=speed_heading, grid=grid, data_dir=data_dir, progress=True)
     except GradGPSError as exc:
         raise click.ClickException(str(exc)) from exc
     output.write_text(json.dumps(settings, indent=2) + "\n")
