@@ -101,13 +101,22 @@ def test_kernel_matches_reference(mode: str) -> None:
     ss=st.integers(3, 12),
     sens=st.floats(0.5, 5.0),
     margin=st.floats(0.0, 5.0),
+    growth=st.floats(0.0, 2.0),
+    reacquire=st.integers(0, 4),
+    with_steps=st.booleans(),
 )
 def test_kernel_matches_reference_on_generated_tracks(
-    values: list[float], mode: str, ss: int, sens: float, margin: float
+    values: list[float], mode: str, ss: int, sens: float, margin: float, growth: float,
+    reacquire: int, with_steps: bool,
 ) -> None:
     x = np.cumsum(values)
-    prm = RemaParams(mode=mode, slide_size=ss, sensitivity=sens, min_margin=margin)
-    _assert_same(rema_batch(x, prm), rema_reference(x, prm))
+    prm = RemaParams(mode=mode, slide_size=ss, sensitivity=sens, min_margin=margin,
+                     run_growth=growth, reacquire_after=reacquire)
+    # Known steps: the true steps with every third one unknown (NaN) and a small error.
+    steps = np.diff(x, prepend=x[0]) + 0.5 if with_steps else None
+    if steps is not None:
+        steps[::3] = np.nan
+    _assert_same(rema_batch(x, prm, steps), rema_reference(x, prm, steps))
 
 
 @pytest.mark.parametrize("mode", REMA_MODES)

@@ -12,6 +12,8 @@ from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputErro
 from ._geo import LocalFrame
 from ._io import iter_csv_tables, read_fixes, read_table, write_table
 from ._preprocess import Prepared, preprocess
+from ._rema import RemaParams
+from ._rema_detector import RemaDetector
 from ._simulator import SimulatorParams, simulate_drive, simulate_fleet
 from ._track import ColumnMap, Table, to_fixes
 
@@ -26,6 +28,8 @@ __all__ = [
     "LocalFrame",
     "ModelError",
     "Prepared",
+    "RemaDetector",
+    "RemaParams",
     "SimulatorParams",
     "Table",
     "__version__",

@@ -28,7 +28,7 @@ __all__ = ["DETECTOR_NAMES", "PROTOCOLS", "Detector", "bench_units", "make_detec
 
 PROTOCOLS = ("grad", "sensor-grid")
 #: Names :func:`make_detector` knows, for help texts and error messages.
-DETECTOR_NAMES = ("speed-gate",)
+DETECTOR_NAMES = ("speed-gate", "rema", "rema-paper")
 _SENSOR_CHANNELS = ["accel_x_mps2", "gyro_z_dps"]
 
 
@@ -38,12 +38,25 @@ class Detector(Protocol):
     def detect(self, fixes: pd.DataFrame) -> pd.DataFrame: ...
 
 
-def make_detector(name: str) -> Detector:
-    """A detector with its default settings, by benchmark name."""
+def make_detector(name: str, rema_params: Path | None = None) -> Detector:
+    """A detector with its default settings, by benchmark name.
+
+    ``rema``: :class:`RemaDetector` (trend mode), with the settings saved by
+    ``gradgps tune-rema`` when ``rema_params`` names that file; ``rema-paper``:
+    the literal Algorithm 1 (paper mode, paper recovery), never tuned here.
+    """
     if name == "speed-gate":
         from ._speed_gate import SpeedGate
 
         return SpeedGate()
+    if name == "rema":
+        from ._rema_detector import RemaDetector
+
+        return RemaDetector() if rema_params is None else RemaDetector.from_file(rema_params)
+    if name == "rema-paper":
+        from ._rema_detector import paper_detector
+
+        return paper_detector()
     raise ConfigError(f"unknown detector {name!r}; known detectors: {', '.join(DETECTOR_NAMES)}")
 
 
@@ -132,6 +145,7 @@ def run_bench(
     scale: float = 1.0,
     data_dir: str | Path | None = None,
     advance: Callable[[str], None] | None = None,
+    rema_params: Path | None = None,
 ) -> dict[str, Any]:
     """Run the benchmark; return the JSON-ready report (``nan`` turned into ``None``).
 
@@ -140,7 +154,7 @@ def run_bench(
     ``advance`` is called after each (row, detector) evaluation.
     """
     rows = _row_names(protocol)
-    built = {name: make_detector(name) for name in detectors}  # bad names fail before any work
+    built = {name: make_detector(name, rema_params) for name in detectors}  # bad names fail before any work
     table = load_dataset(dataset, split, data_dir=data_dir)
     cmap: ColumnMap = to_fixes(table).attrs["columns"]
     channels = _SENSOR_CHANNELS if protocol == "sensor-grid" else []

@@ -92,7 +92,7 @@ def feature_names(params: FeatureParams | None = None) -> list[str]:
     return names
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def history_push(hist: FloatArray, count: int, x: float) -> FloatArray:
     """Append the ``count``-th value (1-based) to a doubled ring; return the recent window.
 
@@ -108,13 +108,23 @@ def history_push(hist: FloatArray, count: int, x: float) -> FloatArray:
     return hist[pos + size - m + 1:pos + size + 1]
 
 
-@numba.njit(cache=True)
+# Sums may be reordered (so LLVM vectorises the window loops); no flag that
+# assumes finite values, because NaN handling must stay exact. Agreement with
+# the reference to 1e-9 is tested.
+SUM_FASTMATH = {"reassoc", "contract"}
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=SUM_FASTMATH)
 def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: float,
                           rema_row: FloatArray, out: FloatArray) -> None:
     """Features of one channel at the newest point from ``win``, the recent values (oldest first).
 
-    Sums run over values relative to the newest one (translation invariance
-    and small magnitudes, so the one-pass formulas lose no precision).
+    Values enter relative to the newest one (translation invariance). The
+    spreads (the fit's standard error, the std of the steps) are computed in
+    two passes over the window, from explicit residuals: a one-pass
+    ``E[x^2] - E[x]^2`` cancels catastrophically on a clean straight drive,
+    where the spread is ~0 but the squares are large, and the square root
+    then turns a 1e-16 relative error into a visible 1e-8 m.
     """
     total = win.size
     newest = win[total - 1]
@@ -123,12 +133,10 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
     first = total - m
     sy = 0.0
     sky = 0.0
-    syy = 0.0
     for k in range(m):
         y = win[first + k] - newest
         sy += y
-        sky += k * y
-        syy += y * y
+        sky += float(k) * y
     mean_y = sy / m
     mean_j = (m - 1) / 2.0
     sxx = m * (m * m - 1.0) / 12.0
@@ -136,32 +144,37 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
     slope_pt = sxy / sxx if sxx > 0.0 else 0.0
     se = 0.0
     if m > 2:
-        se = np.sqrt(max(syy - sy * mean_y - slope_pt * sxy, 0.0) / (m - 2))
+        # Residuals from the line through (mean_j, mean_y) with slope slope_pt.
+        ssr = 0.0
+        for k in range(m):
+            r = (win[first + k] - newest) - (mean_y + slope_pt * (float(k) - mean_j))
+            ssr += r * r
+        se = np.sqrt(ssr / (m - 2))
     out[0] = slope_pt / period
     out[1] = mean_y + slope_pt * (m - 1 - mean_j)
     out[2] = se
-    # Short window: the last short_n steps (fewer at the start).
+    # Short window: the last short_n steps (fewer at the start). The steps
+    # telescope, so their sum is one difference; gains + losses = sum |step|.
     n_steps = min(total - 1, short_n)
-    sd = 0.0
-    sdd = 0.0
-    gain = 0.0
-    loss = 0.0
+    start = total - n_steps
+    sd = newest - win[start - 1] if n_steps > 0 else 0.0
+    moved = 0.0
     lo = newest
     hi = newest
-    for k in range(total - n_steps, total):
-        d = win[k] - win[k - 1]
-        sd += d
-        sdd += d * d
-        if d > 0.0:
-            gain += d
-        else:
-            loss -= d
+    for k in range(start, total):
+        moved += abs(win[k] - win[k - 1])
         lo = min(lo, win[k - 1])
         hi = max(hi, win[k - 1])
+    gain = 0.5 * (moved + sd)
+    loss = 0.5 * (moved - sd)
     std_v = 0.0
     if n_steps > 0:
         mean_d = sd / n_steps
-        std_v = np.sqrt(max(sdd / n_steps - mean_d * mean_d, 0.0)) / period
+        sdd = 0.0
+        for k in range(start, total):
+            r = win[k] - win[k - 1] - mean_d
+            sdd += r * r
+        std_v = np.sqrt(sdd / n_steps) / period
     out[3] = std_v
     out[4] = 100.0 * gain / (gain + loss) if gain + loss > 0.0 else 50.0
     out[5] = hi - lo
@@ -175,7 +188,30 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
 
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def velocity_step(speed: float, heading: float, period: float) -> tuple[float, float]:
+    """(east, north) metres a car at ``speed`` m/s on course ``heading`` degrees moves in ``period`` s.
+
+    NaN when either is missing: REMA's ``trend`` mode then predicts from its
+    own step EMA alone.
+    """
+    if not (np.isfinite(speed) and np.isfinite(heading)):
+        return np.nan, np.nan
+    h = np.radians(heading)
+    return speed * np.sin(h) * period, speed * np.cos(h) * period
+
+
+def velocity_steps(speed: ArrayLike | None, heading: ArrayLike | None, period: float,
+                   n: int) -> tuple[FloatArray, FloatArray]:
+    """:func:`velocity_step` over arrays (all NaN when speed or heading is absent)."""
+    if speed is None or heading is None:
+        return np.full(n, np.nan), np.full(n, np.nan)
+    sp = _optional(speed, n, "speed")
+    h = np.radians(_optional(heading, n, "heading"))
+    return sp * np.sin(h) * period, sp * np.cos(h) * period
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def cross_features_step(step_e: float, step_n: float, period: float, speed: float,
                         heading: float, out: FloatArray) -> None:
     """Implied-vs-reported speed (m/s) and course (degrees) from the last step."""
@@ -188,15 +224,19 @@ def cross_features_step(step_e: float, step_n: float, period: float, speed: floa
     out[1] = gap
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def features_batch_kernel(east: FloatArray, north: FloatArray, speed: FloatArray,
                           heading: FloatArray, period: float, long_n: int, short_n: int,
                           rema_p: FloatArray, cross: bool) -> FloatArray:
     n = east.size
     width = 2 * N_CHANNEL + (2 if cross else 0)
     out = np.empty((n, width))
-    rema_e = rema_batch_kernel(rema_p, east)
-    rema_n = rema_batch_kernel(rema_p, north)
+    step_e = np.empty(n)
+    step_n = np.empty(n)
+    for i in range(n):
+        step_e[i], step_n[i] = velocity_step(speed[i], heading[i], period)
+    rema_e = rema_batch_kernel(rema_p, east, step_e)
+    rema_n = rema_batch_kernel(rema_p, north, step_n)
     size = 2 * max(long_n, short_n + 1)
     hist_e = np.zeros(size)
     hist_n = np.zeros(size)
@@ -311,9 +351,10 @@ def features_reference(
     period = _segment_period(t_a)
     long_n, short_n = prm.points(period)
     rp = (rema_params or RemaParams()).to_array()
+    step_e, step_n = velocity_steps(speed, heading, period, e.size)
     parts = [
-        _channel_reference(e, period, long_n, short_n, rema_batch_kernel(rp, e)),
-        _channel_reference(nn, period, long_n, short_n, rema_batch_kernel(rp, nn)),
+        _channel_reference(e, period, long_n, short_n, rema_batch_kernel(rp, e, step_e)),
+        _channel_reference(nn, period, long_n, short_n, rema_batch_kernel(rp, nn, step_n)),
     ]
     if prm.speed_heading:
         sp = _optional(speed, e.size, "speed")

@@ -60,7 +60,7 @@ class RecoveryParams:
         return np.array([float(RECOVERY_METHODS.index(self.method)), self.velocity_alpha])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def recovery_step(p: FloatArray, state: FloatArray, code: int, period: float,
                   east: float, north: float, ema_e: float, ema_n: float,
                   speed: float, heading: float, out: FloatArray) -> None:
@@ -96,7 +96,7 @@ def recovery_step(p: FloatArray, state: FloatArray, code: int, period: float,
     out[2] = alert
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _recover_kernel(p: FloatArray, codes: NDArray[np.int8], period: float, east: FloatArray,
                     north: FloatArray, ema_e: FloatArray, ema_n: FloatArray,
                     speed: FloatArray, heading: FloatArray) -> FloatArray:

@@ -40,30 +40,38 @@ Two modes, one kernel:
 vehicle. A raw EMA of a position lags a car at 15 m/s by metres every second,
 and the std of a moving EMA grows with speed, so ``paper`` bounds are wide
 when moving and ~0 when stopped. ``trend`` applies the same reinforced EMA to
-the *step* (velocity per point) and predicts ``x[t] = level[t-1] +
-step_ema``, where ``level`` is the last accepted (or recovered) value::
+the *step* and predicts from ``level``, the last accepted (or, during a fault,
+dead-reckoned) value. ``known`` is the step expected from an independent
+source -- the reported speed and heading times the period -- or 0 where there
+is none; the EMA then follows the *residual* step (step minus ``known``), a
+bias such as a lagging heading, or the whole step without speed/heading::
 
-    pred   = level + step_ema
-    thr    = std(last ss accepted steps)
-    margin = max(thr * sensitivity, min_margin) + thr * sensitivity * run
-    flag   = |x[t] - pred| > margin
-    if flag: level = pred (constant-velocity recovery); a punished; run += 1
-    else:    step_ema = a * (x[t] - level) + (1 - a) * step_ema; level = x[t];
+    pred   = level + known + step_ema
+    thr    = std(last ss accepted residual steps)
+    base   = max(thr * sensitivity, min_margin)
+    margin = base + run_growth * run
+    flag   = |x[t] - pred| > margin,  unless re-acquired (below)
+    if flag: level = pred (dead reckoning); a punished; run += 1
+    else:    residual = x[t] - level - known
+             step_ema = a * residual + (1 - a) * step_ema; level = x[t];
              a rewarded; run = 0
 
-  ``run`` (consecutive outliers) widens the bounds like the error of a
-  constant-velocity prediction grows, so the detector re-acquires a track
-  whose true path turned away during a long fault instead of flagging forever.
-  Warm-up: the first ``ss`` points are accepted unchecked (``step_ema`` starts
-  at the first step).
+  ``run`` counts consecutive outliers; ``run_growth`` (channel units per
+  outlier, default 0) widens the bounds as dead reckoning drifts.
+  **Re-acquisition** (``reacquire_after`` = K > 0): a lasting shift of the
+  whole track (the truth moved, or the anchor was the bad value) would
+  otherwise be flagged forever, but growing bounds alone also accept
+  single noisy values inside a long noise fault and then lose the track.
+  So a flagged point whose own step from the previous *observed* value is
+  as expected (``|x[t] - x[t-1] - known - step_ema| <= base``) counts as
+  consistent; the K-th consistent flagged point in a row is accepted
+  (``level = x[t]``, its residual is its own step, not the jump). Noise
+  faults (independent offsets per point) almost never move consistently K
+  times. Warm-up: the first ``ss`` points are accepted unchecked
+  (``step_ema`` starts at the first residual).
 
-  Measured (``benchmarks/rema_quality.py``: driveplotr validation drives,
-  self-made 10-50 m offsets in the protocol's transient/intermittent/
-  permanent shapes, 3,320 points, 313 faulty; anomaly F1 / normal F1):
-  ``paper`` defaults 0.18 / 0.08 and ``paper`` with ``min_margin=3`` 0.19 /
-  0.20 (after the first outlier the reset EMA falls behind the moving car and
-  nearly every later point is flagged); ``trend`` with ``min_margin=3`` 0.22 /
-  0.67; ``trend`` with ``min_margin=5, sensitivity=4`` 0.66 / 0.97.
+  Measured: docs/rema.md (benchmark ``grad`` on driveplotr and tuc test,
+  tuned on validation with ``gradgps tune-rema``).
 
 Implementation: :func:`rema_step` (numba) advances one point given the state
 in two small arrays, so a whole pipeline can call it from one compiled loop;
@@ -99,12 +107,15 @@ FloatArray = NDArray[np.float64]
 REMA_MODES = ("paper", "trend")
 
 # Layout of the parameter array handed to the kernels.
-P_ALPHA, P_ALPHA_MIN, P_ALPHA_MAX, P_PUNISH, P_REWARD, P_SS, P_SENS, P_MIN_MARGIN, P_MODE = range(9)
-N_PARAMS = 9
+(P_ALPHA, P_ALPHA_MIN, P_ALPHA_MAX, P_PUNISH, P_REWARD, P_SS, P_SENS, P_MIN_MARGIN, P_MODE,
+ P_RUN_GROWTH, P_REACQUIRE) = range(11)
+N_PARAMS = 11
 # Layout of the scalar state array: alpha, points seen, last fed value (paper)
 # or level (trend), step EMA, consecutive outliers and accepted steps (trend).
-S_ALPHA, S_COUNT, S_LAST, S_STEP, S_RUN, S_NSTEPS = range(6)
-N_STATE = 6
+# Trend mode also keeps the previous observed value and how many flagged
+# points in a row moved consistently from their predecessor.
+S_ALPHA, S_COUNT, S_LAST, S_STEP, S_RUN, S_NSTEPS, S_PREV, S_CONSISTENT = range(8)
+N_STATE = 8
 # Layout of one output row.
 O_FLAG, O_EMA, O_LOWER, O_UPPER, O_DISTANCE, O_ALPHA = range(6)
 N_OUT = 6
@@ -126,6 +137,8 @@ class RemaParams:
     sensitivity: float = 3.0
     min_margin: float = 0.0
     mode: str = "paper"
+    run_growth: float = 0.0
+    reacquire_after: int = 0
 
     def checked(self) -> RemaParams:
         if self.mode not in REMA_MODES:
@@ -143,6 +156,11 @@ class RemaParams:
             raise ConfigError(f"sensitivity must be a positive number, got {self.sensitivity}")
         if not (self.min_margin >= 0 and np.isfinite(self.min_margin)):
             raise ConfigError(f"min_margin must be >= 0 (channel units), got {self.min_margin}")
+        if not (self.run_growth >= 0 and np.isfinite(self.run_growth)):
+            raise ConfigError(f"run_growth must be >= 0 (channel units per point), got {self.run_growth}")
+        if int(self.reacquire_after) != self.reacquire_after or self.reacquire_after < 0:
+            raise ConfigError(f"reacquire_after must be an integer >= 0 (points; 0 = never), "
+                              f"got {self.reacquire_after}")
         return self
 
     def to_array(self) -> FloatArray:
@@ -151,7 +169,7 @@ class RemaParams:
         return np.array(
             [self.alpha, self.alpha_min, self.alpha_max, self.punish, self.reward,
              float(self.slide_size), self.sensitivity, self.min_margin,
-             float(REMA_MODES.index(self.mode))],
+             float(REMA_MODES.index(self.mode)), self.run_growth, float(self.reacquire_after)],
             dtype=np.float64,
         )
 
@@ -174,8 +192,9 @@ class RemaParams:
             extra = sorted(set(data) - names) if isinstance(data, dict) else data
             raise ConfigError(f"unknown REMA parameters {extra}; expected keys {sorted(names)}")
         values = dict(data)
-        if "slide_size" in values:
-            values["slide_size"] = int(values["slide_size"])
+        for key in ("slide_size", "reacquire_after"):
+            if key in values:
+                values[key] = int(values[key])
         return cls(**values).checked()
 
 
@@ -190,27 +209,34 @@ class RemaOutput(NamedTuple):
     alpha: FloatArray
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", fastmath={"reassoc", "contract"})
 def _window_mean_std(ring: FloatArray, start: int, count: int) -> tuple[float, float]:
-    """Mean and population std of ``count`` ring values from absolute index ``start``."""
+    """Mean and population std of ``count`` ring values from absolute index ``start``.
+
+    Two passes (no cancellation), each over the at most two contiguous pieces
+    of the ring, so the loops carry no modulo or wrap-around branch.
+    """
     size = ring.size
     first = start % size
+    head = min(count, size - first)
+    tail = count - head
     total = 0.0
-    i = first
-    for _ in range(count):
+    for i in range(first, first + head):
         total += ring[i]
-        i = i + 1 if i + 1 < size else 0
+    for i in range(tail):
+        total += ring[i]
     mean = total / count
     sq = 0.0
-    i = first
-    for _ in range(count):
+    for i in range(first, first + head):
         d = ring[i] - mean
         sq += d * d
-        i = i + 1 if i + 1 < size else 0
+    for i in range(tail):
+        d = ring[i] - mean
+        sq += d * d
     return mean, np.sqrt(sq / count)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _push_step(state: FloatArray, ring: FloatArray, step: float) -> None:
     """Trend mode: append an accepted step to the ring (indexed by accepted-step count)."""
     n_steps = int(state[S_NSTEPS])
@@ -218,7 +244,7 @@ def _push_step(state: FloatArray, ring: FloatArray, step: float) -> None:
     state[S_NSTEPS] = n_steps + 1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def rema_new_state(p: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Fresh (scalar state, ring) arrays for parameters ``p``."""
     state = np.zeros(N_STATE)
@@ -226,14 +252,17 @@ def rema_new_state(p: FloatArray) -> tuple[FloatArray, FloatArray]:
     return state, np.zeros(int(p[P_SS]))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
-              out: FloatArray) -> None:
+              known_step: float, out: FloatArray) -> None:
     """Advance REMA by one value ``x``; write one output row into ``out`` (see module doc).
 
-    ``ring`` (length slide_size) holds the last ss EMA values (paper) or the
-    last ss accepted steps (trend); the absolute index of point ``t`` is
-    ``t % ss`` (paper) or the accepted-step count modulo ss (trend).
+    ``known_step`` is the step expected from an independent source (reported
+    speed and heading times the period, channel units), NaN when there is none;
+    only ``trend`` mode uses it. ``ring`` (length slide_size) holds the last ss
+    EMA values (paper) or the last ss accepted step residuals (trend); the
+    absolute index of point ``t`` is ``t % ss`` (paper) or the accepted-step
+    count modulo ss (trend).
     """
     ss = int(p[P_SS])
     t = int(state[S_COUNT])
@@ -267,39 +296,50 @@ def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
         ring[t % ss] = ema
         state[S_LAST] = x
     else:
+        base_step = known_step if np.isfinite(known_step) else 0.0
         if t == 0:
             ema = x
             distance = 0.0
             state[S_LAST] = x
         elif t < ss:
-            step = x - state[S_LAST]
-            state[S_STEP] = step if t == 1 else a * step + (1.0 - a) * state[S_STEP]
+            residual = x - state[S_LAST] - base_step
+            state[S_STEP] = residual if t == 1 else a * residual + (1.0 - a) * state[S_STEP]
             ema = x
             distance = 0.0
-            _push_step(state, ring, step)
+            _push_step(state, ring, residual)
             state[S_LAST] = x
         else:
-            ema = state[S_LAST] + state[S_STEP]
+            ema = state[S_LAST] + base_step + state[S_STEP]
             n_steps = int(state[S_NSTEPS])
             count = min(n_steps, ss)
             _, thr = _window_mean_std(ring, n_steps - count, count)
-            base = thr * p[P_SENS]
-            margin = max(base, p[P_MIN_MARGIN]) + base * state[S_RUN]
+            base = max(thr * p[P_SENS], p[P_MIN_MARGIN])
+            margin = base + p[P_RUN_GROWTH] * state[S_RUN]
             lower = ema - margin
             upper = ema + margin
             distance = abs(x - ema)
-            if x < lower or x > upper:
+            outside = x < lower or x > upper
+            own_step = x - state[S_PREV] - base_step
+            if outside and state[S_RUN] > 0.0 and abs(own_step - state[S_STEP]) <= base:
+                state[S_CONSISTENT] += 1.0
+            else:
+                state[S_CONSISTENT] = 0.0
+            reacquire = p[P_REACQUIRE] > 0.0 and state[S_CONSISTENT] >= p[P_REACQUIRE]
+            if outside and not reacquire:
                 flag = 1.0
                 state[S_LAST] = ema
                 state[S_RUN] += 1.0
                 a = max(a - p[P_PUNISH], p[P_ALPHA_MIN])
             else:
-                step = x - state[S_LAST]
-                state[S_STEP] = a * step + (1.0 - a) * state[S_STEP]
-                _push_step(state, ring, step)
+                # On re-acquisition the step is the track's own, not the jump to it.
+                residual = own_step if outside else x - state[S_LAST] - base_step
+                state[S_CONSISTENT] = 0.0
+                state[S_STEP] = a * residual + (1.0 - a) * state[S_STEP]
+                _push_step(state, ring, residual)
                 state[S_LAST] = x
                 state[S_RUN] = 0.0
                 a = min(a + p[P_REWARD], p[P_ALPHA_MAX])
+    state[S_PREV] = x
     state[S_ALPHA] = a
     state[S_COUNT] = t + 1
     out[O_FLAG] = flag
@@ -310,13 +350,13 @@ def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
     out[O_ALPHA] = a
 
 
-@numba.njit(cache=True)
-def rema_batch_kernel(p: FloatArray, x: FloatArray) -> FloatArray:
+@numba.njit(cache=True, error_model="numpy")
+def rema_batch_kernel(p: FloatArray, x: FloatArray, known_step: FloatArray) -> FloatArray:
     """REMA over a whole array from a fresh state; (n, 6) output rows."""
     state, ring = rema_new_state(p)
     out = np.empty((x.size, N_OUT))
     for i in range(x.size):
-        rema_step(p, state, ring, x[i], out[i])
+        rema_step(p, state, ring, x[i], known_step[i], out[i])
     return out
 
 
@@ -331,18 +371,35 @@ def _split(rows: FloatArray) -> RemaOutput:
     )
 
 
-def rema_batch(x: ArrayLike, params: RemaParams | None = None) -> RemaOutput:
-    """REMA over one channel of one segment (compiled kernel)."""
-    values = np.ascontiguousarray(x, dtype=np.float64)
+def _known_steps(values: FloatArray, known_step: ArrayLike | None) -> FloatArray:
     if values.ndim != 1:
         raise ConfigError(f"REMA takes one channel as a 1-D array, got shape {values.shape}")
-    return _split(rema_batch_kernel((params or RemaParams()).to_array(), values))
+    if known_step is None:
+        return np.full(values.size, np.nan)
+    steps = np.ascontiguousarray(known_step, dtype=np.float64)
+    if steps.shape != values.shape:
+        raise ConfigError(f"known_step must have one value per point ({values.size}), got shape {steps.shape}")
+    return steps
 
 
-def rema_reference(x: ArrayLike, params: RemaParams | None = None) -> RemaOutput:
+def rema_batch(x: ArrayLike, params: RemaParams | None = None,
+               known_step: ArrayLike | None = None) -> RemaOutput:
+    """REMA over one channel of one segment (compiled kernel).
+
+    ``known_step``: optional expected step per point from speed and heading
+    (channel units, NaN where unknown); used by ``trend`` mode only.
+    """
+    values = np.ascontiguousarray(x, dtype=np.float64)
+    steps = _known_steps(values, known_step)
+    return _split(rema_batch_kernel((params or RemaParams()).to_array(), values, steps))
+
+
+def rema_reference(x: ArrayLike, params: RemaParams | None = None,
+                   known_step: ArrayLike | None = None) -> RemaOutput:
     """Readable full-array REMA, written from the algorithm text; tests compare the kernel to it."""
     prm = (params or RemaParams()).checked()
     x = np.asarray(x, dtype=np.float64)
+    base_steps = np.nan_to_num(_known_steps(x, known_step), nan=0.0)
     n, ss, a = x.size, prm.slide_size, prm.alpha
     flag = np.zeros(n, dtype=np.int8)
     ema = np.zeros(n)
@@ -373,30 +430,36 @@ def rema_reference(x: ArrayLike, params: RemaParams | None = None) -> RemaOutput
         return RemaOutput(flag, ema, lower, upper, distance, alphas)
     level = 0.0
     step_ema = 0.0
-    steps: list[float] = []  # accepted steps, newest last
+    residuals: list[float] = []  # accepted step minus known step, newest last
     run = 0
+    consistent = 0  # flagged points in a row that moved consistently from the one before
     for t in range(n):
         if t < ss:
             if t > 0:
-                step = x[t] - level
-                step_ema = step if t == 1 else a * step + (1 - a) * step_ema
-                steps.append(step)
+                residual = x[t] - level - base_steps[t]
+                step_ema = residual if t == 1 else a * residual + (1 - a) * step_ema
+                residuals.append(residual)
             level = ema[t] = x[t]
         else:
-            ema[t] = level + step_ema
-            base = float(np.std(steps[-ss:])) * prm.sensitivity
-            margin = max(base, prm.min_margin) + base * run
+            ema[t] = level + base_steps[t] + step_ema
+            base = float(np.std(residuals[-ss:])) * prm.sensitivity
+            margin = max(base, prm.min_margin) + prm.run_growth * run
             lower[t], upper[t] = ema[t] - margin, ema[t] + margin
             distance[t] = abs(x[t] - ema[t])
-            if abs(x[t] - ema[t]) > margin:
+            outside = abs(x[t] - ema[t]) > margin
+            own_step = x[t] - x[t - 1] - base_steps[t]
+            moved_as_expected = abs(own_step - step_ema) <= max(base, prm.min_margin)
+            consistent = consistent + 1 if outside and run > 0 and moved_as_expected else 0
+            if outside and not (prm.reacquire_after > 0 and consistent >= prm.reacquire_after):
                 flag[t] = 1
                 level = ema[t]
                 run += 1
                 a = max(a - prm.punish, prm.alpha_min)
             else:
-                step = x[t] - level
-                step_ema = a * step + (1 - a) * step_ema
-                steps.append(step)
+                residual = own_step if outside else x[t] - level - base_steps[t]
+                consistent = 0
+                step_ema = a * residual + (1 - a) * step_ema
+                residuals.append(residual)
                 level = x[t]
                 run = 0
                 a = min(a + prm.reward, prm.alpha_max)
@@ -418,9 +481,9 @@ class Rema:
         self._state, self._ring = rema_new_state(self._p)
         self._out = np.zeros(N_OUT)
 
-    def update(self, x: float) -> tuple[int, float, float, float, float, float]:
-        """Feed one value; return ``(flag, ema, lower, upper, distance, alpha)``."""
-        rema_step(self._p, self._state, self._ring, float(x), self._out)
+    def update(self, x: float, known_step: float = np.nan) -> tuple[int, float, float, float, float, float]:
+        """Feed one value (and optionally its expected step); return ``(flag, ema, lower, upper, distance, alpha)``."""
+        rema_step(self._p, self._state, self._ring, float(x), float(known_step), self._out)
         o = self._out
         return (int(o[O_FLAG]), float(o[O_EMA]), float(o[O_LOWER]), float(o[O_UPPER]),
                 float(o[O_DISTANCE]), float(o[O_ALPHA]))

@@ -12,36 +12,93 @@ that are not usable fixes get ``anomaly=0``, NaN clean positions and their
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+import json
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from ._core_pipeline import CoreParams, core_batch
+from ._exceptions import ConfigError
 from ._features import FeatureParams
 from ._preprocess import preprocess
 from ._recovery import RecoveryParams
 from ._rema import RemaParams
 from ._time_classifier import TIME_TYPES, TimeParams
 
-__all__ = ["RemaDetector"]
+__all__ = ["RemaDetector", "paper_detector"]
 
 
 @dataclass
 class RemaDetector:
     """Batch REMA detector; parameters as in :class:`CoreParams` plus ``max_gap_s`` for preprocessing.
 
-    The default REMA parameters are the best of the few measured in
-    ``benchmarks/rema_quality.py`` (trend mode, 5 m floor, sensitivity 4),
-    not yet a full grid search (``tune_rema``).
+    The defaults are what ``gradgps tune-rema --dataset driveplotr`` chose on
+    the driveplotr validation split (injection seeds 0, 1, 2; docs/rema.md):
+    trend mode with speed/heading, 8 m floor, sensitivity 5, bounds growing
+    0.5 m per consecutive outlier; permanent after 6 flagged points.
     """
 
-    rema: RemaParams = field(default_factory=lambda: RemaParams(mode="trend", min_margin=5.0,
-                                                                   sensitivity=4.0))
-    time: TimeParams = field(default_factory=TimeParams)
+    rema: RemaParams = field(default_factory=lambda: RemaParams(
+        alpha=0.3, alpha_min=0.2, alpha_max=0.9, punish=0.2, reward=0.02, slide_size=6,
+        sensitivity=5.0, min_margin=8.0, mode="trend", run_growth=0.5, reacquire_after=0))
+    time: TimeParams = field(default_factory=lambda: TimeParams(permanent_run=6, episode_gap=15,
+                                                                intermittent_bursts=2))
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
     feed_recovered: bool = True
     max_gap_s: float = 5.0
+    use_speed_heading: bool = True
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able settings (what ``gradgps tune-rema`` writes)."""
+        return {"rema": asdict(self.rema), "time": asdict(self.time),
+                "recovery": asdict(self.recovery), "feed_recovered": self.feed_recovered,
+                "max_gap_s": self.max_gap_s, "use_speed_heading": self.use_speed_heading}
+
+    @classmethod
+    def from_dict(cls, data: Any) -> RemaDetector:
+        """Settings from :meth:`to_dict`; missing sections keep their defaults, unknown keys fail."""
+        known = {"rema", "time", "recovery", "feed_recovered", "max_gap_s", "use_speed_heading",
+                 "scores"}
+        if not isinstance(data, dict) or set(data) - known:
+            extra = sorted(set(data) - known) if isinstance(data, dict) else type(data).__name__
+            raise ConfigError(f"unknown REMA detector settings {extra}; expected keys {sorted(known)}")
+        out = cls()
+        try:
+            if "rema" in data:
+                out = replace(out, rema=RemaParams.from_dict(data["rema"]))
+            if "time" in data:
+                time = TimeParams(**data["time"])
+                time.to_array()
+                out = replace(out, time=time)
+            if "recovery" in data:
+                recovery = RecoveryParams(**data["recovery"])
+                recovery.to_array()
+                out = replace(out, recovery=recovery)
+        except TypeError as exc:
+            raise ConfigError(f"bad REMA detector settings: {exc}") from exc
+        if "feed_recovered" in data:
+            out = replace(out, feed_recovered=bool(data["feed_recovered"]))
+        if "use_speed_heading" in data:
+            out = replace(out, use_speed_heading=bool(data["use_speed_heading"]))
+        if "max_gap_s" in data:
+            out = replace(out, max_gap_s=float(data["max_gap_s"]))
+        return out
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> RemaDetector:
+        """Settings from a JSON file written by ``gradgps tune-rema``."""
+        try:
+            text = Path(path).read_text()
+        except OSError as exc:
+            raise ConfigError(f"cannot read REMA settings {path}: {exc.strerror}") from exc
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"REMA settings {path} are not valid JSON: {exc}") from exc
+        return cls.from_dict(data)
 
     def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
         prepared = preprocess(fixes, max_gap_s=self.max_gap_s)
@@ -58,7 +115,7 @@ class RemaDetector:
                           feed_recovered=self.feed_recovered)
         columns = {c: pts[c].to_numpy(dtype=np.float64) for c in ("t", "east", "north")}
         for c in ("speed", "heading"):
-            if c in pts.columns:
+            if c in pts.columns and self.use_speed_heading:
                 columns[c] = pts[c].to_numpy(dtype=np.float64)
         tracks = pts["track"].to_numpy(dtype=object)
         for _, sl in prepared.segment_slices():
@@ -86,3 +143,9 @@ class RemaDetector:
             index=fixes.index,
         )
         return result
+
+
+def paper_detector() -> RemaDetector:
+    """Algorithm 1 as printed: ``paper`` mode with the paper's recovery (EMA), no speed/heading."""
+    return RemaDetector(rema=RemaParams(), recovery=RecoveryParams(method="ema"),
+                        use_speed_heading=False)

@@ -77,7 +77,7 @@ def time_new_state() -> NDArray[np.float64]:
     return state
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def time_step(p: NDArray[np.float64], state: NDArray[np.float64], flag: float) -> int:
     """Advance by one point's anomaly flag; return its type code (index into TIME_TYPES)."""
     if flag == 0.0:
@@ -98,7 +98,7 @@ def time_step(p: NDArray[np.float64], state: NDArray[np.float64], flag: float) -
     return TRANSIENT
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _classify_kernel(p: NDArray[np.float64], flags: NDArray[np.float64],
                      state: NDArray[np.float64]) -> NDArray[np.int8]:
     out = np.empty(flags.size, dtype=np.int8)

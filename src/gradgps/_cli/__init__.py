@@ -17,6 +17,7 @@ from .info import info
 from .inject import inject
 from .simulate import simulate
 from .train import train
+from .tune_rema import tune_rema
 
 __all__ = ["main"]
 
@@ -34,3 +35,4 @@ main.add_command(info)
 main.add_command(inject)
 main.add_command(simulate)
 main.add_command(train)
+main.add_command(tune_rema)

@@ -34,13 +34,19 @@ def _fmt(value: object) -> str:
     "detectors",
     required=True,
     metavar="NAME[,NAME...]",
-    help="detectors to score, comma-separated (e.g. speed-gate)",
+    help="detectors to score, comma-separated: speed-gate, rema, rema-paper",
 )
 @click.option(
     "--data-dir",
     type=click.Path(file_okay=False, path_type=Path),
     default=None,
     help="folder with the shared drives; default $GRADGPS_DATA, then ../shared/data",
+)
+@click.option(
+    "--rema-params",
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    default=None,
+    help="settings for detector 'rema' written by gradgps tune-rema (default: built-in)",
 )
 @click.option(
     "--json",
@@ -57,6 +63,7 @@ def bench(
     scale: float,
     detectors: str,
     data_dir: Path | None,
+    rema_params: Path | None,
     json_path: Path | None,
 ) -> None:
     """Inject faults into a data split, run detectors, print and save their scores."""
@@ -80,6 +87,7 @@ def bench(
                 seed=seed,
                 scale=scale,
                 data_dir=data_dir,
+                rema_params=rema_params,
                 advance=lambda what: progress.update(task, advance=1, description=what),
             )
     except GradGPSError as exc:
