@@ -216,3 +216,23 @@ def test_bench_unknown_detector_and_missing_data_fail_clearly(tmp_path: Path) ->
     )
     assert res.exit_code != 0
     assert "unknown detector 'magic'; known detectors: speed-gate" in res.output
+
+
+def test_bench_reports_grad_type_confusions(shared_data: Path, tmp_path: Path) -> None:
+    """The shipped model names bias and time types, so the report carries both confusion matrices."""
+    out = tmp_path / "out.json"
+    args = ["bench", "--protocol", "grad", "--dataset", "driveplotr", "--split", "test",
+            "--seed", "0", "--detector", "grad-default,rema", "--json", str(out),
+            "--data-dir", str(shared_data)]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0, res.output
+    results = json.loads(out.read_text())["results"]
+    grad = results["grad-default"]
+    assert set(grad["bias_type_confusion"]) == {"noise", "jump"}
+    assert set(grad["time_type_confusion"]) == {"transient", "intermittent", "permanent"}
+    detected = sum(sum(row.values()) for row in grad["bias_type_confusion"].values())
+    assert detected > 0
+    assert grad["bias_type_accuracy"] is not None
+    assert "bias_type_confusion" not in results["rema"]  # REMA names no bias type
+    assert results["rema"]["bias_type_accuracy"] is None
+    assert "time type of detected faults" in res.output

@@ -20,7 +20,14 @@ import pandas as pd
 from ._datasets import load_dataset
 from ._exceptions import ConfigError
 from ._inject import SENSOR_GRID_ROWS, inject_grad, inject_sensor_grid, with_accel_mps2
-from ._metrics import class_scores, event_recall, false_alarms_per_hour, rmse_m, type_accuracy
+from ._metrics import (
+    class_scores,
+    confusion_matrix,
+    event_recall,
+    false_alarms_per_hour,
+    rmse_m,
+    type_accuracy,
+)
 from ._result import RESULT_COLUMNS
 from ._track import ColumnMap, to_fixes
 
@@ -28,8 +35,10 @@ __all__ = ["DETECTOR_NAMES", "PROTOCOLS", "Detector", "bench_units", "make_detec
 
 PROTOCOLS = ("grad", "sensor-grid")
 #: Names :func:`make_detector` knows, for help texts and error messages.
-DETECTOR_NAMES = ("speed-gate", "rema", "rema-paper")
+DETECTOR_NAMES = ("speed-gate", "rema", "rema-paper", "grad", "grad-default")
 _SENSOR_CHANNELS = ["accel_x_mps2", "gyro_z_dps"]
+GRAD_BIAS = ("noise", "jump")
+GRAD_TIME = ("transient", "intermittent", "permanent")
 
 
 class Detector(Protocol):
@@ -38,13 +47,38 @@ class Detector(Protocol):
     def detect(self, fixes: pd.DataFrame) -> pd.DataFrame: ...
 
 
-def make_detector(name: str, rema_params: Path | None = None) -> Detector:
+def make_detector(
+    name: str,
+    rema_params: Path | None = None,
+    *,
+    dataset: str | None = None,
+    data_dir: str | Path | None = None,
+    model: Path | None = None,
+) -> Detector:
     """A detector with its default settings, by benchmark name.
 
     ``rema``: :class:`RemaDetector` (trend mode), with the settings saved by
     ``gradgps tune-rema`` when ``rema_params`` names that file; ``rema-paper``:
-    the literal Algorithm 1 (paper mode, paper recovery), never tuned here.
+    the literal Algorithm 1 (paper mode, paper recovery), never tuned here;
+    ``grad-default``: the GRAD model shipped in the package (simulator drives
+    only); ``grad``: GRAD trained on ``dataset``'s train split (the model in
+    ``model`` if given, else trained once and cached, see
+    :func:`gradgps._grad_training.dataset_model`).
     """
+    if name == "grad-default":
+        from ._detector import Detector as GradDetector
+
+        return GradDetector()
+    if name == "grad":
+        from ._detector import Detector as GradDetector
+
+        if model is None:
+            if dataset is None:
+                raise ConfigError("detector 'grad' needs a dataset to train on, or a model")
+            from ._grad_training import dataset_model
+
+            model = dataset_model(dataset, data_dir)
+        return GradDetector(model)
     if name == "speed-gate":
         from ._speed_gate import SpeedGate
 
@@ -122,6 +156,15 @@ def _scores(
                 fixes["lat"], fixes["lon"], labelled["lat_true"], labelled["lon_true"], faulty
             ),
         )
+        both = flagged & faulty
+        for kind, labels in (("bias", GRAD_BIAS), ("time", GRAD_TIME)):
+            predicted = result[f"{kind}_type"].to_numpy(dtype=object)[both]
+            # Only detectors that name these types get a matrix.
+            if predicted.size and set(predicted.tolist()) & set(labels):
+                cm = confusion_matrix(labelled[f"label_{kind}"].to_numpy()[both], predicted, labels)
+                out[f"{kind}_type_confusion"] = {
+                    str(t): {str(p): int(cm.loc[t, p]) for p in cm.columns} for t in cm.index
+                }
     else:
         recall, delay = event_recall(labelled["label_episode"], flagged, pos)
         out.update(
@@ -146,6 +189,7 @@ def run_bench(
     data_dir: str | Path | None = None,
     advance: Callable[[str], None] | None = None,
     rema_params: Path | None = None,
+    model: Path | None = None,
 ) -> dict[str, Any]:
     """Run the benchmark; return the JSON-ready report (``nan`` turned into ``None``).
 
@@ -154,7 +198,15 @@ def run_bench(
     ``advance`` is called after each (row, detector) evaluation.
     """
     rows = _row_names(protocol)
-    built = {name: make_detector(name, rema_params) for name in detectors}  # bad names fail before any work
+    for name in detectors:  # bad names fail before any work
+        if name not in DETECTOR_NAMES:
+            raise ConfigError(
+                f"unknown detector {name!r}; known detectors: {', '.join(DETECTOR_NAMES)}"
+            )
+    built = {
+        name: make_detector(name, rema_params, dataset=dataset, data_dir=data_dir, model=model)
+        for name in detectors
+    }
     table = load_dataset(dataset, split, data_dir=data_dir)
     cmap: ColumnMap = to_fixes(table).attrs["columns"]
     channels = _SENSOR_CHANNELS if protocol == "sensor-grid" else []

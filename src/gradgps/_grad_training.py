@@ -173,3 +173,40 @@ def train_grad(
         threshold=threshold,
         history=[h.__dict__ for h in trained.history],
     )
+
+
+def dataset_model(dataset: str, data_dir: str | Path | None = None) -> Path:
+    """A GRAD model trained on ``dataset``'s train split (validation split for early stopping).
+
+    Trained once with the default settings and kept in ``$GRADGPS_CACHE``
+    (default ``~/.cache/gradgps``) under a key of everything that decides it:
+    package version, pipeline settings, training-data recipe, data set and
+    its file size. ``gradgps bench --detector grad`` uses it, so benchmarks
+    re-run in seconds after the first time.
+    """
+    import hashlib
+    import json
+
+    from . import __version__
+    from ._datasets import find_data_dir
+
+    params = PipelineParams()
+    recipe: dict[str, Any] = {
+        "version": __version__,
+        "pipeline": params.to_dict(),
+        "data": GradTrainingSet().__dict__,
+        "dataset": dataset,
+    }
+    if dataset != "simulated":
+        folder = find_data_dir(data_dir)
+        recipe["files"] = sorted((p.name, p.stat().st_size) for p in folder.glob("*.csv"))
+    key = hashlib.sha256(json.dumps(recipe, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    cache = Path(os.environ.get("GRADGPS_CACHE", Path.home() / ".cache" / "gradgps"))
+    target = cache / "models" / f"{dataset}-{key}"
+    if not (target / "config.json").is_file():
+        from ._datasets import load_dataset
+
+        train_grad([load_dataset(dataset, "train", data_dir=data_dir)],
+                   [load_dataset(dataset, "validation", data_dir=data_dir)], target,
+                   notes={"source": f"dataset {dataset}", "protocol": "grad"})
+    return target

@@ -34,7 +34,8 @@ def _fmt(value: object) -> str:
     "detectors",
     required=True,
     metavar="NAME[,NAME...]",
-    help="detectors to score, comma-separated: speed-gate, rema, rema-paper",
+    help="detectors to score, comma-separated: speed-gate, rema, rema-paper, grad "
+    "(GRAD trained on the dataset's train split), grad-default (the shipped model)",
 )
 @click.option(
     "--data-dir",
@@ -47,6 +48,12 @@ def _fmt(value: object) -> str:
     type=click.Path(dir_okay=False, exists=True, path_type=Path),
     default=None,
     help="settings for detector 'rema' written by gradgps tune-rema (default: built-in)",
+)
+@click.option(
+    "--model",
+    type=click.Path(file_okay=False, exists=True, path_type=Path),
+    default=None,
+    help="model directory for detector 'grad' (default: trained on the train split and cached)",
 )
 @click.option(
     "--json",
@@ -64,6 +71,7 @@ def bench(
     detectors: str,
     data_dir: Path | None,
     rema_params: Path | None,
+    model: Path | None,
     json_path: Path | None,
 ) -> None:
     """Inject faults into a data split, run detectors, print and save their scores."""
@@ -88,6 +96,7 @@ def bench(
                 scale=scale,
                 data_dir=data_dir,
                 rema_params=rema_params,
+                model=model,
                 advance=lambda what: progress.update(task, advance=1, description=what),
             )
     except GradGPSError as exc:
@@ -137,7 +146,21 @@ def bench(
             )
     out = Console()
     # A report table is read whole: never squeeze it below a readable width.
-    Console(width=max(out.width, 140)).print(table)
+    wide = Console(width=max(out.width, 140))
+    wide.print(table)
+    for name, res in report["results"].items():
+        for kind in ("bias", "time"):
+            cm = res.get(f"{kind}_type_confusion") if protocol == "grad" else None
+            if not cm:
+                continue
+            shown = Table(title=f"{name}: {kind} type of detected faults (rows true, columns predicted)")
+            labels = list(next(iter(cm.values())))
+            shown.add_column("")
+            for label in labels:
+                shown.add_column(label, justify="right")
+            for true_label, counts in cm.items():
+                shown.add_row(true_label, *[str(counts[label]) for label in labels])
+            wide.print(shown)
     if json_path is not None:
         json_path.write_text(json.dumps(report, indent=2) + "\n")
         click.echo(f"wrote {json_path}")
