@@ -56,7 +56,7 @@ from ._grad_pipeline import (
     O_SCORE,
     O_TIME,
     PipelineParams,
-    grad_segment,
+    grad_segments,
     grad_step,
     new_state,
     pipeline_feature_names,
@@ -321,10 +321,12 @@ class Detector:
         speed = pts["speed"].to_numpy(np.float64) if "speed" in pts else nan
         heading = pts["heading"].to_numpy(np.float64) if "heading" in pts else nan
         tracks = pts["track"].to_numpy(object)
-        for _, sl in prepared.segment_slices():
-            frame_ = prepared.frames[str(tracks[sl.start])]
-            out[sl] = grad_segment(m.params, frame_, m.gru_params, m.dims, t[sl], lat[sl], lon[sl],
-                                   speed[sl], heading[sl])
+        slices = [sl for _, sl in prepared.segment_slices()]
+        if slices:
+            starts = np.array([sl.start for sl in slices] + [slices[-1].stop], np.int64)
+            frames = [prepared.frames[str(tracks[sl.start])] for sl in slices]
+            out = grad_segments(m.params, frames, m.gru_params, m.dims, starts, t, lat, lon,
+                                speed, heading)
         return self._rows(prepared.to_rows(out), prepared.row_reason, fixes.index)
 
     def _rows(self, out: NDArray[np.float64], reason: NDArray[Any], index: pd.Index) -> pd.DataFrame:

@@ -69,6 +69,7 @@ __all__ = [
     "PipelineParams",
     "grad_features",
     "grad_segment",
+    "grad_segments",
     "grad_step",
     "new_state",
     "pipeline_feature_names",
@@ -275,6 +276,47 @@ def _features_kernel(P: FloatArray, S: FloatArray, dt: FloatArray, lat: FloatArr
         _features_point(P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i],
                         out[i])
     return out
+
+
+@numba.njit(cache=True, parallel=True)
+def _batch_kernel(Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: Any,
+                  h_len: int, starts: NDArray[np.int64], dt: FloatArray, lat: FloatArray,
+                  lon: FloatArray, speed: FloatArray, heading: FloatArray) -> FloatArray:
+    """Many segments at once, one per thread at a time; each exactly as :func:`_segment_kernel`."""
+    out = np.empty((lat.size, N_POINT_OUT))
+    for k in numba.prange(starts.size - 1):
+        a, b = starts[k], starts[k + 1]
+        S = Ss[k, :s_len[k]].copy()
+        H = np.zeros(h_len, np.float32)
+        out[a:b] = _segment_kernel(Ps[k], S, H, gp, dt[a:b], lat[a:b], lon[a:b], speed[a:b],
+                                   heading[a:b])
+    return out
+
+
+def grad_segments(params: PipelineParams, frames: list[LocalFrame], gp: NDArray[np.float32],
+                  dims: NDArray[np.int64], starts: NDArray[np.int64], t: FloatArray,
+                  lat: FloatArray, lon: FloatArray, speed: FloatArray,
+                  heading: FloatArray) -> FloatArray:
+    """:func:`grad_segment` over many segments (``starts`` = their boundaries, one frame
+    each), in parallel on numba's threads (``NUMBA_NUM_THREADS``); same numbers."""
+    n_seg = starts.size - 1
+    if n_seg <= 0:
+        return np.empty((0, N_POINT_OUT))
+    Ps = []
+    states = []
+    dt = np.empty(t.size)
+    for k in range(n_seg):
+        seg = slice(int(starts[k]), int(starts[k + 1]))
+        P = params.array(segment_period(t[seg]), frames[k], dims)
+        Ps.append(P)
+        states.append(new_state(P))
+        dt[seg] = _segment_dt(t[seg])
+    s_len = np.array([len(x) for x in states], np.int64)
+    Ss = np.zeros((n_seg, int(s_len.max())))
+    for k, x in enumerate(states):
+        Ss[k, :x.size] = x
+    return np.asarray(_batch_kernel(np.array(Ps), Ss, s_len, gp, int(dims[1] + dims[2]),
+                                    starts.astype(np.int64), dt, lat, lon, speed, heading))
 
 
 def _segment_dt(t: FloatArray) -> FloatArray:

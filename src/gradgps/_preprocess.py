@@ -208,11 +208,14 @@ def preprocess(
             gap_idx = np.repeat(np.arange(dt.size), fill)
             step = np.concatenate([np.arange(1, k + 1) for k in fill[fill > 0]])
             t_full[is_interp] = t_u[gap_idx] + dt[gap_idx] * step / (fill[gap_idx] + 1)
-        east = np.interp(t_full, t_u, east_u)
-        north = np.interp(t_full, t_u, north_u)
-        east[pos_u], north[pos_u] = east_u, north_u
-        lat, lon = frame.to_geodetic(east, north)
-        lat[pos_u], lon[pos_u] = lat_u, lon_u
+        if total > t_u.size:
+            east = np.interp(t_full, t_u, east_u)
+            north = np.interp(t_full, t_u, north_u)
+            east[pos_u], north[pos_u] = east_u, north_u
+            lat, lon = frame.to_geodetic(east, north)
+            lat[pos_u], lon[pos_u] = lat_u, lon_u
+        else:  # nothing filled: the unique points are the points
+            east, north, lat, lon = east_u, north_u, lat_u, lon_u
         seg_u = np.r_[0, np.cumsum(split)]
         segment = np.empty(total, dtype=np.int64)
         segment[pos_u] = seg_u
@@ -228,6 +231,9 @@ def preprocess(
             "north": north,
         }
         for c, v in chan_u.items():
+            if total == t_u.size:
+                piece[c] = v
+                continue
             full = _interp_heading(t_full, t_u, v) if c == "heading" else np.interp(t_full, t_u, v)
             full[pos_u] = v
             piece[c] = full
