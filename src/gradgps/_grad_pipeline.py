@@ -85,15 +85,23 @@ O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT = range(7)
 N_POINT_OUT = 7
 
 
+def _tuned() -> Any:
+    """REMA and time-classifier settings tuned by ``gradgps tune-rema`` (see RemaDetector):
+    with untuned ones REMA loses a moving car after its first long fault, and its
+    features would tell the network nothing from then on."""
+    from ._rema_detector import RemaDetector
+
+    return RemaDetector()
+
+
 @dataclass(frozen=True)
 class PipelineParams:
     """Everything but the network weights; saved in a model's ``config.json``."""
 
-    rema: RemaParams = field(default_factory=lambda: RemaParams(mode="trend", min_margin=5.0,
-                                                                   sensitivity=4.0))
+    rema: RemaParams = field(default_factory=lambda: _tuned().rema)
     features: FeatureParams = field(default_factory=FeatureParams)
     offset: OffsetParams = field(default_factory=OffsetParams)
-    time: TimeParams = field(default_factory=TimeParams)
+    time: TimeParams = field(default_factory=lambda: _tuned().time)
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
     threshold: float = 0.5
     max_gap_s: float = 5.0
