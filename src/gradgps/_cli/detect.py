@@ -20,7 +20,7 @@ __all__ = ["detect"]
 
 @click.command()
 @click.argument("input_path", metavar="INPUT",
-                type=click.Path(exists=True, dir_okay=False, allow_dash=True, path_type=Path))
+                type=click.Path(exists=True, allow_dash=True, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="output file: .csv, .csv.gz or .parquet (with --follow: CSV lines, "
                    "default standard output)")
