@@ -126,3 +126,11 @@ def test_bag_without_fixes_says_what_it_has(tmp_path):
         writer.add_connection("/gps/vel", TWIST_STAMPED, typestore=store)
     with pytest.raises(InputError, match=r"no sensor_msgs/msg/NavSatFix topic.*/gps/vel"):
         read_table(path)
+
+
+def test_speed_is_the_nearest_twist_within_the_lag():
+    from gradgps._rosbag import _speeds
+
+    got = _speeds(np.array([0.0, 1.0, 2.0, 5.0]), [3.0, 0.9, 0.1], [3.0, 2.0, 1.0], 0.5)
+    np.testing.assert_array_equal(got[:3], [1.0, 2.0, np.nan])
+    assert np.isnan(got[3])

@@ -60,11 +60,18 @@ def _stamp(message: Any, record_ns: int) -> float:
 def _speeds(fix_times: np.ndarray, twist_times: list[float], twist_speeds: list[float],
             max_lag_s: float) -> np.ndarray:
     """Speed of the twist nearest in time to each fix (NaN when none within ``max_lag_s``)."""
-    fixes = pd.DataFrame({"t": fix_times, "order": np.arange(fix_times.size)}).sort_values("t")
-    twists = pd.DataFrame({"t": twist_times, "speed": twist_speeds}).sort_values("t")
-    matched = pd.merge_asof(fixes, twists, on="t", direction="nearest", tolerance=max_lag_s)
     out = np.full(fix_times.size, np.nan)
-    out[matched["order"].to_numpy()] = matched["speed"].to_numpy(np.float64)
+    if not twist_times:
+        return out
+    order = np.argsort(twist_times, kind="stable")
+    times = np.asarray(twist_times, np.float64)[order]
+    speeds = np.asarray(twist_speeds, np.float64)[order]
+    after = np.clip(np.searchsorted(times, fix_times), 0, times.size - 1)
+    before = np.clip(after - 1, 0, times.size - 1)
+    nearest = np.where(np.abs(times[before] - fix_times) <= np.abs(times[after] - fix_times),
+                       before, after)
+    close = np.abs(times[nearest] - fix_times) <= max_lag_s
+    out[close] = speeds[nearest[close]]
     return out
 
 
