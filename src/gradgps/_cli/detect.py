@@ -82,3 +82,6 @@ def detect(input_path: Path, output: Path | None, model_dir: Path | None, thresh
     rate = n / elapsed if elapsed > 0 else float("inf")
     click.echo(f"wrote {output}: {n:,} rows, {flagged:,} anomalies ({invalid:,} invalid fixes), "
                f"{alerts:,} alerts; {rate:,.0f} fixes/s")
+    from .report import write_report_outputs
+
+    write_report_outputs(report_path, plots_dir, fixes, result, detector, elapsed, str(input_path))
