@@ -16,11 +16,11 @@ $(PY):
 	$(PY) -m pip install -q --upgrade pip
 
 $(VENV)/.stamp-demo: pyproject.toml | $(PY)
-	$(PY) -m pip install -q -e ".[io]"
+	$(PY) -m pip install -q -e ".[io,report]"
 	touch $@
 
 $(VENV)/.stamp-test: pyproject.toml | $(PY)
-	$(PY) -m pip install -q -e ".[io,train,dev]"
+	$(PY) -m pip install -q -e ".[io,train,dev,report,onnx,ros]"
 	touch $@ $(VENV)/.stamp-demo
 
 demo: $(VENV)/.stamp-demo

@@ -3,8 +3,10 @@
 Formats are chosen by extension (``.csv``, ``.txt``, ``.tsv``, ``.parquet``/
 ``.pq``, ``.gpx``, ``.nmea``/``.nma``/``.log``; a trailing ``.gz`` means
 gzip-compressed text) or named explicitly (``fmt``); a file with an unknown
-extension is recognised by its first bytes. GPX and NMEA have their own
-modules (:mod:`gradgps._gpx`, :mod:`gradgps._nmea`); CSV and Parquet live here.
+extension is recognised by its first bytes. GPX, NMEA and ROS bags (``.bag``,
+``.mcap``, ``.db3`` or a ROS 2 bag directory; extra ``ros``) have their own
+modules (:mod:`gradgps._gpx`, :mod:`gradgps._nmea`, :mod:`gradgps._rosbag`);
+CSV and Parquet live here.
 
 CSV files are read in two passes. The first pass, with the standard
 :mod:`csv` module, checks the *structure* (UTF-8 text, a header line, proper
@@ -36,6 +38,7 @@ from ._exceptions import ConfigError, InputError
 from ._files import READ_ERRORS, check_readable, open_bytes, text_lines
 from ._gpx import read_gpx
 from ._nmea import read_nmea
+from ._rosbag import is_rosbag, read_rosbag
 from ._track import ColumnMap, Table, resolve_columns, to_fixes
 
 __all__ = [
@@ -47,7 +50,7 @@ __all__ = [
     "write_table",
 ]
 
-FORMATS: Final = ("csv", "parquet", "gpx", "nmea")
+FORMATS: Final = ("csv", "parquet", "gpx", "nmea", "rosbag")
 
 _EXTENSIONS: Final = {
     ".csv": "csv",
@@ -59,6 +62,9 @@ _EXTENSIONS: Final = {
     ".nmea": "nmea",
     ".nma": "nmea",
     ".log": "nmea",
+    ".bag": "rosbag",
+    ".mcap": "rosbag",
+    ".db3": "rosbag",
 }
 
 # Delimiters tried on the header line; the most frequent one wins.
@@ -81,6 +87,8 @@ def resolve_format(path: str | Path, fmt: str | None = None) -> str:
     by_extension = _extension_format(path)
     if by_extension is not None:
         return by_extension
+    if is_rosbag(path):  # a ROS 2 bag is a directory
+        return "rosbag"
     with open_bytes(path) as raw:
         try:
             head = raw.read(64).lstrip(b"\xef\xbb\xbf \t\r\n")
@@ -104,6 +112,9 @@ def read_table(path: str | Path, fmt: str | None = None, columns: ColumnMap | No
     """
     path = Path(path)
     kind = resolve_format(path, fmt)
+    if kind == "rosbag":
+        table = read_rosbag(path)
+        return table if columns is None else replace(table, columns=_override(table.columns, columns))
     check_readable(path)
     if kind == "csv":
         table = _read_csv(path, columns)

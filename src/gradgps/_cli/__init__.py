@@ -13,6 +13,7 @@ from .bench import bench
 from .demo import demo
 from .detect import detect
 from .errors import ErrorReportingGroup
+from .export import export
 from .info import info
 from .inject import inject
 from .simulate import simulate
@@ -31,6 +32,7 @@ def main() -> None:
 main.add_command(bench)
 main.add_command(demo)
 main.add_command(detect)
+main.add_command(export)
 main.add_command(info)
 main.add_command(inject)
 main.add_command(simulate)

@@ -20,17 +20,41 @@ __all__ = ["detect"]
 
 @click.command()
 @click.argument("input_path", metavar="INPUT",
-                type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="output file: .csv, .csv.gz or .parquet")
+                type=click.Path(exists=True, allow_dash=True, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="output file: .csv, .csv.gz or .parquet (with --follow: CSV lines, "
+                   "default standard output)")
 @click.option("--model", "model_dir", type=click.Path(file_okay=False, path_type=Path),
               default=None, help="model directory from 'gradgps train' (default: the shipped model)")
 @click.option("--threshold", type=float, default=None,
               help="anomaly threshold on the score, overriding the model's")
+@click.option("--follow", is_flag=True,
+              help="live mode: read INPUT ('-' = standard input) line by line as it arrives "
+                   "(CSV with a header, or NMEA) and print one result line per line at once")
+@click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="also write a self-contained HTML report (track, bounds, summary)")
+@click.option("--plots", "plots_dir", type=click.Path(file_okay=False, path_type=Path),
+              default=None, help="also write the report's figures as PNG files into this folder")
 @column_options
-def detect(input_path: Path, output: Path, model_dir: Path | None, threshold: float | None,
+def detect(input_path: Path, output: Path | None, model_dir: Path | None, threshold: float | None,
+           follow: bool, report_path: Path | None, plots_dir: Path | None,
            fmt: str | None, **cols: Any) -> None:
-    """Detect, classify and repair faults in every fix of INPUT; write OUTPUT."""
+    """Detect, classify and repair faults in every fix of INPUT; write OUTPUT.
+
+    With --follow, INPUT is read as a live stream (e.g. 'tail -f log.nmea |
+    gradgps detect --follow -') and results go to standard output.
+    """
+    if follow:
+        if report_path is not None or plots_dir is not None:
+            raise click.UsageError("--report and --plots need a whole file, not --follow")
+        from .follow import run_follow
+
+        run_follow(input_path, output, model_dir, threshold, fmt, column_map(cols))
+        return
+    if output is None:
+        raise click.UsageError("missing option '-o' / '--output'")
+    if str(input_path) == "-":
+        raise click.UsageError("reading standard input ('-') needs --follow")
     import time
 
     import pandas as pd
@@ -58,3 +82,6 @@ def detect(input_path: Path, output: Path, model_dir: Path | None, threshold: fl
     rate = n / elapsed if elapsed > 0 else float("inf")
     click.echo(f"wrote {output}: {n:,} rows, {flagged:,} anomalies ({invalid:,} invalid fixes), "
                f"{alerts:,} alerts; {rate:,.0f} fixes/s")
+    from .report import write_report_outputs
+
+    write_report_outputs(report_path, plots_dir, fixes, result, detector, elapsed, str(input_path))

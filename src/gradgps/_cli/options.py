@@ -32,7 +32,7 @@ def column_options(func: F) -> F:
                             help=f"{text}; auto-detected when omitted ('' = none)")(func)
     func = click.option(
         "--format", "fmt", default=None,
-        type=click.Choice(["csv", "parquet", "gpx", "nmea"], case_sensitive=False),
+        type=click.Choice(["csv", "parquet", "gpx", "nmea", "rosbag"], case_sensitive=False),
         help="input format; by default from the file extension",
     )(func)
     return func

@@ -1,0 +1,144 @@
+"""Live follow mode: one flushed result line per input line, never a crash on bad lines."""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from gradgps._cli import main
+from gradgps._detector import Detector
+from gradgps._follow import RESULT_FIELDS, follow_lines, parse_time
+from gradgps._nmea import nmea_checksum
+from gradgps._simulator import simulate_drive
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _sentence(body: str) -> str:
+    return f"${body}*{nmea_checksum(body):02X}"
+
+
+@pytest.fixture(scope="module")
+def drive_csv() -> str:
+    drive = simulate_drive(minutes=1.0, seed=1)
+    frame = drive[["t", "lat", "lon", "speed", "heading"]].head(40)
+    return frame.to_csv(index=False)
+
+
+def _rows(lines: list[str]) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO("\n".join(lines))))
+
+
+def test_csv_stream_matches_detector_update_and_keeps_bad_lines(drive_csv):
+    lines = drive_csv.splitlines()
+    bad = ["1700000100,91.5,7,1,1", "1,2", "soon,41.2,-95.9,1,1", ""]
+    out: list[str] = []
+    counts = follow_lines([*lines, *bad], out.append)
+    rows = _rows(out)
+    n = len(lines) - 1  # the header is consumed
+    assert len(rows) == n + 3  # the blank line is skipped
+    assert list(rows[0]) == ["t", "lat", "lon", "speed", "heading", *RESULT_FIELDS]
+    detector = Detector()
+    for row in rows[:n]:
+        expected = detector.update(float(row["t"]), float(row["lat"]), float(row["lon"]),
+                                   float(row["speed"]), float(row["heading"]))
+        assert int(row["anomaly"]) == expected.anomaly
+        assert float(row["score"]) == pytest.approx(expected.score, rel=1e-9)
+        assert float(row["lat_clean"]) == pytest.approx(expected.lat_clean, abs=1e-9)
+    reasons = [r["invalid_reason"] for r in rows[n:]]
+    assert reasons[0] == "latitude outside +-90"
+    assert reasons[1] == "expected 5 fields as in the header, got 2"
+    assert "not a time" in reasons[2]
+    assert all(r["anomaly"] == "1" for r in rows[n:])
+    assert (counts.lines, counts.fixes, counts.invalid) == (n + 3, n, 3)
+
+
+def test_one_detector_per_track():
+    lines = ["track,time,lat,lon"]
+    for i in range(6):
+        lines += [f"a,{i},48.0,{11 + i * 1e-4}", f"b,{i},10.0,{20 + i * 1e-4}"]
+    out: list[str] = []
+    follow_lines(lines, out.append)
+    rows = _rows(out)
+    assert all(r["invalid_reason"] == "" for r in rows)  # interleaved times stay increasing per track
+    a = Detector()
+    for r in rows[::2]:
+        assert float(r["score"]) == pytest.approx(
+            a.update(float(r["time"]), float(r["lat"]), float(r["lon"])).score)
+
+
+def test_nmea_stream_scores_each_epoch_once():
+    lines = []
+    for k in range(5):
+        tod = f"1235{10 + k:02d}"
+        lat = f"4807.{38 + k:03d},N"
+        lines += [_sentence(f"GPGGA,{tod},{lat},01131.000,E,1,08,0.9,545.4,M,46.9,M,,"),
+                  _sentence(f"GPRMC,{tod},A,{lat},01131.000,E,022.4,084.4,230394,003.1,W")]
+    lines += ["$GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00*74",
+              "$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*00",
+              "garbage"]
+    out: list[str] = []
+    counts = follow_lines(lines, out.append)
+    rows = _rows(out)
+    assert len(rows) == len(lines)
+    assert [r["line"] for r in rows] == [str(i + 1) for i in range(len(lines))]
+    # The RMC of an instant repeats the verdict its GGA got, and says which line was scored.
+    assert rows[1]["epoch_line"] == "1"
+    assert rows[1]["score"] == rows[0]["score"]
+    assert float(rows[2]["time"]) - float(rows[0]["time"]) == 1.0
+    assert rows[10]["invalid_reason"] == "not a fix sentence"
+    assert rows[10]["anomaly"] == ""
+    assert rows[11]["invalid_reason"].startswith("rejected sentence: GGA checksum mismatch")
+    assert rows[12]["invalid_reason"] == "not a fix sentence"
+    assert (counts.fixes, counts.invalid) == (5, 3)
+
+
+@pytest.mark.parametrize(("text", "seconds"), [
+    ("1700000000", 1700000000.0), ("1700000000500", 1700000000.5),
+    ("2023-11-14T22:13:20Z", 1700000000.0), ("2023-11-14 22:13:20", 1700000000.0),
+])
+def test_parse_time(text, seconds):
+    assert parse_time(text) == pytest.approx(seconds)
+
+
+def test_cli_follow_with_stdin(drive_csv):
+    result = CliRunner().invoke(main, ["detect", "--follow", "-"], input=drive_csv)
+    assert result.exit_code == 0, result.output
+    out = [line for line in result.stdout.splitlines() if line]
+    assert len(out) == len(drive_csv.splitlines())  # header + one line per fix
+    assert f"followed {len(out) - 1} lines" in result.stderr
+
+
+def test_each_result_is_written_before_the_next_line_arrives(drive_csv):
+    """A real pipe: the answer to line k arrives while line k+1 has not been sent."""
+    env = {**os.environ, "PYTHONPATH": str(REPO / "src"), "OMP_NUM_THREADS": "1"}
+    with subprocess.Popen([sys.executable, "-m", "gradgps", "detect", "--follow", "-"],
+                          stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                          stderr=subprocess.DEVNULL, text=True, env=env, bufsize=1) as proc:
+        assert proc.stdin is not None
+        assert proc.stdout is not None
+        lines = drive_csv.splitlines()
+        try:
+            proc.stdin.write(lines[0] + "\n")
+            proc.stdin.flush()
+            assert proc.stdout.readline().startswith("t,lat,lon,speed,heading,anomaly")
+            for line in lines[1:4]:
+                proc.stdin.write(line + "\n")
+                proc.stdin.flush()
+                answer = proc.stdout.readline().rstrip("\n").split(",")
+                assert answer[:5] == line.split(",")
+                assert np.isfinite(float(answer[6]))
+        finally:
+            proc.stdin.close()
+            rest = proc.stdout.read()
+            proc.wait(timeout=60)
+    assert proc.returncode == 0
+    assert rest == ""

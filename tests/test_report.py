@@ -1,0 +1,77 @@
+"""HTML report and PNG plots: self-contained, small, with the sections a reader looks for."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from gradgps._cli import main
+from gradgps._detector import Detector
+from gradgps._inject import inject_grad
+from gradgps._preprocess import preprocess
+from gradgps._report import rema_bounds
+from gradgps._simulator import simulate_drive, simulate_fleet
+
+pytest.importorskip("matplotlib")
+
+
+def test_demo_report_for_10000_points_is_offline_and_small(tmp_path):
+    out = tmp_path / "demo"
+    # One drive of 167 min at 1 Hz: 10,020 fixes.
+    result = CliRunner().invoke(main, ["demo", "--tracks", "1", "--minutes", "167",
+                                       "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    report = out / "report.html"
+    assert f"report: {report}" in result.output.replace("\n", "")
+    size = report.stat().st_size
+    assert size < 5e6
+    text = report.read_text(encoding="utf-8")
+    for section in ("id='summary'", "id='track'", "id='channels'", "id='anomalies'",
+                    "REMA bounds", "input rows", "by bias type", "alerts", "throughput"):
+        assert section in text
+    assert "<td>10,020</td>" in text
+    assert text.count("src='data:image/png;base64,") >= 2
+    # Nothing fetched from the network: no external src/href, no script from anywhere.
+    assert not re.search(r"""(src|href)\s*=\s*['"]?(https?:)?//""", text)
+    assert "<script" not in text
+
+
+def test_detect_writes_report_and_plots(tmp_path):
+    drives = inject_grad(simulate_fleet(2, 4.0, 1.0, 11), seed=1)
+    source = tmp_path / "in.csv"
+    drives[["track", "t", "lat", "lon", "speed", "heading"]].to_csv(source, index=False)
+    plots = tmp_path / "plots"
+    result = CliRunner().invoke(main, ["detect", str(source), "-o", str(tmp_path / "o.csv"),
+                                       "--report", str(tmp_path / "r.html"),
+                                       "--plots", str(plots)])
+    assert result.exit_code == 0, result.output
+    names = sorted(p.name for p in plots.iterdir())
+    assert names[-1] == "track.png"
+    assert any(n.startswith("channels_segment") for n in names)
+    assert all((plots / n).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for n in names)
+    assert "in.csv" in (tmp_path / "r.html").read_text(encoding="utf-8")
+
+
+def test_follow_refuses_report():
+    result = CliRunner().invoke(main, ["detect", "--follow", "-", "--report", "r.html"], input="")
+    assert result.exit_code == 2
+    assert "need a whole file" in result.output
+
+
+def test_bounds_are_the_pipelines_own_and_hold_clean_points():
+    """On the first clean minute, every point lies inside the REMA bounds (after the warm-up)."""
+    detector = Detector()
+    params = detector.model_.params
+    drive = simulate_drive(minutes=1.0, seed=5)
+    prepared = preprocess(drive, max_gap_s=params.max_gap_s, interpolate=False)
+    (bounds,) = rema_bounds(prepared, params, np.zeros(len(prepared.points), bool), [0])
+    warm = params.rema.slide_size
+    assert np.all(np.isnan(bounds.east_lower[:1]))
+    inside = (bounds.east[warm:] >= bounds.east_lower[warm:]) & (
+        bounds.east[warm:] <= bounds.east_upper[warm:])
+    assert inside.mean() > 0.9
+    half = 0.5 * (bounds.north_upper[warm:] - bounds.north_lower[warm:])
+    assert np.all(half >= params.rema.min_margin - 1e-9)

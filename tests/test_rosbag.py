@@ -1,0 +1,136 @@
+"""ROS bags: write small ROS 1 and ROS 2 bags with rosbags' writers, read them back."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from gradgps._cli import main
+from gradgps._exceptions import InputError
+from gradgps._io import read_table
+from gradgps._rosbag import NAVSATFIX, TWIST_STAMPED, read_rosbag
+from gradgps._track import to_fixes
+
+pytest.importorskip("rosbags")
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
+from rosbags.typesys import Stores, get_typestore
+
+T0 = 1_700_000_000
+N = 30
+
+
+def _messages(store, *, status_at: int = 7):
+    """NavSatFix every second moving north at 10 m/s, TwistStamped at 10 Hz; fix 7 has no fix."""
+    Time = store.types["builtin_interfaces/msg/Time"]
+    Header = store.types["std_msgs/msg/Header"]
+    Status = store.types["sensor_msgs/msg/NavSatStatus"]
+    Fix = store.types[NAVSATFIX]
+    Vector3 = store.types["geometry_msgs/msg/Vector3"]
+    Twist = store.types["geometry_msgs/msg/Twist"]
+    TwistStamped = store.types[TWIST_STAMPED]
+    fixes, twists = [], []
+    ros1 = {"seq": 0} if "seq" in Header.__dataclass_fields__ else {}
+
+    def header(sec, nanosec=0):
+        return Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id="gps", **ros1)
+
+    for i in range(N):
+        status = Status(status=-1 if i == status_at else 0, service=1)
+        fixes.append((T0 + i, Fix(header=header(T0 + i), status=status, latitude=48.0 + i * 9e-5,
+                                  longitude=11.0, altitude=500.0,
+                                  position_covariance=np.zeros(9), position_covariance_type=0)))
+    for k in range(10 * N):
+        twist = Twist(linear=Vector3(x=6.0, y=8.0, z=0.5), angular=Vector3(x=0.0, y=0.0, z=0.0))
+        twists.append((T0 + k / 10, TwistStamped(header=header(T0 + k // 10, (k % 10) * 100_000_000),
+                                                 twist=twist)))
+    return fixes, twists
+
+
+def _write(writer, store, serialize, extra_topic=False):
+    fixes, twists = _messages(store)
+    fix_conn = writer.add_connection("/gps/fix", NAVSATFIX, typestore=store)
+    twist_conn = writer.add_connection("/gps/vel", TWIST_STAMPED, typestore=store)
+    records = [(int(t * 1e9), fix_conn, NAVSATFIX, m) for t, m in fixes]
+    records += [(int(t * 1e9), twist_conn, TWIST_STAMPED, m) for t, m in twists]
+    if extra_topic:
+        other = writer.add_connection("/rtk/fix", NAVSATFIX, typestore=store)
+        records += [(int(t * 1e9), other, NAVSATFIX, m) for t, m in fixes[:5]]
+    for ns, conn, kind, msg in sorted(records, key=lambda r: r[0]):
+        writer.write(conn, ns, serialize(msg, kind))
+
+
+def _check(table):
+    assert len(table.frame) == N
+    frame = table.frame
+    np.testing.assert_allclose(frame["time"], T0 + np.arange(N))
+    assert math.isnan(frame["lat"].iloc[7])
+    assert frame["status"].iloc[7] == -1
+    np.testing.assert_allclose(frame["speed"], 10.0)  # hypot(6, 8), vertical ignored
+    fixes = to_fixes(table)
+    assert list(fixes.columns[:6]) == ["track", "t", "lat", "lon", "speed", "alt"]
+    assert fixes["lat"].iloc[3] == pytest.approx(48.0 + 3 * 9e-5)
+
+
+def test_ros1_bag(tmp_path):
+    store = get_typestore(Stores.ROS1_NOETIC)
+    path = tmp_path / "drive.bag"
+    with Writer1(path) as writer:
+        _write(writer, store, store.serialize_ros1)
+    _check(read_table(path))
+
+
+@pytest.mark.parametrize("plugin", [StoragePlugin.SQLITE3, StoragePlugin.MCAP])
+def test_ros2_bag_directory_and_storage_file(tmp_path, plugin):
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    path = tmp_path / "drive"
+    with Writer2(path, version=9, storage_plugin=plugin) as writer:
+        _write(writer, store, store.serialize_cdr)
+    _check(read_table(path))
+    storage = next(path.glob("*.mcap" if plugin == StoragePlugin.MCAP else "*.db3"))
+    _check(read_table(storage))
+
+
+def test_several_receivers_are_tracks_and_topics_can_be_named(tmp_path):
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    path = tmp_path / "two"
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        _write(writer, store, store.serialize_cdr, extra_topic=True)
+    fixes = to_fixes(read_table(path))
+    assert sorted(set(fixes["track"])) == ["/gps/fix", "/rtk/fix"]
+    assert len(read_rosbag(path, fix_topic="/rtk/fix").frame) == 5
+    with pytest.raises(InputError, match="not a sensor_msgs/msg/NavSatFix topic"):
+        read_rosbag(path, fix_topic="/gps/vel")
+
+
+def test_detect_cli_reads_a_bag(tmp_path):
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    path = tmp_path / "drive"
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        _write(writer, store, store.serialize_cdr)
+    out = tmp_path / "out.csv"
+    result = CliRunner().invoke(main, ["detect", str(path), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert f"{N} rows" in result.output
+    assert "1 invalid" in result.output  # the no-fix message
+
+
+def test_bag_without_fixes_says_what_it_has(tmp_path):
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    path = tmp_path / "empty"
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        writer.add_connection("/gps/vel", TWIST_STAMPED, typestore=store)
+    with pytest.raises(InputError, match=r"no sensor_msgs/msg/NavSatFix topic.*/gps/vel"):
+        read_table(path)
+
+
+def test_speed_is_the_nearest_twist_within_the_lag():
+    from gradgps._rosbag import _speeds
+
+    got = _speeds(np.array([0.0, 1.0, 2.0, 5.0]), [3.0, 0.9, 0.1], [3.0, 2.0, 1.0], 0.5)
+    np.testing.assert_array_equal(got[:3], [1.0, 2.0, np.nan])
+    assert np.isnan(got[3])
