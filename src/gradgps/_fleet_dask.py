@@ -285,7 +285,8 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
     """A Dask client: on the scheduler at ``scheduler``, else on a fresh local cluster.
 
     The local cluster has ``workers`` single-thread worker processes (default:
-    one per CPU), no dashboard (it would need bokeh and a port) and quiet
+    one per CPU), its HTTP endpoints on a free port (never a clash with another
+    cluster on 8787; the dashboard itself needs bokeh, not a dependency) and quiet
     logs; it is shut down on exit. A remote cluster is only disconnected from.
     """
     import logging
@@ -303,7 +304,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
     if n < 1:
         raise ConfigError(f"workers must be >= 1, got {n}")
     cluster = LocalCluster(  # type: ignore[no-untyped-call]
-        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
         silence_logs=logging.ERROR)
     with cluster, Client(cluster) as client:  # type: ignore[no-untyped-call]
         yield client

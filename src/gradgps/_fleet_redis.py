@@ -298,12 +298,22 @@ class RedisStreamWorker:
         """Tell the other workers this consumer is alive for the next ``lease_ms``."""
         self.client.set(self._alive_key(self.consumer), "1", px=self.lease_ms)
 
-    def step(self) -> StepReport:
-        """Route one batch of new messages, then process this consumer's whole pending list."""
-        self.heartbeat()
+    def route(self) -> tuple[int, int, int, str]:
+        """Read one batch of new messages and route them (:data:`ROUTE_SCRIPT`).
+
+        Returns (kept here, passed to their owners, taken over from dead
+        consumers, id of the stream's last entry or '').
+        """
         kept, passed, taken, last = self._route(
             keys=[self.input_stream, f"{self.key_prefix}owner"],
             args=[self.group, self.consumer, self.batch_size, f"{self.key_prefix}alive:"])
+        return int(kept), int(passed), int(taken), str(last)
+
+    def process_pending(self) -> tuple[int, int]:
+        """Process this consumer's pending messages, page by page in id order, until none is left.
+
+        Returns (results written, messages skipped as already processed).
+        """
         processed = skipped = 0
         while True:
             # decode_responses: [[stream, [(id, {field: value}), ...]]]; typed loosely by redis-py
@@ -311,13 +321,19 @@ class RedisStreamWorker:
                                                 {self.input_stream: "0"}, count=self.batch_size)
             entries = reply[0][1] if reply else []
             if not entries:
-                break
+                return processed, skipped
             done, dropped = self._commit([self._message(i, f) for i, f in entries])
             processed += done
             skipped += dropped
             self.heartbeat()
-        return StepReport(routed_here=int(kept), routed_away=int(passed), taken_over=int(taken),
-                          processed=processed, skipped=skipped, last_entry_id=str(last))
+
+    def step(self) -> StepReport:
+        """Heartbeat, route one batch of new messages, then process the whole pending list."""
+        self.heartbeat()
+        kept, passed, taken, last = self.route()
+        processed, skipped = self.process_pending()
+        return StepReport(routed_here=kept, routed_away=passed, taken_over=taken,
+                          processed=processed, skipped=skipped, last_entry_id=last)
 
     def run(self, should_stop: Callable[[], bool], *, block_ms: int = 1000,
             exit_when_idle_s: float | None = None,
