@@ -32,8 +32,9 @@ def require_redis_server() -> str:
     """The path of redis-server, or skip/fail the test (see the module docstring)."""
     path = shutil.which("redis-server")
     if path is None:
-        msg = ("redis-server not found (Debian package redis-server: "
-               "apt-get install -y redis-server)")
+        msg = (
+            "redis-server not found (Debian package redis-server: apt-get install -y redis-server)"
+        )
         if os.environ.get("GRADGPS_REQUIRE_REDIS") == "1":
             pytest.fail(msg + "; GRADGPS_REQUIRE_REDIS=1 forbids skipping")
         pytest.skip(msg)
@@ -49,9 +50,24 @@ def redis_server(workdir: Path) -> Iterator[str]:
     for _ in range(5):  # another process may grab the free port first
         port = _free_port()
         proc = subprocess.Popen(
-            [binary, "--bind", "127.0.0.1", "--port", str(port), "--dir", str(workdir),
-             "--save", "", "--appendonly", "no", "--protected-mode", "yes"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            [
+                binary,
+                "--bind",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--dir",
+                str(workdir),
+                "--save",
+                "",
+                "--appendonly",
+                "no",
+                "--protected-mode",
+                "yes",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         url = f"redis://127.0.0.1:{port}/0"
         client = redis.Redis.from_url(url, socket_timeout=1.0)
         deadline = time.monotonic() + _START_TIMEOUT_S

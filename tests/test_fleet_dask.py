@@ -17,8 +17,16 @@ from gradgps._simulator import simulate_fleet
 
 pytest.importorskip("distributed")
 
-RESULT_COLUMNS = ["anomaly", "score", "bias_type", "time_type", "lat_clean", "lon_clean", "alert",
-                  "invalid_reason"]
+RESULT_COLUMNS = [
+    "anomaly",
+    "score",
+    "bias_type",
+    "time_type",
+    "lat_clean",
+    "lon_clean",
+    "alert",
+    "invalid_reason",
+]
 
 
 @pytest.fixture(scope="module")
@@ -61,17 +69,23 @@ def _read(path: Path) -> pd.DataFrame:
     return pd.read_csv(path) if path.suffix == ".csv" else pd.read_parquet(path)
 
 
-def test_detect_fleet_equals_detect_row_for_row(client: Any, fleet: pd.DataFrame,
-                                                tmp_path: Path) -> None:
+def test_detect_fleet_equals_detect_row_for_row(
+    client: Any, fleet: pd.DataFrame, tmp_path: Path
+) -> None:
     source, target = tmp_path / "in", tmp_path / "out"
     _write_fleet(fleet, source)
     runner = CliRunner()
-    done = runner.invoke(main, ["detect-fleet", str(source), "-o", str(target),
-                                "--scheduler", client.scheduler.address])
+    done = runner.invoke(
+        main,
+        ["detect-fleet", str(source), "-o", str(target), "--scheduler", client.scheduler.address],
+    )
     assert done.exit_code == 0, done.output
     assert "5 vehicles" in done.output
-    inputs = sorted(p.relative_to(source) for p in source.rglob("*") if p.is_file()
-                    and not p.name.startswith("_"))
+    inputs = sorted(
+        p.relative_to(source)
+        for p in source.rglob("*")
+        if p.is_file() and not p.name.startswith("_")
+    )
     outputs = sorted(p.relative_to(target) for p in target.rglob("*") if p.is_file())
     assert outputs == inputs
 
@@ -94,8 +108,9 @@ def test_detect_fleet_equals_detect_row_for_row(client: Any, fleet: pd.DataFrame
         want = expected[expected["track"] == vehicle].reset_index(drop=True)
         # A CSV output reads back anomaly/alert as int64 and an empty invalid_reason as NaN.
         got["invalid_reason"] = got["invalid_reason"].fillna("")
-        pd.testing.assert_frame_equal(got[["t", *RESULT_COLUMNS]], want[["t", *RESULT_COLUMNS]],
-                                      check_dtype=False)
+        pd.testing.assert_frame_equal(
+            got[["t", *RESULT_COLUMNS]], want[["t", *RESULT_COLUMNS]], check_dtype=False
+        )
     assert (expected["invalid_reason"] != "").sum() == 1
 
 
@@ -106,15 +121,19 @@ def test_find_partitions_reads_both_layouts(fleet: pd.DataFrame, tmp_path: Path)
     assert parts[2].outputs == ("vehicle=2/part-0.parquet", "vehicle=2/part-1.parquet")
 
 
-@pytest.mark.parametrize(("layout", "message"), [
-    ({}, "no vehicle files"),
-    ({"a.csv": "t,lat,lon\n", "a.parquet": ""}, "appears twice"),
-    ({"notes.json": "{}"}, "not a CSV or Parquet file"),
-    ({"trips/a.csv": "t,lat,lon\n"}, "not a key=value partition"),
-    ({"vehicle=1/readme.md": ""}, "not a CSV or Parquet file"),
-])
-def test_find_partitions_rejects_what_is_not_a_fleet(tmp_path: Path, layout: dict[str, str],
-                                                     message: str) -> None:
+@pytest.mark.parametrize(
+    ("layout", "message"),
+    [
+        ({}, "no vehicle files"),
+        ({"a.csv": "t,lat,lon\n", "a.parquet": ""}, "appears twice"),
+        ({"notes.json": "{}"}, "not a CSV or Parquet file"),
+        ({"trips/a.csv": "t,lat,lon\n"}, "not a key=value partition"),
+        ({"vehicle=1/readme.md": ""}, "not a CSV or Parquet file"),
+    ],
+)
+def test_find_partitions_rejects_what_is_not_a_fleet(
+    tmp_path: Path, layout: dict[str, str], message: str
+) -> None:
     for name, text in layout.items():
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / name).write_text(text)
@@ -131,8 +150,9 @@ def test_a_bad_vehicle_file_fails_the_run_naming_the_file(client: Any, tmp_path:
         detect_fleet(source, tmp_path / "out", client)
 
 
-def test_output_directory_must_be_new_or_empty(client: Any, fleet: pd.DataFrame,
-                                               tmp_path: Path) -> None:
+def test_output_directory_must_be_new_or_empty(
+    client: Any, fleet: pd.DataFrame, tmp_path: Path
+) -> None:
     source, target = tmp_path / "in", tmp_path / "out"
     _write_fleet(fleet, source)
     target.mkdir()

@@ -53,9 +53,20 @@ def _worker(server: Any, name: str, batch_size: int = 16) -> RedisStreamWorker:
 
 def _push(server: Any, fleet: pd.DataFrame) -> list[str]:
     client = _client(server)
-    return [client.xadd(IN, {"vehicle_id": r.track, "t": repr(r.t), "lat": repr(r.lat),
-                             "lon": repr(r.lon), "speed": repr(r.speed),
-                             "heading": repr(r.heading)}) for r in fleet.itertuples()]
+    return [
+        client.xadd(
+            IN,
+            {
+                "vehicle_id": r.track,
+                "t": repr(r.t),
+                "lat": repr(r.lat),
+                "lon": repr(r.lon),
+                "speed": repr(r.speed),
+                "heading": repr(r.heading),
+            },
+        )
+        for r in fleet.itertuples()
+    ]
 
 
 def _drain(*workers: RedisStreamWorker, rounds: int = 200) -> None:
@@ -81,7 +92,9 @@ def _check_exactly_once_and_exact(server: Any, fleet: pd.DataFrame, ids: list[st
     for vehicle, track in fleet.groupby("track"):
         rows = out[out["vehicle_id"] == vehicle]
         detector = Detector()
-        expected = [detector.update(r.t, r.lat, r.lon, r.speed, r.heading) for r in track.itertuples()]
+        expected = [
+            detector.update(r.t, r.lat, r.lon, r.speed, r.heading) for r in track.itertuples()
+        ]
         assert rows["t"].tolist() == track["t"].tolist()  # every fix, in time order
         np.testing.assert_array_equal(rows["score"].to_numpy(), [e.score for e in expected])
         np.testing.assert_array_equal(rows["lon_clean"].to_numpy(), [e.lon_clean for e in expected])
@@ -101,14 +114,17 @@ def _crash_on_commit(worker: RedisStreamWorker, monkeypatch: pytest.MonkeyPatch)
     return held
 
 
-def test_one_worker_gives_a_streaming_detector_per_vehicle(server: Any, fleet: pd.DataFrame) -> None:
+def test_one_worker_gives_a_streaming_detector_per_vehicle(
+    server: Any, fleet: pd.DataFrame
+) -> None:
     ids = _push(server, fleet)
     _drain(_worker(server, "w1"))
     _check_exactly_once_and_exact(server, fleet, ids)
 
 
 def test_two_workers_share_the_group_and_keep_each_vehicle_in_order(
-        server: Any, fleet: pd.DataFrame) -> None:
+    server: Any, fleet: pd.DataFrame
+) -> None:
     ids = _push(server, fleet)
     a, b = _worker(server, "a", batch_size=7), _worker(server, "b", batch_size=5)
     passed = 0
@@ -128,7 +144,8 @@ def test_two_workers_share_the_group_and_keep_each_vehicle_in_order(
 
 
 def test_restarted_worker_redoes_the_page_it_died_in(
-        server: Any, fleet: pd.DataFrame, monkeypatch: pytest.MonkeyPatch) -> None:
+    server: Any, fleet: pd.DataFrame, monkeypatch: pytest.MonkeyPatch
+) -> None:
     ids = _push(server, fleet)
     first = _worker(server, "w1")
     first.step()  # a few pages done
@@ -141,7 +158,8 @@ def test_restarted_worker_redoes_the_page_it_died_in(
 
 
 def test_dead_worker_is_taken_over_and_a_late_zombie_commit_adds_nothing(
-        server: Any, fleet: pd.DataFrame, monkeypatch: pytest.MonkeyPatch) -> None:
+    server: Any, fleet: pd.DataFrame, monkeypatch: pytest.MonkeyPatch
+) -> None:
     ids = _push(server, fleet)
     dead, alive = _worker(server, "dead", batch_size=40), _worker(server, "alive")
     dead.step()
@@ -161,7 +179,8 @@ def test_dead_worker_is_taken_over_and_a_late_zombie_commit_adds_nothing(
 
 
 def test_a_conflicting_commit_is_redone_from_the_stored_state(
-        server: Any, fleet: pd.DataFrame, monkeypatch: pytest.MonkeyPatch) -> None:
+    server: Any, fleet: pd.DataFrame, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Two workers on the same page (a stalled owner and its replacement): WATCH keeps one result."""
     ids = _push(server, fleet)
     stalled, other = _worker(server, "stalled"), _worker(server, "other")

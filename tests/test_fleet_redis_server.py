@@ -41,40 +41,81 @@ def redis_url(tmp_path: Path) -> Iterator[str]:
 
 
 def _worker(url: str, consumer: str, log: Path) -> subprocess.Popen[bytes]:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")]),
-           "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")]),
+        "NUMBA_NUM_THREADS": "1",
+        "OMP_NUM_THREADS": "1",
+    }
     with log.open("ab") as sink:  # the child keeps its own descriptor
         return subprocess.Popen(
-            [sys.executable, "-m", "gradgps", "serve-redis", "--url", url, "--input-stream",
-             "fixes", "--output-stream", "results", "--group", "grad", "--consumer", consumer,
-             "--batch-size", "50", "--lease-ms", "2000", "--block-ms", "100"],
-            env=env, stdout=sink, stderr=subprocess.STDOUT)
+            [
+                sys.executable,
+                "-m",
+                "gradgps",
+                "serve-redis",
+                "--url",
+                url,
+                "--input-stream",
+                "fixes",
+                "--output-stream",
+                "results",
+                "--group",
+                "grad",
+                "--consumer",
+                consumer,
+                "--batch-size",
+                "50",
+                "--lease-ms",
+                "2000",
+                "--block-ms",
+                "100",
+            ],
+            env=env,
+            stdout=sink,
+            stderr=subprocess.STDOUT,
+        )
 
 
-def _wait_until(condition: object, what: str, procs: list[subprocess.Popen[bytes]],
-                logs: list[Path]) -> None:
+def _wait_until(
+    condition: object, what: str, procs: list[subprocess.Popen[bytes]], logs: list[Path]
+) -> None:
     deadline = time.monotonic() + WAIT_S
     while time.monotonic() < deadline:
         if condition():  # type: ignore[operator]
             return
         for proc, log in zip(procs, logs, strict=True):
             if proc.poll() is not None:
-                pytest.fail(f"worker exited with {proc.returncode} while waiting for {what}:\n"
-                            + log.read_text())
+                pytest.fail(
+                    f"worker exited with {proc.returncode} while waiting for {what}:\n"
+                    + log.read_text()
+                )
         time.sleep(0.02)
     pytest.fail(f"timed out after {WAIT_S:.0f} s waiting for {what}")
 
 
 def test_sigkill_mid_run_then_restart_gives_exactly_one_result_per_message(
-        redis_url: str, tmp_path: Path) -> None:
+    redis_url: str, tmp_path: Path
+) -> None:
     client = redis.Redis.from_url(redis_url, decode_responses=True)
-    fleet = simulate_fleet(VEHICLES, POINTS / 60, 1.0, seed=7).sort_values(["t", "track"], kind="stable")
+    fleet = simulate_fleet(VEHICLES, POINTS / 60, 1.0, seed=7).sort_values(
+        ["t", "track"], kind="stable"
+    )
     assert len(fleet) == VEHICLES * POINTS
     pipe = client.pipeline(transaction=False)
     for row in fleet.itertuples():
-        pipe.xadd("fixes", {"vehicle_id": row.track, "t": repr(row.t), "lat": repr(row.lat),
-                            "lon": repr(row.lon), "speed": repr(row.speed),
-                            "heading": repr(row.heading), "yaw_rate": repr(row.yaw_rate)})
+        pipe.xadd(
+            "fixes",
+            {
+                "vehicle_id": row.track,
+                "t": repr(row.t),
+                "lat": repr(row.lat),
+                "lon": repr(row.lon),
+                "speed": repr(row.speed),
+                "heading": repr(row.heading),
+                "yaw_rate": repr(row.yaw_rate),
+            },
+        )
     input_ids = pipe.execute()
 
     logs = [tmp_path / "w1-first.log", tmp_path / "w1-again.log", tmp_path / "w2.log"]
@@ -90,9 +131,15 @@ def test_sigkill_mid_run_then_restart_gives_exactly_one_result_per_message(
 
     again, second = _worker(redis_url, "w1", logs[1]), _worker(redis_url, "w2", logs[2])
     try:
-        _wait_until(lambda: client.xlen("results") >= VEHICLES * POINTS
-                    and client.xpending("fixes", "grad")["pending"] == 0,
-                    "all results", [again, second], logs[1:])
+        _wait_until(
+            lambda: (
+                client.xlen("results") >= VEHICLES * POINTS
+                and client.xpending("fixes", "grad")["pending"] == 0
+            ),
+            "all results",
+            [again, second],
+            logs[1:],
+        )
         time.sleep(0.5)  # anything still in flight would show up as an extra result
         for proc in (again, second):
             proc.send_signal(signal.SIGTERM)
@@ -111,7 +158,9 @@ def test_sigkill_mid_run_then_restart_gives_exactly_one_result_per_message(
         assert np.all(np.diff(rows["t"].to_numpy()) > 0), f"vehicle {vehicle} out of order"
         track = fleet[fleet["track"] == vehicle]
         detector = Detector()
-        expected = [detector.update(r.t, r.lat, r.lon, r.speed, r.heading) for r in track.itertuples()]
+        expected = [
+            detector.update(r.t, r.lat, r.lon, r.speed, r.heading) for r in track.itertuples()
+        ]
         assert rows["anomaly"].tolist() == [e.anomaly for e in expected]
         np.testing.assert_array_equal(rows["score"].to_numpy(), [e.score for e in expected])
         np.testing.assert_array_equal(rows["lat_clean"].to_numpy(), [e.lat_clean for e in expected])

@@ -105,7 +105,9 @@ class FleetSummary:
 
 def _data_suffix(name: str) -> str | None:
     lower = name.lower()
-    return next((s for s in sorted(_DATA_SUFFIXES, key=len, reverse=True) if lower.endswith(s)), None)
+    return next(
+        (s for s in sorted(_DATA_SUFFIXES, key=len, reverse=True) if lower.endswith(s)), None
+    )
 
 
 def _hidden(name: str) -> bool:
@@ -121,14 +123,20 @@ def find_partitions(input_dir: str | os.PathLike[str]) -> list[VehiclePartition]
     """
     root = Path(input_dir)
     if not root.is_dir():
-        raise InputError("not a directory", source=str(root),
-                         hint="pass a directory with one file or one key=value folder per vehicle")
+        raise InputError(
+            "not a directory",
+            source=str(root),
+            hint="pass a directory with one file or one key=value folder per vehicle",
+        )
     found: dict[str, VehiclePartition] = {}
 
     def add(part: VehiclePartition, where: Path) -> None:
         if part.vehicle in found:
-            raise InputError(f"vehicle {part.vehicle!r} appears twice", source=str(where),
-                             hint="keep one file or one key=value folder per vehicle")
+            raise InputError(
+                f"vehicle {part.vehicle!r} appears twice",
+                source=str(where),
+                hint="keep one file or one key=value folder per vehicle",
+            )
         found[part.vehicle] = part
 
     for entry in sorted(root.iterdir()):
@@ -136,27 +144,45 @@ def find_partitions(input_dir: str | os.PathLike[str]) -> list[VehiclePartition]
             continue
         if entry.is_dir():
             if "=" not in entry.name:
-                raise InputError("a folder that is not a key=value partition", source=str(entry),
-                                 hint="name vehicle folders like vehicle=ID (hive partitioning)")
+                raise InputError(
+                    "a folder that is not a key=value partition",
+                    source=str(entry),
+                    hint="name vehicle folders like vehicle=ID (hive partitioning)",
+                )
             vehicle = unquote(entry.name.split("=", 1)[1])
             files = sorted(p for p in entry.iterdir() if not _hidden(p.name))
             for f in files:
                 if not f.is_file() or _data_suffix(f.name) is None:
-                    raise InputError("not a CSV or Parquet file", source=str(f),
-                                     hint=f"a partition folder may hold only {', '.join(_DATA_SUFFIXES)} files")
+                    raise InputError(
+                        "not a CSV or Parquet file",
+                        source=str(f),
+                        hint=f"a partition folder may hold only {', '.join(_DATA_SUFFIXES)} files",
+                    )
             if files:
-                add(VehiclePartition(vehicle, tuple(str(f) for f in files),
-                                     tuple(f"{entry.name}/{f.name}" for f in files)), entry)
+                add(
+                    VehiclePartition(
+                        vehicle,
+                        tuple(str(f) for f in files),
+                        tuple(f"{entry.name}/{f.name}" for f in files),
+                    ),
+                    entry,
+                )
         else:
             suffix = _data_suffix(entry.name)
             if suffix is None:
-                raise InputError("not a CSV or Parquet file", source=str(entry),
-                                 hint=f"a fleet directory may hold only {', '.join(_DATA_SUFFIXES)} "
-                                      "files and key=value folders")
+                raise InputError(
+                    "not a CSV or Parquet file",
+                    source=str(entry),
+                    hint=f"a fleet directory may hold only {', '.join(_DATA_SUFFIXES)} "
+                    "files and key=value folders",
+                )
             add(VehiclePartition(entry.name[: -len(suffix)], (str(entry),), (entry.name,)), entry)
     if not found:
-        raise InputError("no vehicle files in this directory", source=str(root),
-                         hint="expected <vehicle>.parquet/.csv files or vehicle=<id>/ folders")
+        raise InputError(
+            "no vehicle files in this directory",
+            source=str(root),
+            hint="expected <vehicle>.parquet/.csv files or vehicle=<id>/ folders",
+        )
     return [found[v] for v in sorted(found)]
 
 
@@ -190,9 +216,12 @@ def detect_partition(
         frame = table.frame.reset_index(drop=True)
         clash = [c for c in result.columns if c in frame.columns]
         if clash:
-            raise InputError(f"already has columns {clash}", source=table.source,
-                             hint="rename them before detection")
-        part = result.iloc[start:start + len(frame)].reset_index(drop=True)
+            raise InputError(
+                f"already has columns {clash}",
+                source=table.source,
+                hint="rename them before detection",
+            )
+        part = result.iloc[start : start + len(frame)].reset_index(drop=True)
         start += len(frame)
         target = Path(output_dir) / relative
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -214,13 +243,18 @@ def detect_partition(
 def _check_output_dir(input_dir: Path, output_dir: Path) -> None:
     if output_dir.exists():
         if not output_dir.is_dir():
-            raise ConfigError(f"{output_dir}: exists and is not a directory; choose a new directory")
+            raise ConfigError(
+                f"{output_dir}: exists and is not a directory; choose a new directory"
+            )
         if output_dir.resolve() == input_dir.resolve():
-            raise ConfigError(f"{output_dir}: the output directory is the input directory; "
-                              "choose another one")
+            raise ConfigError(
+                f"{output_dir}: the output directory is the input directory; choose another one"
+            )
         if any(output_dir.iterdir()):
-            raise ConfigError(f"{output_dir}: not empty; choose a new or empty output directory "
-                              "(detect-fleet never overwrites earlier results)")
+            raise ConfigError(
+                f"{output_dir}: not empty; choose a new or empty output directory "
+                "(detect-fleet never overwrites earlier results)"
+            )
 
 
 def detect_fleet(
@@ -255,9 +289,16 @@ def detect_fleet(
     target.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     model_path = None if model is None else str(Path(model).resolve())
-    futures = client.map(detect_partition, partitions, output_dir=str(target.resolve()),
-                         model=model_path, threshold=threshold, fmt=fmt, columns=columns,
-                         pure=False)
+    futures = client.map(
+        detect_partition,
+        partitions,
+        output_dir=str(target.resolve()),
+        model=model_path,
+        threshold=threshold,
+        fmt=fmt,
+        columns=columns,
+        pure=False,
+    )
     summaries: list[PartitionSummary] = []
     try:
         for future in as_completed(futures):  # type: ignore[no-untyped-call]
@@ -276,8 +317,14 @@ def _total(summaries: Iterable[PartitionSummary], seconds: float) -> FleetSummar
     def total(attr: str) -> int:
         return sum(int(getattr(s, attr)) for s in items)
 
-    return FleetSummary(vehicles=len(items), rows=total("rows"), anomalies=total("anomalies"),
-                        invalid=total("invalid"), alerts=total("alerts"), seconds=seconds)
+    return FleetSummary(
+        vehicles=len(items),
+        rows=total("rows"),
+        anomalies=total("anomalies"),
+        invalid=total("invalid"),
+        alerts=total("alerts"),
+        seconds=seconds,
+    )
 
 
 @contextmanager
@@ -295,16 +342,24 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
 
     if scheduler is not None:
         if workers is not None:
-            raise ConfigError("--workers is for the local cluster; a remote scheduler has its own "
-                              "workers (start them with 'dask worker ADDRESS --nthreads 1')")
+            raise ConfigError(
+                "--workers is for the local cluster; a remote scheduler has its own "
+                "workers (start them with 'dask worker ADDRESS --nthreads 1')"
+            )
         with Client(scheduler, timeout=30) as client:  # type: ignore[no-untyped-call]
             yield client
         return
     n = (os.cpu_count() or 1) if workers is None else workers
     if n < 1:
         raise ConfigError(f"workers must be >= 1, got {n}")
+    # Logs at CRITICAL only: a failing task comes back as its exception through its future,
+    # and what worker logs add is the heartbeat that races the shutdown ("Stream is closed").
     cluster = LocalCluster(  # type: ignore[no-untyped-call]
-        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-        silence_logs=logging.ERROR)
+        n_workers=n,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=":0",
+        silence_logs=logging.CRITICAL,
+    )
     with cluster, Client(cluster) as client:  # type: ignore[no-untyped-call]
         yield client

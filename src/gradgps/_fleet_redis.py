@@ -66,8 +66,19 @@ if TYPE_CHECKING:
 __all__ = ["OUTPUT_FIELDS", "ROUTE_SCRIPT", "RedisStreamWorker", "StepReport"]
 
 #: Fields of every output message, in order.
-OUTPUT_FIELDS = ("source_id", "vehicle_id", "t", "anomaly", "score", "bias_type", "time_type",
-                 "lat_clean", "lon_clean", "alert", "invalid_reason")
+OUTPUT_FIELDS = (
+    "source_id",
+    "vehicle_id",
+    "t",
+    "anomaly",
+    "score",
+    "bias_type",
+    "time_type",
+    "lat_clean",
+    "lon_clean",
+    "alert",
+    "invalid_reason",
+)
 
 _POSITION_FIELDS = ("vehicle_id", "t", "lat", "lon", "speed", "heading")
 
@@ -224,8 +235,16 @@ def _output(message: _Message, result: PointResult) -> dict[str, str]:
 
 
 def _unusable(reason: str) -> PointResult:
-    return PointResult(anomaly=1, score=math.nan, bias_type="none", time_type="none",
-                       lat_clean=math.nan, lon_clean=math.nan, alert=0, invalid_reason=reason)
+    return PointResult(
+        anomaly=1,
+        score=math.nan,
+        bias_type="none",
+        time_type="none",
+        lat_clean=math.nan,
+        lon_clean=math.nan,
+        alert=0,
+        invalid_reason=reason,
+    )
 
 
 class RedisStreamWorker:
@@ -243,10 +262,21 @@ class RedisStreamWorker:
     ``gradgps:<input_stream>:<group>:``.
     """
 
-    def __init__(self, client: redis.Redis, input_stream: str, output_stream: str, group: str,
-                 consumer: str, *, model: str | os.PathLike[str] | None = None,
-                 threshold: float | None = None, batch_size: int = 100, lease_ms: int = 10_000,
-                 cache_size: int = 10_000, key_prefix: str | None = None) -> None:
+    def __init__(
+        self,
+        client: redis.Redis,
+        input_stream: str,
+        output_stream: str,
+        group: str,
+        consumer: str,
+        *,
+        model: str | os.PathLike[str] | None = None,
+        threshold: float | None = None,
+        batch_size: int = 100,
+        lease_ms: int = 10_000,
+        cache_size: int = 10_000,
+        key_prefix: str | None = None,
+    ) -> None:
         self.client = client
         self.input_stream = input_stream
         self.output_stream = output_stream
@@ -306,7 +336,8 @@ class RedisStreamWorker:
         """
         kept, passed, taken, last = self._route(
             keys=[self.input_stream, f"{self.key_prefix}owner"],
-            args=[self.group, self.consumer, self.batch_size, f"{self.key_prefix}alive:"])
+            args=[self.group, self.consumer, self.batch_size, f"{self.key_prefix}alive:"],
+        )
         return int(kept), int(passed), int(taken), str(last)
 
     def process_pending(self) -> tuple[int, int]:
@@ -317,8 +348,9 @@ class RedisStreamWorker:
         processed = skipped = 0
         while True:
             # decode_responses: [[stream, [(id, {field: value}), ...]]]; typed loosely by redis-py
-            reply: Any = self.client.xreadgroup(self.group, self.consumer,
-                                                {self.input_stream: "0"}, count=self.batch_size)
+            reply: Any = self.client.xreadgroup(
+                self.group, self.consumer, {self.input_stream: "0"}, count=self.batch_size
+            )
             entries = reply[0][1] if reply else []
             if not entries:
                 return processed, skipped
@@ -332,12 +364,23 @@ class RedisStreamWorker:
         self.heartbeat()
         kept, passed, taken, last = self.route()
         processed, skipped = self.process_pending()
-        return StepReport(routed_here=kept, routed_away=passed, taken_over=taken,
-                          processed=processed, skipped=skipped, last_entry_id=last)
+        return StepReport(
+            routed_here=kept,
+            routed_away=passed,
+            taken_over=taken,
+            processed=processed,
+            skipped=skipped,
+            last_entry_id=last,
+        )
 
-    def run(self, should_stop: Callable[[], bool], *, block_ms: int = 1000,
-            exit_when_idle_s: float | None = None,
-            on_step: Callable[[StepReport], None] | None = None) -> int:
+    def run(
+        self,
+        should_stop: Callable[[], bool],
+        *,
+        block_ms: int = 1000,
+        exit_when_idle_s: float | None = None,
+        on_step: Callable[[StepReport], None] | None = None,
+    ) -> int:
         """Run steps until ``should_stop()``; returns the number of messages processed.
 
         When there is nothing to do it waits up to ``block_ms`` for a new
@@ -355,13 +398,22 @@ class RedisStreamWorker:
                 total += report.processed
                 if on_step is not None:
                     on_step(report)
-                if report.processed or report.routed_here or report.routed_away or report.taken_over:
+                if (
+                    report.processed
+                    or report.routed_here
+                    or report.routed_away
+                    or report.taken_over
+                ):
                     idle_since = time.monotonic()
                     continue
-                if exit_when_idle_s is not None and time.monotonic() - idle_since >= exit_when_idle_s:
+                if (
+                    exit_when_idle_s is not None
+                    and time.monotonic() - idle_since >= exit_when_idle_s
+                ):
                     break
-                self.client.xread({self.input_stream: report.last_entry_id or "0-0"}, count=1,
-                                  block=block_ms)
+                self.client.xread(
+                    {self.input_stream: report.last_entry_id or "0-0"}, count=1, block=block_ms
+                )
         finally:
             self.client.delete(self._alive_key(self.consumer))
         return total
@@ -410,8 +462,12 @@ class RedisStreamWorker:
                         pipe.xadd(self.output_stream, fields)  # type: ignore[arg-type]
                     for vehicle in changed:
                         track = tracks[vehicle]
-                        pipe.set(self._state_key(vehicle), json.dumps(
-                            {"last_id": track.last_id, "detector": track.detector.get_state()}))
+                        pipe.set(
+                            self._state_key(vehicle),
+                            json.dumps(
+                                {"last_id": track.last_id, "detector": track.detector.get_state()}
+                            ),
+                        )
                     pipe.xack(self.input_stream, self.group, *[m.id for m in messages])
                     pipe.execute()
                 except redis.WatchError:
@@ -426,11 +482,16 @@ class RedisStreamWorker:
             while len(self._tracks) > self.cache_size:
                 self._tracks.popitem(last=False)
             return len(outputs), len(messages) - len(outputs)
-        raise RuntimeError(f"{len(messages)} messages starting at {messages[0].id}: their vehicles' "
-                           f"states changed under {_MAX_CONFLICTS} transactions in a row")
+        raise RuntimeError(
+            f"{len(messages)} messages starting at {messages[0].id}: their vehicles' "
+            f"states changed under {_MAX_CONFLICTS} transactions in a row"
+        )
 
-    def _run_detectors(self, messages: list[_Message], tracks: Mapping[str, _VehicleTrack],
-                       ) -> tuple[list[dict[str, str]], set[str]]:
+    def _run_detectors(
+        self,
+        messages: list[_Message],
+        tracks: Mapping[str, _VehicleTrack],
+    ) -> tuple[list[dict[str, str]], set[str]]:
         outputs: list[dict[str, str]] = []
         changed: set[str] = set()
         for message in messages:
@@ -444,9 +505,14 @@ class RedisStreamWorker:
                 result = _unusable("message has no vehicle_id")
             else:
                 channels = {k: _number(v) for k, v in f.items() if k not in _POSITION_FIELDS}
-                result = track.detector.update(_number(f.get("t")), _number(f.get("lat")),
-                                               _number(f.get("lon")), _number(f.get("speed")),
-                                               _number(f.get("heading")), **channels)
+                result = track.detector.update(
+                    _number(f.get("t")),
+                    _number(f.get("lat")),
+                    _number(f.get("lon")),
+                    _number(f.get("speed")),
+                    _number(f.get("heading")),
+                    **channels,
+                )
             outputs.append(_output(message, result))
             track.last_id = message.id
             changed.add(message.vehicle)
