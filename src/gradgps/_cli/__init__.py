@@ -12,10 +12,12 @@ import click
 from .bench import bench
 from .demo import demo
 from .detect import detect
+from .detect_fleet import detect_fleet
 from .errors import ErrorReportingGroup
 from .export import export
 from .info import info
 from .inject import inject
+from .serve_redis import serve_redis
 from .simulate import simulate
 from .train import train
 from .tune_rema import tune_rema
@@ -32,9 +34,11 @@ def main() -> None:
 main.add_command(bench)
 main.add_command(demo)
 main.add_command(detect)
+main.add_command(detect_fleet)
 main.add_command(export)
 main.add_command(info)
 main.add_command(inject)
+main.add_command(serve_redis)
 main.add_command(simulate)
 main.add_command(train)
 main.add_command(tune_rema)

@@ -1,0 +1,111 @@
+"""``gradgps detect-fleet INPUT_DIR -o OUTPUT_DIR``: a whole fleet's logs on a Dask cluster.
+
+INPUT_DIR holds one file per vehicle (``<id>.parquet``/``.csv``) or a
+hive-partitioned dataset (``vehicle=<id>/part-*.parquet``); OUTPUT_DIR gets
+the same layout, each file with its input rows plus the detector's columns
+(what ``gradgps detect`` writes for it). One Dask task per vehicle, no
+shuffle; see :mod:`gradgps._fleet_dask` and docs/fleet.md.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+from .options import column_map, column_options
+
+__all__ = ["detect_fleet"]
+
+
+@click.command("detect-fleet")
+@click.argument("input_dir", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    "output_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    required=True,
+    help="output directory (new or empty); same layout as INPUT_DIR",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="Dask scheduler to run on, e.g. tcp://10.0.0.5:8786 (workers need gradgps "
+    "and the files); default: a local cluster",
+)
+@click.option(
+    "--workers",
+    type=click.IntRange(min=1),
+    default=None,
+    help="local cluster size in single-thread worker processes (default: one per CPU)",
+)
+@click.option(
+    "--model",
+    "model_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="model directory from 'gradgps train' (default: the shipped model)",
+)
+@click.option(
+    "--threshold",
+    type=float,
+    default=None,
+    help="anomaly threshold on the score, overriding the model's",
+)
+@column_options
+def detect_fleet(
+    input_dir: Path,
+    output_dir: Path,
+    scheduler: str | None,
+    workers: int | None,
+    model_dir: Path | None,
+    threshold: float | None,
+    fmt: str | None,
+    **cols: Any,
+) -> None:
+    """Detect faults in every vehicle of INPUT_DIR on a Dask cluster; write OUTPUT_DIR."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    from .._detector import load_grad_model
+    from .._fleet_dask import dask_client
+    from .._fleet_dask import detect_fleet as run_on_cluster
+
+    columns = column_map(cols)
+    load_grad_model(model_dir)  # a bad model fails here, not in a thousand tasks
+    with (
+        dask_client(scheduler, workers) as client,
+        Progress(
+            TextColumn("detecting vehicles"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeRemainingColumn(),
+            transient=True,
+        ) as progress,
+    ):
+        task = progress.add_task("vehicles", total=None)
+        summary = run_on_cluster(
+            input_dir,
+            output_dir,
+            client,
+            model=model_dir,
+            threshold=threshold,
+            fmt=fmt,
+            columns=columns,
+            on_start=lambda n: progress.update(task, total=n),
+            on_partition=lambda _: progress.advance(task),
+        )
+    rate = summary.rows / summary.seconds if summary.seconds > 0 else float("inf")
+    click.echo(
+        f"wrote {output_dir}: {summary.vehicles:,} vehicles, {summary.rows:,} rows, "
+        f"{summary.anomalies:,} anomalies ({summary.invalid:,} invalid fixes), "
+        f"{summary.alerts:,} alerts; {rate:,.0f} fixes/s"
+    )

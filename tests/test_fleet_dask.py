@@ -1,0 +1,163 @@
+"""detect-fleet on a 2-worker local Dask cluster: the same rows as ``gradgps detect``."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from gradgps import ConfigError, InputError
+from gradgps._cli import main
+from gradgps._fleet_dask import dask_client, detect_fleet, find_partitions
+from gradgps._simulator import simulate_fleet
+
+pytest.importorskip("distributed")
+
+RESULT_COLUMNS = [
+    "anomaly",
+    "score",
+    "bias_type",
+    "time_type",
+    "lat_clean",
+    "lon_clean",
+    "alert",
+    "invalid_reason",
+]
+
+
+@pytest.fixture(scope="module")
+def client() -> Iterator[Any]:
+    with dask_client(workers=2) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def fleet() -> pd.DataFrame:
+    frame = simulate_fleet(5, 3.0, 1.0, seed=11)
+    frame.loc[17, "lat"] = float("nan")  # one unusable fix, so invalid rows are compared too
+    return frame
+
+
+def _write_fleet(fleet: pd.DataFrame, root: Path) -> None:
+    """Both layouts at once: flat CSV and Parquet files, and hive folders (one split in two parts)."""
+    root.mkdir()
+    for vehicle, rows in fleet.groupby("track"):
+        rows = rows.drop(columns="track")
+        match int(vehicle):
+            case 0:
+                rows.to_csv(root / f"{vehicle}.csv", index=False)
+            case 1:
+                rows.to_parquet(root / f"{vehicle}.parquet", index=False)
+            case 2:
+                part = root / f"vehicle={vehicle}"
+                part.mkdir()
+                half = len(rows) // 2
+                rows.iloc[:half].to_parquet(part / "part-0.parquet", index=False)
+                rows.iloc[half:].to_parquet(part / "part-1.parquet", index=False)
+            case _:
+                part = root / f"vehicle=car%20{vehicle}"  # URL-encoded, as pyarrow writes it
+                part.mkdir()
+                rows.to_parquet(part / "part-0.parquet", index=False)
+    (root / "_SUCCESS").write_text("")
+
+
+def _read(path: Path) -> pd.DataFrame:
+    return pd.read_csv(path) if path.suffix == ".csv" else pd.read_parquet(path)
+
+
+def test_detect_fleet_equals_detect_row_for_row(
+    client: Any, fleet: pd.DataFrame, tmp_path: Path
+) -> None:
+    source, target = tmp_path / "in", tmp_path / "out"
+    _write_fleet(fleet, source)
+    runner = CliRunner()
+    done = runner.invoke(
+        main,
+        ["detect-fleet", str(source), "-o", str(target), "--scheduler", client.scheduler.address],
+    )
+    assert done.exit_code == 0, done.output
+    assert "5 vehicles" in done.output
+    inputs = sorted(
+        p.relative_to(source)
+        for p in source.rglob("*")
+        if p.is_file() and not p.name.startswith("_")
+    )
+    outputs = sorted(p.relative_to(target) for p in target.rglob("*") if p.is_file())
+    assert outputs == inputs
+
+    # Per file: exactly what `gradgps detect` writes for that file alone (a one-part vehicle).
+    for relative in (Path("0.csv"), Path("1.parquet"), Path("vehicle=car%204/part-0.parquet")):
+        alone = tmp_path / f"alone{relative.suffix}"
+        single = runner.invoke(main, ["detect", str(source / relative), "-o", str(alone)])
+        assert single.exit_code == 0, single.output
+        pd.testing.assert_frame_equal(_read(target / relative), _read(alone))
+
+    # Whole fleet: `gradgps detect` on one file with every vehicle gives the same results.
+    whole = tmp_path / "whole.parquet"
+    fleet.to_parquet(whole, index=False)
+    everything = tmp_path / "whole-out.parquet"
+    assert runner.invoke(main, ["detect", str(whole), "-o", str(everything)]).exit_code == 0
+    expected = pd.read_parquet(everything)
+    for part in find_partitions(source):
+        got = pd.concat([_read(target / r) for r in part.outputs], ignore_index=True)
+        vehicle = part.vehicle.removeprefix("car ")
+        want = expected[expected["track"] == vehicle].reset_index(drop=True)
+        # A CSV output reads back anomaly/alert as int64 and an empty invalid_reason as NaN.
+        got["invalid_reason"] = got["invalid_reason"].fillna("")
+        pd.testing.assert_frame_equal(
+            got[["t", *RESULT_COLUMNS]], want[["t", *RESULT_COLUMNS]], check_dtype=False
+        )
+    assert (expected["invalid_reason"] != "").sum() == 1
+
+
+def test_find_partitions_reads_both_layouts(fleet: pd.DataFrame, tmp_path: Path) -> None:
+    _write_fleet(fleet, tmp_path / "in")
+    parts = find_partitions(tmp_path / "in")
+    assert [p.vehicle for p in parts] == ["0", "1", "2", "car 3", "car 4"]
+    assert parts[2].outputs == ("vehicle=2/part-0.parquet", "vehicle=2/part-1.parquet")
+
+
+@pytest.mark.parametrize(
+    ("layout", "message"),
+    [
+        ({}, "no vehicle files"),
+        ({"a.csv": "t,lat,lon\n", "a.parquet": ""}, "appears twice"),
+        ({"notes.json": "{}"}, "not a CSV or Parquet file"),
+        ({"trips/a.csv": "t,lat,lon\n"}, "not a key=value partition"),
+        ({"vehicle=1/readme.md": ""}, "not a CSV or Parquet file"),
+    ],
+)
+def test_find_partitions_rejects_what_is_not_a_fleet(
+    tmp_path: Path, layout: dict[str, str], message: str
+) -> None:
+    for name, text in layout.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text)
+    with pytest.raises(InputError, match=message):
+        find_partitions(tmp_path)
+
+
+def test_a_bad_vehicle_file_fails_the_run_naming_the_file(client: Any, tmp_path: Path) -> None:
+    source = tmp_path / "in"
+    source.mkdir()
+    (source / "ok.csv").write_text("t,lat,lon\n0,45,7\n1,45.0001,7\n")
+    (source / "bad.csv").write_text("t,lat,lon\n0,45,7\n1,north,7\n")
+    with pytest.raises(InputError, match=r"bad\.csv.*lat"):
+        detect_fleet(source, tmp_path / "out", client)
+
+
+def test_output_directory_must_be_new_or_empty(
+    client: Any, fleet: pd.DataFrame, tmp_path: Path
+) -> None:
+    source, target = tmp_path / "in", tmp_path / "out"
+    _write_fleet(fleet, source)
+    target.mkdir()
+    (target / "old.csv").write_text("x\n")
+    with pytest.raises(ConfigError, match="not empty"):
+        detect_fleet(source, target, client)
+    with pytest.raises(ConfigError, match="input directory"):
+        detect_fleet(source, source, client)
