@@ -177,3 +177,9 @@ def test_default_model_ships_and_loads() -> None:
     res = det.update(1_700_000_000.0, 41.25, -95.98, speed=10.0, heading=90.0)
     assert res.anomaly in (0, 1)
     assert 0.0 <= res.score <= 1.0
+
+
+def test_threaded_batch_gives_the_same_numbers(model_dir: Path, drives: pd.DataFrame) -> None:
+    one = Detector(model_dir).detect(drives)
+    two = Detector(model_dir).detect(drives, threads=2)
+    _assert_same(one, two)

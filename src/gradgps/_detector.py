@@ -298,13 +298,15 @@ class Detector:
 
     # -- batch -------------------------------------------------------------
 
-    def detect(self, frame: pd.DataFrame) -> pd.DataFrame:
+    def detect(self, frame: pd.DataFrame, *, threads: int = 1) -> pd.DataFrame:
         """One result row per input row (same index order) for a table of one or many tracks.
 
         ``frame``: canonical fixes (see :func:`gradgps.to_fixes`) or any table
         whose columns can be auto-detected. Result columns: ``anomaly``,
         ``score``, ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
-        ``alert``, ``invalid_reason``.
+        ``alert``, ``invalid_reason``. ``threads`` > 1 spreads segments over
+        that many numba threads (same numbers; see ``grad_segments`` for the
+        threading-layer caveat when calling from several threads at once).
         """
         fixes = frame if set(CANONICAL_COLUMNS[:4]) <= set(frame.columns) else to_fixes(frame)
         if not set(CANONICAL_COLUMNS[:4]) <= set(fixes.columns):
@@ -326,7 +328,7 @@ class Detector:
             starts = np.array([sl.start for sl in slices] + [slices[-1].stop], np.int64)
             frames = [prepared.frames[str(tracks[sl.start])] for sl in slices]
             out = grad_segments(m.params, frames, m.gru_params, m.dims, starts, t, lat, lon,
-                                speed, heading)
+                                speed, heading, threads=threads)
         return self._rows(prepared.to_rows(out), prepared.row_reason, fixes.index)
 
     def _rows(self, out: NDArray[np.float64], reason: NDArray[Any], index: pd.Index) -> pd.DataFrame:

@@ -286,11 +286,10 @@ def _features_kernel(P: FloatArray, S: FloatArray, dt: FloatArray, lat: FloatArr
     return out
 
 
-@numba.njit(cache=True, parallel=True)
-def _batch_kernel(Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: Any,
-                  h_len: int, starts: NDArray[np.int64], dt: FloatArray, lat: FloatArray,
-                  lon: FloatArray, speed: FloatArray, heading: FloatArray) -> FloatArray:
-    """Many segments at once, one per thread at a time; each exactly as :func:`_segment_kernel`."""
+def _batch_body(Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: Any,
+                h_len: int, starts: NDArray[np.int64], dt: FloatArray, lat: FloatArray,
+                lon: FloatArray, speed: FloatArray, heading: FloatArray) -> FloatArray:
+    """Many segments, each exactly as :func:`_segment_kernel` (compiled twice, below)."""
     out = np.empty((lat.size, N_POINT_OUT))
     for k in numba.prange(starts.size - 1):
         a, b = starts[k], starts[k + 1]
@@ -301,12 +300,19 @@ def _batch_kernel(Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: 
     return out
 
 
+# One thread (the default: safe to call from any number of threads of the caller) and
+# segments spread over numba's threads (opt-in: with numba's "workqueue" threading layer,
+# two caller threads must not enter it at once; "omp" and "tbb" are fine).
+_batch_serial = numba.njit(cache=True)(_batch_body)
+_batch_parallel = numba.njit(cache=True, parallel=True)(_batch_body)
+
+
 def grad_segments(params: PipelineParams, frames: list[LocalFrame], gp: NDArray[np.float32],
                   dims: NDArray[np.int64], starts: NDArray[np.int64], t: FloatArray,
                   lat: FloatArray, lon: FloatArray, speed: FloatArray,
-                  heading: FloatArray) -> FloatArray:
+                  heading: FloatArray, threads: int = 1) -> FloatArray:
     """:func:`grad_segment` over many segments (``starts`` = their boundaries, one frame
-    each), in parallel on numba's threads (``NUMBA_NUM_THREADS``); same numbers."""
+    each); with ``threads`` > 1 on that many numba threads. Same numbers either way."""
     n_seg = starts.size - 1
     if n_seg <= 0:
         return np.empty((0, N_POINT_OUT))
@@ -323,8 +329,16 @@ def grad_segments(params: PipelineParams, frames: list[LocalFrame], gp: NDArray[
     Ss = np.zeros((n_seg, int(s_len.max())))
     for k, x in enumerate(states):
         Ss[k, :x.size] = x
-    return np.asarray(_batch_kernel(np.array(Ps), Ss, s_len, gp, int(dims[1] + dims[2]),
-                                    starts.astype(np.int64), dt, lat, lon, speed, heading))
+    args = (np.array(Ps), Ss, s_len, gp, int(dims[1] + dims[2]), starts.astype(np.int64), dt,
+            lat, lon, speed, heading)
+    if threads <= 1:
+        return np.asarray(_batch_serial(*args))
+    previous = numba.get_num_threads()
+    numba.set_num_threads(min(threads, int(numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
+    try:
+        return np.asarray(_batch_parallel(*args))
+    finally:
+        numba.set_num_threads(previous)
 
 
 def _segment_dt(t: FloatArray) -> FloatArray:
