@@ -184,7 +184,7 @@ def _grad_section(report: dict[str, Any], title: str) -> list[str]:
         cells = [_f(block[c][m]) for c in ("normal", "anomaly")
                  for m in ("precision", "recall", "f1")]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    return lines + [""]
+    return [*lines, ""]
 
 
 def _sensor_section(report: dict[str, Any]) -> tuple[list[str], list[str]]:
@@ -212,7 +212,7 @@ def _sensor_section(report: dict[str, Any]) -> tuple[list[str], list[str]]:
         paper_cells = [f"{v:.1f}" for v in paper] if paper else ["-"] * len(PAPER_COLUMNS)
         lines.append(f"| {row} | " + " | ".join(_f(f1[m], pct=True) for m in methods)
                      + f" | {verdict} | " + " | ".join(paper_cells) + " |")
-    return lines + [""], verdicts
+    return [*lines, ""], verdicts
 
 
 def _sweep_section(sweep: dict[str, Any], png: str) -> list[str]:
@@ -223,7 +223,7 @@ def _sweep_section(sweep: dict[str, Any], png: str) -> list[str]:
     for m in methods:
         lines.append(f"| {m} | " + " | ".join(_f(sweep[s]["results"][m]["anomaly"]["f1"])
                                               for s in sweep) + " |")
-    return lines + ["", f"![anomaly F1 by fault magnitude]({png})", ""]
+    return [*lines, "", f"![anomaly F1 by fault magnitude]({png})", ""]
 
 
 def _plot_sweep(sweep: dict[str, Any], path: Path) -> None:
@@ -257,7 +257,7 @@ def _speed_section(speed: dict[str, Any]) -> list[str]:
         stream = block["stream_us_per_point"]
         lines.append(f"| {name} | {block['batch_us_per_point']:.1f} | "
                      f"{'-' if stream is None else f'{stream:.1f}'} |")
-    return lines + [""]
+    return [*lines, ""]
 
 
 def _machine() -> str:

@@ -60,6 +60,7 @@ def test_quick_bench_writes_every_table(tmp_path: Path) -> None:
     assert (results / "bench_sweep_quick.png").stat().st_size > 0
     text = markdown.read_text()
     assert "## Memory\n\nkept" in text  # other sections survive
-    assert text.count("<!-- bench:start -->") == 1 and text.count("<!-- bench:end -->") == 1
+    assert text.count("<!-- bench:start -->") == 1
+    assert text.count("<!-- bench:end -->") == 1
     assert "quick mode" in text
     assert text.count("| instant-25 |") == 1

@@ -144,7 +144,7 @@ def dataset_channel_grad(dataset: str, data_dir: str | Path | None = None,
         trained = train_model(_sequences(train, rec.seeds, features, rema),
                               _sequences(val, (rec.val_seed,), features, rema), config)
         target.mkdir(parents=True, exist_ok=True)
-        np.savez(target / "weights.npz", **trained.weights())
+        np.savez(target / "weights.npz", allow_pickle=False, **trained.weights())
         cfg = {"threshold": trained.anomaly_threshold,
                "scaler": {"mean": trained.network.scaler_mean.tolist(),
                           "std": trained.network.scaler_std.tolist()},

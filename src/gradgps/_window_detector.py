@@ -80,7 +80,8 @@ def windows(scaled: np.ndarray, window: int) -> np.ndarray:
     """(n, W, F) windows ending at each row, zero rows before the first."""
     padded = np.vstack([np.zeros((window - 1, scaled.shape[1]), np.float32), scaled])
     idx = np.arange(len(scaled))[:, None] + np.arange(window)
-    return padded[idx]
+    out: np.ndarray = padded[idx]
+    return out
 
 
 @dataclass(frozen=True)
@@ -113,7 +114,7 @@ def save_window_model(directory: str | os.PathLike[str], model: WindowModel) -> 
     """Write ``weights.npz`` and ``config.json`` (the config carries scaler and threshold)."""
     path = Path(directory)
     path.mkdir(parents=True, exist_ok=True)
-    np.savez(path / "weights.npz", **{k: np.asarray(v, np.float32) for k, v in model.weights.items()})
+    np.savez(path / "weights.npz", allow_pickle=False, **{k: np.asarray(v, np.float32) for k, v in model.weights.items()})
     config = {**model.config, "architecture": model.architecture, "inputs": model.inputs,
               "window": model.window, "threshold": model.threshold, "max_gap_s": model.max_gap_s,
               "scaler": {"mean": model.mean.tolist(), "std": model.std.tolist()}}
@@ -199,7 +200,7 @@ class WindowClassifier:
         else:
             readings = {"speed": math.nan if speed is None else float(speed), **channels}
             values = [float(readings.get(c, math.nan)) for c in input_names("sensor")]
-        self._recent = (self._recent + [(float(t), values)])[-3:]
+        self._recent = ([*self._recent, (float(t), values)])[-3:]
         recent = Segment("", np.zeros(0, np.int64), np.array([r[0] for r in self._recent]),
                          np.array([r[1] for r in self._recent]), self._frame)
         row = scale_rows(input_rows(recent, m.inputs)[-1:], m.mean, m.std)
