@@ -12,7 +12,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 import pandas as pd
@@ -31,11 +31,16 @@ from ._metrics import (
 from ._result import RESULT_COLUMNS
 from ._track import ColumnMap, to_fixes
 
+if TYPE_CHECKING:
+    from ._baseline_training import BaselineRecipe
+
 __all__ = ["DETECTOR_NAMES", "PROTOCOLS", "Detector", "bench_units", "make_detector", "run_bench"]
 
 PROTOCOLS = ("grad", "sensor-grid")
 #: Names :func:`make_detector` knows, for help texts and error messages.
-DETECTOR_NAMES = ("speed-gate", "rema", "rema-paper", "grad", "grad-default")
+DETECTOR_NAMES = (
+    "speed-gate", "rema", "rema-paper", "grad", "grad-default", "kf", "cnn", "cnn-kf", "lstm-cnn"
+)
 _SENSOR_CHANNELS = ["accel_x_mps2", "gyro_z_dps"]
 GRAD_BIAS = ("noise", "jump")
 GRAD_TIME = ("transient", "intermittent", "permanent")
@@ -54,8 +59,10 @@ def make_detector(
     dataset: str | None = None,
     data_dir: str | Path | None = None,
     model: Path | None = None,
+    protocol: str = "grad",
+    recipe: BaselineRecipe | None = None,
 ) -> Detector:
-    """A detector with its default settings, by benchmark name.
+    """A detector with its default settings, by benchmark name, for ``protocol``.
 
     ``rema``: :class:`RemaDetector` (trend mode), with the settings saved by
     ``gradgps tune-rema`` when ``rema_params`` names that file; ``rema-paper``:
@@ -64,7 +71,20 @@ def make_detector(
     only); ``grad``: GRAD trained on ``dataset``'s train split (the model in
     ``model`` if given, else trained once and cached, see
     :func:`gradgps._grad_training.dataset_model`).
+
+    Under protocol ``sensor-grid`` the faults are in sensor readings, so
+    ``grad`` is the channel-wise GRAD (:mod:`gradgps._channel_grad`) trained on
+    ``dataset`` for that protocol (``model`` does not apply), and the
+    baselines read the sensor channels instead of positions. The baselines
+    ``kf``, ``cnn``, ``cnn-kf`` and ``lstm-cnn`` are fitted on ``dataset``'s
+    train split (validation split for stopping and thresholds) with
+    ``recipe`` (default: GRAD's data, budget and stopping) and cached, see
+    :mod:`gradgps._baseline_training`.
     """
+    if name in ("kf", "cnn", "cnn-kf", "lstm-cnn") or (name == "grad" and protocol == "sensor-grid"):
+        if dataset is None:
+            raise ConfigError(f"detector {name!r} needs a dataset to train on")
+        return _trained_baseline(name, dataset, protocol, data_dir, recipe)
     if name == "grad-default":
         from ._detector import Detector as GradDetector
 
@@ -92,6 +112,29 @@ def make_detector(
 
         return paper_detector()
     raise ConfigError(f"unknown detector {name!r}; known detectors: {', '.join(DETECTOR_NAMES)}")
+
+
+def _trained_baseline(
+    name: str, dataset: str, protocol: str, data_dir: str | Path | None,
+    recipe: BaselineRecipe | None,
+) -> Detector:
+    from . import _baseline_training as bt
+
+    if name == "grad":
+        from ._channel_grad import ChannelGradDetector, dataset_channel_grad
+
+        return ChannelGradDetector(dataset_channel_grad(dataset, data_dir, recipe))
+    if name == "kf":
+        from ._kalman import KalmanDetector
+
+        return KalmanDetector.from_params(bt.dataset_kalman(dataset, protocol, data_dir, recipe))
+    if name == "cnn-kf":
+        from ._cnn_kf import CnnKalmanDetector
+
+        return CnnKalmanDetector(*bt.dataset_cnn_kf(dataset, protocol, data_dir, recipe))
+    from ._window_detector import WindowClassifier
+
+    return WindowClassifier(bt.dataset_window_model(name, dataset, protocol, data_dir, recipe))
 
 
 def _row_names(protocol: str) -> list[str]:
@@ -190,6 +233,7 @@ def run_bench(
     advance: Callable[[str], None] | None = None,
     rema_params: Path | None = None,
     model: Path | None = None,
+    recipe: BaselineRecipe | None = None,
 ) -> dict[str, Any]:
     """Run the benchmark; return the JSON-ready report (``nan`` turned into ``None``).
 
@@ -204,7 +248,15 @@ def run_bench(
                 f"unknown detector {name!r}; known detectors: {', '.join(DETECTOR_NAMES)}"
             )
     built = {
-        name: make_detector(name, rema_params, dataset=dataset, data_dir=data_dir, model=model)
+        name: make_detector(
+            name,
+            rema_params,
+            dataset=dataset,
+            data_dir=data_dir,
+            model=model,
+            protocol=protocol,
+            recipe=recipe,
+        )
         for name in detectors
     }
     table = load_dataset(dataset, split, data_dir=data_dir)
