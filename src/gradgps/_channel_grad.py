@@ -152,7 +152,7 @@ def dataset_channel_grad(dataset: str, data_dir: str | Path | None = None,
         (target / "config.json").write_text(json.dumps(cfg) + "\n")
     try:
         cfg = json.loads((target / "config.json").read_text())
-        with np.load(target / "weights.npz") as data:
+        with np.load(target / "weights.npz", allow_pickle=False) as data:
             weights = {k: data[k] for k in data.files}
         gru = GRUModel(weights, np.asarray(cfg["scaler"]["mean"]), np.asarray(cfg["scaler"]["std"]),
                        mode="stream")

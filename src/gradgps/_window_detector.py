@@ -128,7 +128,7 @@ def load_window_model(directory: str | os.PathLike[str]) -> WindowModel:
     path = Path(directory)
     try:
         config = json.loads((path / "config.json").read_text())
-        with np.load(path / "weights.npz") as data:
+        with np.load(path / "weights.npz", allow_pickle=False) as data:
             weights = {k: np.asarray(data[k], np.float32) for k in data.files}
         names = ARCHITECTURES[config["architecture"]][0]
         missing = [n for n in names if n not in weights]
