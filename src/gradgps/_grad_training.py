@@ -136,6 +136,7 @@ def train_grad(
     learning_rate: float = 3e-3,
     max_epochs: int = 400,
     early_stopping: str = "loss",
+    batch_size: int = 256,
 ) -> TrainReport:
     """Train on clean tables with injected ``grad`` faults and write a model directory.
 
@@ -162,7 +163,7 @@ def train_grad(
     config = TrainConfig(bias_classes=GRAD_BIAS_CLASSES, mode=mode, window=window,
                          time_budget_s=time_budget_s, seed=seed, progress=progress,
                          early_stopping=early_stopping, patience=patience, learning_rate=learning_rate,
-                         max_epochs=max_epochs)
+                         max_epochs=max_epochs, batch_size=batch_size)
     with torch.random.fork_rng():
         trained = train_model(train, val, config)
     threshold = float(trained.anomaly_threshold)

@@ -85,8 +85,8 @@ FloatArray = NDArray[np.float64]
 OFFSET_FEATURES = ("offset_east", "offset_north", "offset_norm", "offset_change", "residual_east",
                    "residual_north", "clean_distance", "fault_age_s")
 N_OFFSET_FEATURES = len(OFFSET_FEATURES)
-N_OFFSET_PARAMS = 7
-P_THRESHOLD, P_LEAK, P_ALPHA, P_FAST_LEAK, P_DRIFT, P_MAX_FAULT, P_BIAS_ALPHA = range(
+N_OFFSET_PARAMS = 8
+P_THRESHOLD, P_LEAK, P_ALPHA, P_FAST_LEAK, P_DRIFT, P_MAX_FAULT, P_BIAS_ALPHA, P_TRUST = range(
     N_OFFSET_PARAMS)
 # State: count, last east, last north, last ve, last vn (reported, NaN if none),
 # cv ve, cv vn, offset east, offset north, clean-track east, north, fault age (s),
@@ -102,7 +102,8 @@ class OffsetParams:
     suspected (``fast_leak_per_s`` otherwise); ``cv_alpha``: EMA weight of the
     constant-velocity estimate; ``drift_per_s``: growth of the gate around the
     dead-reckoned clean track; ``max_fault_s``: longest a suspected fault is held;
-    ``bias_alpha``: EMA weight of the reported velocity's bias."""
+    ``bias_alpha``: EMA weight of the reported velocity's bias; ``trust_clean_s``: fault
+    age up to which the dead-reckoned clean track alone measures the offset."""
 
     threshold_m: float = 8.0
     leak_per_s: float = 0.002
@@ -111,19 +112,22 @@ class OffsetParams:
     drift_per_s: float = 0.2
     max_fault_s: float = 100.0
     bias_alpha: float = 0.1
+    trust_clean_s: float = 10.0
 
     def to_array(self) -> FloatArray:
         if not (self.threshold_m > 0 and 0 <= self.leak_per_s < 1 and 0 < self.cv_alpha <= 1
                 and 0 <= self.fast_leak_per_s < 1 and self.drift_per_s >= 0
-                and self.max_fault_s > 0 and 0 <= self.bias_alpha <= 1):
+                and self.max_fault_s > 0 and 0 <= self.bias_alpha <= 1
+                and self.trust_clean_s >= 0):
             raise ConfigError(
                 "offset tracker needs threshold_m > 0, 0 <= leak_per_s < 1, 0 < cv_alpha <= 1, "
                 "0 <= fast_leak_per_s < 1, drift_per_s >= 0, max_fault_s > 0, "
-                f"0 <= bias_alpha <= 1; got {self.threshold_m}, {self.leak_per_s}, {self.cv_alpha}, "
-                f"{self.fast_leak_per_s}, {self.drift_per_s}, {self.max_fault_s}, {self.bias_alpha}"
+                f"0 <= bias_alpha <= 1, trust_clean_s >= 0; got {self.threshold_m}, {self.leak_per_s}, "
+                f"{self.cv_alpha}, {self.fast_leak_per_s}, {self.drift_per_s}, {self.max_fault_s}, "
+                f"{self.bias_alpha}, {self.trust_clean_s}"
             )
         return np.array([self.threshold_m, self.leak_per_s, self.cv_alpha, self.fast_leak_per_s,
-                         self.drift_per_s, self.max_fault_s, self.bias_alpha])
+                         self.drift_per_s, self.max_fault_s, self.bias_alpha, self.trust_clean_s])
 
 
 def _velocity(speed: float, heading: float) -> tuple[float, float]:
@@ -178,6 +182,8 @@ def offset_features_reference(
             if not explained:  # a fault starts, changes or ends: two estimates of the
                 # offset; the smaller one is right when either is
                 offset[c] = min(before + residual[c], fix[i, c] - clean[c], key=abs)
+                if in_fault and age < prm.trust_clean_s:  # dead reckoning is still exact
+                    offset[c] = fix[i, c] - clean[c]
             else:  # explained: a jump's points move like the real track
                 rate = prm.leak_per_s if in_fault else prm.fast_leak_per_s
                 offset[c] = before * max(0.0, 1.0 - rate * d[i])
@@ -213,6 +219,8 @@ def _channel(p: FloatArray, state: FloatArray, c: int, fix: float, predicted: fl
     if not explained:
         summed = before + residual
         state[o] = summed if abs(summed) <= abs(fix - state[ce]) else fix - state[ce]
+        if in_fault and state[S_AGE] < p[P_TRUST]:
+            state[o] = fix - state[ce]
     else:
         state[o] = before * max(0.0, 1.0 - (p[P_LEAK] if in_fault else p[P_FAST_LEAK]) * dt)
         state[cv] = p[P_ALPHA] * step / dt + (1.0 - p[P_ALPHA]) * state[cv]
