@@ -76,13 +76,14 @@ def test_clean_drive_keeps_offset_small() -> None:
                              st.floats(0, 360)), min_size=1, max_size=60),
     threshold=st.floats(1.0, 20.0),
     max_fault_s=st.floats(1.0, 30.0),
+    trust_clean_s=st.floats(0.0, 20.0),
 )
 def test_kernel_matches_reference(steps: list[tuple[float, ...]], threshold: float,
-                                  max_fault_s: float) -> None:
+                                  max_fault_s: float, trust_clean_s: float) -> None:
     arr = np.array(steps)
     dt = arr[:, 2]
     east, north = np.cumsum(arr[:, 0]), np.cumsum(arr[:, 1])
-    prm = OffsetParams(threshold_m=threshold, max_fault_s=max_fault_s)
+    prm = OffsetParams(threshold_m=threshold, max_fault_s=max_fault_s, trust_clean_s=trust_clean_s)
     a = offset_features(dt, east, north, arr[:, 3], arr[:, 4], prm)
     b = offset_features_reference(dt, east, north, arr[:, 3], arr[:, 4], prm)
     np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
