@@ -35,6 +35,34 @@ def test_jump_offset_is_held_for_its_whole_length_and_released(with_velocity: bo
     assert (norm[190:] < 6.0).all()  # and released when the jump ends
 
 
+def test_random_sign_noise_run_leaves_no_residue() -> None:
+    """A run of noise points can make one step look like the fault's end; the
+    distance to the dead-reckoned clean track must still end it where it ends."""
+    dt, east, north, speed, heading = _drive(seed=1)
+    east = east.copy()
+    east[100:106] += [29.0, 34.0, -22.0, 43.0, -32.0, 18.0]
+    out = offset_features(dt, east, north, speed, heading)
+    assert (out[100:106, 2] > 6.0).all()
+    assert (out[106:, 2] < 6.0).all()
+    assert (out[106:, 7] == 0.0).all()  # no fault age left either
+
+
+def test_steady_velocity_disagreement_is_learnt_not_accumulated() -> None:
+    """Reported speed 30 % low (a scale error): the bias estimate absorbs it."""
+    dt, east, north, speed, heading = _drive(seed=2)
+    out = offset_features(dt, east, north, 0.7 * speed, heading)
+    assert out[30:, 2].max() < 6.0
+
+
+def test_fault_held_too_long_is_released() -> None:
+    dt, east, north, speed, heading = _drive()
+    east = east.copy()
+    east[50:] += 40.0  # never ends
+    out = offset_features(dt, east, north, speed, heading, OffsetParams(max_fault_s=60.0))
+    assert (out[50:110, 2] > 30.0).all()
+    assert (out[112:, 2] < 6.0).all()
+
+
 def test_clean_drive_keeps_offset_small() -> None:
     dt, east, north, speed, heading = _drive(seed=3)
     for sp, hd in ((speed, heading), (None, None)):
@@ -47,12 +75,15 @@ def test_clean_drive_keeps_offset_small() -> None:
                              st.one_of(st.just(float("nan")), st.floats(0, 40)),
                              st.floats(0, 360)), min_size=1, max_size=60),
     threshold=st.floats(1.0, 20.0),
+    max_fault_s=st.floats(1.0, 30.0),
+    trust_clean_s=st.floats(0.0, 20.0),
 )
-def test_kernel_matches_reference(steps: list[tuple[float, ...]], threshold: float) -> None:
+def test_kernel_matches_reference(steps: list[tuple[float, ...]], threshold: float,
+                                  max_fault_s: float, trust_clean_s: float) -> None:
     arr = np.array(steps)
     dt = arr[:, 2]
     east, north = np.cumsum(arr[:, 0]), np.cumsum(arr[:, 1])
-    prm = OffsetParams(threshold_m=threshold)
+    prm = OffsetParams(threshold_m=threshold, max_fault_s=max_fault_s, trust_clean_s=trust_clean_s)
     a = offset_features(dt, east, north, arr[:, 3], arr[:, 4], prm)
     b = offset_features_reference(dt, east, north, arr[:, 3], arr[:, 4], prm)
     np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
@@ -61,3 +92,5 @@ def test_kernel_matches_reference(steps: list[tuple[float, ...]], threshold: flo
 def test_bad_parameters() -> None:
     with pytest.raises(ConfigError):
         OffsetParams(threshold_m=0).to_array()
+    with pytest.raises(ConfigError):
+        OffsetParams(bias_alpha=1.5).to_array()

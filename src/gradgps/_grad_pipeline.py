@@ -27,7 +27,7 @@ Features are compressed with a signed ``log1p`` before the network's scaler
 (see :func:`_compress`).
 
 Layout of ``P``: core parameters (``N_CORE_PARAMS``), then the rest block
-(offset 4, time 3, recovery 2, threshold, period, GRU dims 4, frame 12).
+(offset N_OFFSET_PARAMS, time 3, recovery 2, threshold, period, GRU dims 4, frame 12).
 Layout of ``S``: core state, offset state, time state, recovery state.
 """
 
@@ -78,7 +78,12 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 
 # The rest block of P, after the core parameters.
-_OFF, _TIME, _REC, _THR, _PERIOD, _DIMS, _FRAME = 0, 4, 7, 9, 10, 11, 15
+_OFF = 0
+_TIME = _OFF + N_OFFSET_PARAMS
+_REC = _TIME + 3
+_THR = _REC + 2
+_PERIOD, _DIMS = _THR + 1, _THR + 2
+_FRAME = _DIMS + 4
 N_REST_PARAMS = _FRAME + N_FRAME_CONSTANTS
 # Per-point outputs.
 O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT = range(7)
