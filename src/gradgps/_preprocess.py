@@ -106,6 +106,7 @@ def invalid_reasons(fixes: pd.DataFrame) -> np.ndarray:
 def _circular_mean_deg(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     rad = np.radians(values)
     finite = np.isfinite(rad)
+    rad = np.where(finite, rad, 0.0)  # sin(inf) warns; non-finite headings are left out anyway
     s = np.add.reduceat(np.where(finite, np.sin(rad), 0.0), starts)
     c = np.add.reduceat(np.where(finite, np.cos(rad), 0.0), starts)
     k = np.add.reduceat(finite.astype(np.int64), starts)
