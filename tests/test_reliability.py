@@ -257,3 +257,33 @@ def test_cli_refuses_inputs_with_result_column_names(tmp_path: Path) -> None:
     assert result.exit_code == 2
     assert "already has columns ['score']" in result.output
     assert "rename them" in result.output
+
+
+def test_cli_error_says_what_where_and_what_to_do(tmp_path: Path) -> None:
+    src = tmp_path / "typo.csv"
+    src.write_text("t,lat,lon\n0,41,-96\n1,41.0001,-96\n2,41.0002,-96x\n")
+    out = tmp_path / "o.csv"
+    result = CliRunner().invoke(main, ["detect", str(src), "-o", str(out), "--chunk-size", "2"])
+    assert result.exit_code == 2
+    message = result.output.strip().splitlines()[-1]
+    assert message.startswith(f"error: {src}: row 3 (line 4), column 'lon': not a number")
+    assert "'-96x'" in message
+    assert "fix the value" in message
+    assert "Traceback" not in result.output
+    assert not out.exists()
+
+
+def test_fixes_a_nanosecond_apart_do_not_blow_up_the_windows() -> None:
+    # Found by fuzzing: a segment's period is its first step, and its windows
+    # hold window_s / period fixes, so a 30 ns step asked for 90 GiB.
+    t = [0.0, 3e-8, 1.0, 1.0005, 2.0, 3.0]
+    fixes = to_fixes(
+        pd.DataFrame({"t": t, "lat": 41.0, "lon": [-96.0 + 1e-5 * i for i in range(6)]})
+    )
+    batch = Detector().detect(fixes)
+    streamed = TrackStreams().update_fixes(fixes)
+    close = "time less than 1 ms after the previous fix"
+    assert streamed["invalid_reason"].tolist() == ["", close, "", close, "", ""]
+    assert (batch["invalid_reason"] == "").all()  # batch merges them into one point instead
+    keep = streamed["invalid_reason"] == ""
+    _assert_same(Detector().detect(fixes[keep.to_numpy()]), streamed[keep])

@@ -9,12 +9,13 @@ Two faces, one computation (:mod:`gradgps._grad_pipeline`):
 * batch: ``detect(frame)`` for any number of tracks returns one result row
   per input row, in input order.
 
-For time-ordered input without repeated timestamps, both give the same
-numbers bit for bit (tested): batch runs the same compiled per-fix step.
-Where they cannot agree, by nature: batch sorts each track by time and merges
-repeated timestamps first, while a stream cannot reorder the past, so a fix
-whose time is not after the previous one is *invalid* there (flagged with a
-reason, never used).
+For time-ordered input whose time steps are all at least :data:`MIN_STEP_S`
+(1 ms), both give the same numbers bit for bit (tested): batch runs the same
+compiled per-fix step. Where they cannot agree, by nature: batch sorts each
+track by time and merges fixes less than 1 ms apart (repeated timestamps)
+first, while a stream cannot reorder the past, so a fix whose time is not at
+least 1 ms after the previous one is *invalid* there (flagged with a reason,
+never used).
 
 Invalid fixes (time, latitude or longitude missing, not finite or out of
 range; in a stream also not after the previous fix) come back with
@@ -69,7 +70,14 @@ from ._result import PointResult
 from ._time_classifier import TIME_TYPES
 from ._track import CANONICAL_COLUMNS, to_fixes
 
-__all__ = ["DEFAULT_MODEL", "Detector", "GradModel", "load_grad_model"]
+__all__ = ["DEFAULT_MODEL", "MIN_STEP_S", "Detector", "GradModel", "load_grad_model"]
+
+#: Shortest time step between two fixes of a track. A segment's sampling
+#: period is its first step and its windows hold ``window_s / period`` fixes,
+#: so a step of a nanosecond (clock jitter, a corrupted timestamp) would ask
+#: for billions of slots. No receiver reports faster than 1 kHz: closer fixes
+#: are one instant (merged in batch, invalid in a stream).
+MIN_STEP_S = 1e-3
 
 #: Name of the model shipped inside the package, used by ``Detector()``.
 DEFAULT_MODEL = "default"
@@ -142,6 +150,8 @@ def _check_fix(t: float, lat: float, lon: float, last_t: float | None) -> str:
         return "longitude outside +-180"
     if last_t is not None and t <= last_t:
         return "time not after the previous fix"
+    if last_t is not None and t - last_t < MIN_STEP_S:
+        return "time less than 1 ms after the previous fix"
     return ""
 
 
@@ -356,7 +366,8 @@ class Detector:
         if not set(CANONICAL_COLUMNS[:4]) <= set(fixes.columns):
             fixes = to_fixes(fixes)
         m = self.model_
-        prepared = preprocess(fixes, max_gap_s=m.params.max_gap_s, interpolate=False)
+        prepared = preprocess(fixes, max_gap_s=m.params.max_gap_s, interpolate=False,
+                              min_step_s=MIN_STEP_S)
         pts = prepared.points
         n = len(pts)
         out = np.zeros((n, N_POINT_OUT))
