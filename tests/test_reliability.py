@@ -287,3 +287,32 @@ def test_fixes_a_nanosecond_apart_do_not_blow_up_the_windows() -> None:
     assert (batch["invalid_reason"] == "").all()  # batch merges them into one point instead
     keep = streamed["invalid_reason"] == ""
     _assert_same(Detector().detect(fixes[keep.to_numpy()]), streamed[keep])
+
+
+@pytest.mark.parametrize(
+    ("path", "value"),
+    [
+        (("features", "params", "pipeline", "offset", "threshold_m"), None),
+        (("features", "params", "pipeline", "features", "long_window_s"), 1e308),
+        (("features", "params", "pipeline", "time", "episode_gap"), []),
+        (("scaler", "mean", 0), 1e308),
+    ],
+)
+def test_hand_edited_model_settings_fail_at_load_naming_the_file(
+    tmp_path: Path, path: tuple[object, ...], value: object
+) -> None:
+    # Found by fuzzing: these loaded, then crashed the first update (TypeError,
+    # a numba typing error, a float32 overflow warning).
+    from gradgps import ModelError
+    from gradgps._detector import _default_model_dir
+
+    shipped = _default_model_dir()
+    config = json.loads((shipped / "config.json").read_text())
+    parent = config
+    for key in path[:-1]:
+        parent = parent[key]
+    parent[path[-1]] = value
+    (tmp_path / "config.json").write_text(json.dumps(config))
+    (tmp_path / "weights.npz").write_bytes((shipped / "weights.npz").read_bytes())
+    with pytest.raises(ModelError, match=r"config\.json"):
+        Detector(tmp_path)

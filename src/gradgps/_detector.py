@@ -47,7 +47,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from ._exceptions import ConfigError, ModelError
+from ._exceptions import ConfigError, GradGPSError, ModelError
 from ._geo import LocalFrame
 from ._grad_pipeline import (
     N_POINT_OUT,
@@ -111,7 +111,8 @@ def _load_cached(path: str, mtime_ns: int) -> GradModel:
                          f"this one is {config.get('mode')!r}. Train it with --mode stream")
     try:
         params = PipelineParams.from_dict(config["features"]["params"]["pipeline"])
-    except (KeyError, TypeError, ValueError) as exc:
+        _check_buffers(params)
+    except (GradGPSError, KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ModelError(f"{path}/config.json: no usable pipeline settings ({exc}); "
                          "the model was not trained by gradgps train") from exc
     names = pipeline_feature_names(params)
@@ -124,6 +125,23 @@ def _load_cached(path: str, mtime_ns: int) -> GradModel:
     return GradModel(path=path, params=params, gru_params=net.params, dims=net.dims,
                      bias_classes=tuple(config["class_names"]["bias"]),
                      checksum=str(config["weights_sha256"]), config=config)
+
+
+#: Most fixes a feature window may hold (at the fastest rate, 1 kHz): 1,000 s.
+_MAX_WINDOW_POINTS = 1_000_000
+
+
+def _check_buffers(params: PipelineParams) -> None:
+    """Refuse settings whose per-segment parameters are not finite numbers or whose buffers
+    would not fit in memory, before a stream meets them (a hand-edited config)."""
+    long_n, _ = params.features.points(MIN_STEP_S)
+    if long_n > _MAX_WINDOW_POINTS:
+        raise ValueError(f"a {params.features.long_window_s} s window needs {long_n:,} slots "
+                         f"at 1 kHz, more than {_MAX_WINDOW_POINTS:,}")
+    P = params.array(MIN_STEP_S, LocalFrame(0.0, 0.0), np.ones(4, np.int64))
+    if P.dtype != np.float64 or not np.isfinite(P).all():
+        raise ValueError("a setting is not a finite number")
+    new_state(P)
 
 
 def load_grad_model(model: str | os.PathLike[str] | None = None) -> GradModel:
