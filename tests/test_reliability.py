@@ -296,6 +296,7 @@ def test_fixes_a_nanosecond_apart_do_not_blow_up_the_windows() -> None:
         (("features", "params", "pipeline", "features", "long_window_s"), 1e308),
         (("features", "params", "pipeline", "time", "episode_gap"), []),
         (("scaler", "mean", 0), 1e308),
+        (("scaler", "std", 0), 1e-46),
     ],
 )
 def test_hand_edited_model_settings_fail_at_load_naming_the_file(

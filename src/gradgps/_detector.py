@@ -121,7 +121,10 @@ def _load_cached(path: str, mtime_ns: int) -> GradModel:
                          f"the ones this version computes ({names}); retrain the model")
     threshold = float(config["thresholds"]["anomaly"])
     params = PipelineParams(**{**params.__dict__, "threshold": threshold})
-    net = gru_model(weights, config)
+    try:
+        net = gru_model(weights, config)
+    except GradGPSError as exc:
+        raise ModelError(f"{path}/config.json: {exc}; retrain the model") from exc
     return GradModel(path=path, params=params, gru_params=net.params, dims=net.dims,
                      bias_classes=tuple(config["class_names"]["bias"]),
                      checksum=str(config["weights_sha256"]), config=config)

@@ -130,8 +130,8 @@ def _check_config(config: Mapping[str, Any], source: str) -> None:
             or not all(isinstance(v, int | float) and abs(v) <= _FLOAT32_MAX for v in values)
         ):
             raise fail(f"scaler.{key} must hold {n} finite float32 numbers")
-    if not all(v > 0 for v in scaler["std"]):
-        raise fail("scaler.std must be > 0")
+    if not all(np.float32(v) > 0 for v in scaler["std"]):  # as the network stores it
+        raise fail("scaler.std must be > 0 (and not below float32's smallest number)")
     threshold = (
         config["thresholds"].get("anomaly") if isinstance(config["thresholds"], Mapping) else None
     )
