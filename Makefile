@@ -9,7 +9,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 export NUMBA_NUM_THREADS ?= 1
 
-.PHONY: demo test bench lint clean default-model
+.PHONY: demo test fuzz bench lint clean default-model
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,12 @@ test: $(VENV)/.stamp-test
 	$(PY) -m ruff check src tests benchmarks
 	$(PY) -m mypy
 	$(PY) -m pytest -q
+
+# The long fuzz run (tests/test_fuzz.py): 2,500 cases for each of its 6 tests,
+# 15,000 in all; make test runs the same tests with a few dozen cases each.
+fuzz: $(VENV)/.stamp-test
+	GRADGPS_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(PY) -m pytest -q tests/test_fuzz.py
+FUZZ_EXAMPLES ?= 2500
 
 lint: $(VENV)/.stamp-test
 	$(PY) -m ruff check src tests benchmarks

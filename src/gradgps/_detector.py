@@ -9,17 +9,20 @@ Two faces, one computation (:mod:`gradgps._grad_pipeline`):
 * batch: ``detect(frame)`` for any number of tracks returns one result row
   per input row, in input order.
 
-For time-ordered input without repeated timestamps, both give the same
-numbers bit for bit (tested): batch runs the same compiled per-fix step.
-Where they cannot agree, by nature: batch sorts each track by time and merges
-repeated timestamps first, while a stream cannot reorder the past, so a fix
-whose time is not after the previous one is *invalid* there (flagged with a
-reason, never used).
+For time-ordered input whose time steps are all at least :data:`MIN_STEP_S`
+(1 ms), both give the same numbers bit for bit (tested): batch runs the same
+compiled per-fix step. Where they cannot agree, by nature: batch sorts each
+track by time and merges fixes less than 1 ms apart (repeated timestamps)
+first, while a stream cannot reorder the past, so a fix whose time is not at
+least 1 ms after the previous one is *invalid* there (flagged with a reason,
+never used).
 
 Invalid fixes (time, latitude or longitude missing, not finite or out of
 range; in a stream also not after the previous fix) come back with
 ``anomaly=1``, ``invalid_reason`` saying why, NaN score and clean position,
-and never touch the detector's state. A gap longer than the model's
+and never touch the detector's state. Speed and heading are optional: a
+missing, non-numeric or infinite reading is treated as absent (NaN), and the
+fix is still used. A gap longer than the model's
 ``max_gap_s`` starts a new segment: every state is reset, because nothing
 learnt before a long dropout says anything about the fixes after it.
 
@@ -44,7 +47,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from ._exceptions import ConfigError, ModelError
+from ._exceptions import ConfigError, GradGPSError, ModelError
 from ._geo import LocalFrame
 from ._grad_pipeline import (
     N_POINT_OUT,
@@ -67,7 +70,14 @@ from ._result import PointResult
 from ._time_classifier import TIME_TYPES
 from ._track import CANONICAL_COLUMNS, to_fixes
 
-__all__ = ["DEFAULT_MODEL", "Detector", "GradModel", "load_grad_model"]
+__all__ = ["DEFAULT_MODEL", "MIN_STEP_S", "Detector", "GradModel", "load_grad_model"]
+
+#: Shortest time step between two fixes of a track. A segment's sampling
+#: period is its first step and its windows hold ``window_s / period`` fixes,
+#: so a step of a nanosecond (clock jitter, a corrupted timestamp) would ask
+#: for billions of slots. No receiver reports faster than 1 kHz: closer fixes
+#: are one instant (merged in batch, invalid in a stream).
+MIN_STEP_S = 1e-3
 
 #: Name of the model shipped inside the package, used by ``Detector()``.
 DEFAULT_MODEL = "default"
@@ -101,7 +111,8 @@ def _load_cached(path: str, mtime_ns: int) -> GradModel:
                          f"this one is {config.get('mode')!r}. Train it with --mode stream")
     try:
         params = PipelineParams.from_dict(config["features"]["params"]["pipeline"])
-    except (KeyError, TypeError, ValueError) as exc:
+        _check_buffers(params)
+    except (GradGPSError, KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ModelError(f"{path}/config.json: no usable pipeline settings ({exc}); "
                          "the model was not trained by gradgps train") from exc
     names = pipeline_feature_names(params)
@@ -110,10 +121,30 @@ def _load_cached(path: str, mtime_ns: int) -> GradModel:
                          f"the ones this version computes ({names}); retrain the model")
     threshold = float(config["thresholds"]["anomaly"])
     params = PipelineParams(**{**params.__dict__, "threshold": threshold})
-    net = gru_model(weights, config)
+    try:
+        net = gru_model(weights, config)
+    except GradGPSError as exc:
+        raise ModelError(f"{path}/config.json: {exc}; retrain the model") from exc
     return GradModel(path=path, params=params, gru_params=net.params, dims=net.dims,
                      bias_classes=tuple(config["class_names"]["bias"]),
                      checksum=str(config["weights_sha256"]), config=config)
+
+
+#: Most fixes a feature window may hold (at the fastest rate, 1 kHz): 1,000 s.
+_MAX_WINDOW_POINTS = 1_000_000
+
+
+def _check_buffers(params: PipelineParams) -> None:
+    """Refuse settings whose per-segment parameters are not finite numbers or whose buffers
+    would not fit in memory, before a stream meets them (a hand-edited config)."""
+    long_n, _ = params.features.points(MIN_STEP_S)
+    if long_n > _MAX_WINDOW_POINTS:
+        raise ValueError(f"a {params.features.long_window_s} s window needs {long_n:,} slots "
+                         f"at 1 kHz, more than {_MAX_WINDOW_POINTS:,}")
+    P = params.array(MIN_STEP_S, LocalFrame(0.0, 0.0), np.ones(4, np.int64))
+    if P.dtype != np.float64 or not np.isfinite(P).all():
+        raise ValueError("a setting is not a finite number")
+    new_state(P)
 
 
 def load_grad_model(model: str | os.PathLike[str] | None = None) -> GradModel:
@@ -140,7 +171,29 @@ def _check_fix(t: float, lat: float, lon: float, last_t: float | None) -> str:
         return "longitude outside +-180"
     if last_t is not None and t <= last_t:
         return "time not after the previous fix"
+    if last_t is not None and t - last_t < MIN_STEP_S:
+        return "time less than 1 ms after the previous fix"
     return ""
+
+
+_STATE_FORMAT = 2
+_NON_FINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
+
+
+def _encode_float(value: float) -> float | str:
+    if math.isfinite(value):
+        return value
+    return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+
+
+def _decode_float(value: float | str) -> float:
+    if isinstance(value, str):
+        if value not in _NON_FINITE:
+            raise ValueError(f"{value!r} is not a number")
+        return _NON_FINITE[value]
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError(f"{value!r} is not a number")
+    return float(value)
 
 
 def _number(value: float | None) -> float:
@@ -150,6 +203,17 @@ def _number(value: float | None) -> float:
         return float(value)
     except (TypeError, ValueError):
         return math.nan
+
+
+def _reading(value: float | None) -> float:
+    """An optional reading (speed, heading): a finite number, or NaN for missing/unusable."""
+    number = _number(value)
+    return number if math.isfinite(number) else math.nan
+
+
+def _readings(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`_reading` for a whole column."""
+    return np.where(np.isfinite(values), values, np.nan)
 
 
 class Detector:
@@ -214,7 +278,7 @@ class Detector:
             return PointResult(anomaly=1, score=math.nan, bias_type="none", time_type="none",
                                lat_clean=math.nan, lon_clean=math.nan, alert=0,
                                invalid_reason=reason)
-        sp, hd = _number(speed), _number(heading)
+        sp, hd = _reading(speed), _reading(heading)
         if self._frame is None:
             self._frame = LocalFrame(lat_f, lon_f)
         dt = 0.0 if self._last_t is None else t_f - self._last_t
@@ -247,19 +311,28 @@ class Detector:
         )
 
     def get_state(self) -> dict[str, Any]:
-        """Everything needed to continue this stream elsewhere, as plain JSON-able data."""
+        """Everything needed to continue this stream elsewhere, as plain JSON-able data.
 
-        def floats(a: NDArray[Any] | None) -> list[float | None] | None:
-            return None if a is None else [float(v) if math.isfinite(v) else None for v in a]
+        Strict JSON: non-finite numbers (a missing speed, the time
+        classifier's "no earlier run" gap) are written as the strings
+        ``"nan"``, ``"inf"``, ``"-inf"``, so ``json.dumps(state,
+        allow_nan=False)`` works and any JSON parser reads it back. For bytes,
+        ``json.dumps(det.get_state()).encode()``; restoring gives the same
+        outputs as an uninterrupted run, bit for bit (floats round-trip
+        exactly through JSON).
+        """
+
+        def floats(values: Any) -> list[float | str] | None:
+            return None if values is None else [_encode_float(float(v)) for v in values]
 
         return {
-            "format": 1,
+            "format": _STATE_FORMAT,
             "model_checksum": self.model_.checksum,
             "threshold": self.model_.params.threshold,
             "frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
             "last_t": self._last_t,
             "segment_count": self._seg_count,
-            "first": None if self._first is None else list(self._first),
+            "first": floats(self._first),
             "P": floats(self._P),
             "S": floats(self._S),
             "H": floats(self._H),
@@ -268,32 +341,36 @@ class Detector:
     def set_state(self, state: Mapping[str, Any]) -> Detector:
         """Restore a state from :meth:`get_state` (same model); returns self."""
         try:
-            if state["format"] != 1:
-                raise ConfigError(f"detector state format {state['format']} is not supported")
+            if state["format"] != _STATE_FORMAT:
+                raise ConfigError(f"detector state format {state['format']!r} is not supported "
+                                  f"(this gradgps writes format {_STATE_FORMAT})")
             if state["model_checksum"] != self.model_.checksum:
                 raise ConfigError("detector state was saved with another model; "
                                   "restore it into a Detector of the same model")
             if float(state["threshold"]) != self.model_.params.threshold:
                 raise ConfigError("detector state was saved with another threshold")
 
-            def arr(v: Any, dtype: Any, fill: float) -> Any:
-                if v is None:
+            def arr(values: Any, dtype: Any) -> Any:
+                if values is None:
                     return None
-                return np.array([fill if x is None else x for x in v], dtype=dtype)
+                return np.array([_decode_float(v) for v in values], dtype=dtype)
 
             frame = state["frame"]
-            self._frame = None if frame is None else LocalFrame(float(frame[0]), float(frame[1]))
-            self._last_t = None if state["last_t"] is None else float(state["last_t"])
-            self._seg_count = int(state["segment_count"])
+            new_frame = None if frame is None else LocalFrame(float(frame[0]), float(frame[1]))
+            last_t = None if state["last_t"] is None else float(state["last_t"])
+            seg_count = int(state["segment_count"])
             first = state["first"]
-            self._first = None if first is None else tuple(  # type: ignore[assignment]
-                math.nan if v is None else float(v) for v in first)
-            self._P = arr(state["P"], np.float64, math.nan)
-            # The only non-finite value in S is the time classifier's "no earlier run" gap.
-            self._S = arr(state["S"], np.float64, math.inf)
-            self._H = arr(state["H"], np.float32, 0.0)
+            new_first = None if first is None else tuple(_decode_float(v) for v in first)
+            if new_first is not None and len(new_first) != 5:
+                raise ValueError(f"'first' holds {len(new_first)} values, expected 5")
+            P, S, H = arr(state["P"], np.float64), arr(state["S"], np.float64), \
+                arr(state["H"], np.float32)
         except (KeyError, TypeError, ValueError, IndexError) as exc:
             raise ConfigError(f"not a detector state: {exc}") from exc
+        # Assigned only once everything parsed: a bad state leaves this detector as it was.
+        self._frame, self._last_t, self._seg_count = new_frame, last_t, seg_count
+        self._first = new_first
+        self._P, self._S, self._H = P, S, H
         return self
 
     # -- batch -------------------------------------------------------------
@@ -312,7 +389,8 @@ class Detector:
         if not set(CANONICAL_COLUMNS[:4]) <= set(fixes.columns):
             fixes = to_fixes(fixes)
         m = self.model_
-        prepared = preprocess(fixes, max_gap_s=m.params.max_gap_s, interpolate=False)
+        prepared = preprocess(fixes, max_gap_s=m.params.max_gap_s, interpolate=False,
+                              min_step_s=MIN_STEP_S)
         pts = prepared.points
         n = len(pts)
         out = np.zeros((n, N_POINT_OUT))
@@ -320,8 +398,8 @@ class Detector:
         lat = pts["lat"].to_numpy(np.float64)
         lon = pts["lon"].to_numpy(np.float64)
         nan = np.full(n, np.nan)
-        speed = pts["speed"].to_numpy(np.float64) if "speed" in pts else nan
-        heading = pts["heading"].to_numpy(np.float64) if "heading" in pts else nan
+        speed = _readings(pts["speed"].to_numpy(np.float64)) if "speed" in pts else nan
+        heading = _readings(pts["heading"].to_numpy(np.float64)) if "heading" in pts else nan
         tracks = pts["track"].to_numpy(object)
         slices = [sl for _, sl in prepared.segment_slices()]
         if slices:

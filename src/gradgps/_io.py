@@ -25,12 +25,13 @@ errors name the row, the file line and the column.
 from __future__ import annotations
 
 import csv
+import gzip
 import itertools
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Final
+from typing import IO, Any, Final
 
 import pandas as pd
 
@@ -43,6 +44,8 @@ from ._track import ColumnMap, Table, resolve_columns, to_fixes
 
 __all__ = [
     "FORMATS",
+    "CsvChunks",
+    "TableWriter",
     "iter_csv_tables",
     "read_fixes",
     "read_table",
@@ -165,22 +168,134 @@ def write_table(frame: pd.DataFrame, path: str | Path, fmt: str | None = None) -
         raise ConfigError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
 
 
+class TableWriter:
+    """Write a table chunk by chunk (CSV, gzip CSV or Parquet), atomically.
+
+    For outputs too big to hold in memory: every :meth:`write` appends rows
+    (the CSV header and the Parquet schema come from the first chunk; later
+    chunks must have the same columns). Rows go to ``<name>.partial`` beside
+    the target, renamed to the target only by a clean exit from the ``with``
+    block, so a run stopped by an error never leaves a truncated file that
+    looks finished.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        kind = _extension_format(self.path)
+        if kind not in ("csv", "parquet"):
+            raise ConfigError(
+                f"cannot write {str(self.path)!r}: use a .csv, .csv.gz or .parquet output"
+            )
+        self.kind = kind
+        self.partial = self.path.with_name(self.path.name + ".partial")
+        self.rows = 0
+        self._columns: list[str] | None = None
+        self._text: IO[str] | None = None
+        self._parquet: Any = None
+
+    def __enter__(self) -> TableWriter:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *_: object) -> None:
+        self._close()
+        if kind is None:
+            self.partial.replace(self.path)
+        else:
+            self.partial.unlink(missing_ok=True)
+
+    def write(self, frame: pd.DataFrame) -> None:
+        """Append ``frame``'s rows (without its index)."""
+        columns = [str(c) for c in frame.columns]
+        if self._columns is None:
+            self._columns = columns
+        elif columns != self._columns:
+            raise ConfigError(f"chunk columns {columns} differ from the first chunk's {self._columns}")
+        try:
+            if self.kind == "csv":
+                self._write_csv(frame)
+            else:
+                self._write_parquet(frame)
+        except OSError as exc:
+            raise ConfigError(f"cannot write {str(self.path)!r}: {exc.strerror or exc}") from None
+        self.rows += len(frame)
+
+    def _write_csv(self, frame: pd.DataFrame) -> None:
+        first = self._text is None
+        if self._text is None:
+            if self.path.suffix.lower() == ".gz":
+                self._text = gzip.open(self.partial, "wt", encoding="utf-8", newline="")  # noqa: SIM115
+            else:
+                self._text = open(self.partial, "w", encoding="utf-8", newline="")  # noqa: SIM115
+        frame.to_csv(self._text, index=False, header=first)
+
+    def _write_parquet(self, frame: pd.DataFrame) -> None:
+        try:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+        except ImportError as exc:
+            raise ConfigError(f"writing Parquet needs pyarrow ({exc}); install gradgps[io]") from None
+        if self._parquet is None:
+            table = pa.Table.from_pandas(frame, preserve_index=False)
+            self._parquet = pq.ParquetWriter(self.partial, table.schema)
+        else:
+            try:
+                table = pa.Table.from_pandas(frame, schema=self._parquet.schema,
+                                             preserve_index=False)
+            except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
+                raise ConfigError(
+                    f"cannot write {str(self.path)!r}: rows {self.rows + 1}.. do not fit the "
+                    f"column types of the first chunk ({exc})",
+                ) from None
+        self._parquet.write_table(table)
+
+    def _close(self) -> None:
+        if self._columns is None:
+            # Nothing written: still leave a (header-less, empty) file behind.
+            self.partial.touch()
+        if self._text is not None:
+            self._text.close()
+            self._text = None
+        if self._parquet is not None:
+            self._parquet.close()
+            self._parquet = None
+
+
 def iter_csv_tables(
     path: str | Path, chunksize: int, columns: ColumnMap | None = None
-) -> Iterator[Table]:
+) -> CsvChunks:
     """Read a big CSV as a stream of Tables of at most ``chunksize`` rows each.
 
     Memory stays bounded by the chunk size. Each chunk's ``row_offset`` and
     ``first_line`` say where it sits in the file, so value errors found in a
     later chunk name the right row and line. The structure of the whole file
     is checked here, before any chunk is handed out (one streaming pass), so
-    a ragged row near the end fails at once, not after hours of work.
+    a ragged row near the end fails at once, not after hours of work; that
+    pass also counts the rows (:attr:`CsvChunks.n_rows`, for progress bars).
     """
     if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
         raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")
     path = Path(path)
     layout = _scan_csv(path)
-    return _csv_chunks(path, layout, chunksize, columns or ColumnMap())
+    return CsvChunks(
+        n_rows=layout.n_rows,
+        header=layout.header,
+        chunks=_csv_chunks(path, layout, chunksize, columns or ColumnMap()),
+    )
+
+
+@dataclass
+class CsvChunks(Iterator[Table]):
+    """The chunks of a CSV (an iterator of Tables) plus what the structure pass learned.
+
+    ``n_rows``: data rows in the file; ``header``: the column names as written.
+    """
+
+    n_rows: int
+    header: tuple[str, ...]
+    chunks: Iterator[Table]
+
+    def __next__(self) -> Table:
+        return next(self.chunks)
 
 
 def _csv_chunks(

@@ -25,7 +25,6 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -64,6 +63,7 @@ _TORCH_NAMES = {  # exported name -> attribute path on the torch module
     "bias_head.weight": "bias_head.weight",
     "bias_head.bias": "bias_head.bias",
 }
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
 _RETRAIN = "export the model again (gradgps train) or restore the directory from its source"
 
 
@@ -127,11 +127,11 @@ def _check_config(config: Mapping[str, Any], source: str) -> None:
         if (
             not isinstance(values, list)
             or len(values) != n
-            or not all(isinstance(v, int | float) and math.isfinite(v) for v in values)
+            or not all(isinstance(v, int | float) and abs(v) <= _FLOAT32_MAX for v in values)
         ):
-            raise fail(f"scaler.{key} must hold {n} finite numbers")
-    if not all(v > 0 for v in scaler["std"]):
-        raise fail("scaler.std must be > 0")
+            raise fail(f"scaler.{key} must hold {n} finite float32 numbers")
+    if not all(np.float32(v) > 0 for v in scaler["std"]):  # as the network stores it
+        raise fail("scaler.std must be > 0 (and not below float32's smallest number)")
     threshold = (
         config["thresholds"].get("anomaly") if isinstance(config["thresholds"], Mapping) else None
     )
@@ -168,8 +168,9 @@ def _check_weights(
                 f"{source}: array {name!r} has shape {array.shape}, "
                 f"config.json says {shape}; {_RETRAIN}"
             )
-        if not np.all(np.isfinite(array)):
-            raise ModelError(f"{source}: array {name!r} holds NaN or infinite values; {_RETRAIN}")
+        if not np.all(np.abs(array) <= _FLOAT32_MAX):  # NaN compares False
+            raise ModelError(f"{source}: array {name!r} holds NaN, infinite or beyond-float32 "
+                             f"values; {_RETRAIN}")
 
 
 def save_model(

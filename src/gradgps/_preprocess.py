@@ -8,8 +8,8 @@ so :func:`preprocess` turns canonical fixes (see :mod:`gradgps._track`) into
 1. Invalid fixes (time, latitude or longitude missing, not finite or out of
    range) are set aside with a reason; they never enter a segment.
 2. Each track is stably sorted by time.
-3. Fixes with the same timestamp are merged into one point (mean position and
-   channels, circular mean heading).
+3. Fixes with the same timestamp (or less than ``min_step_s`` apart) are
+   merged into one point (mean position and channels, circular mean heading).
 4. Gaps longer than the track's nominal period (median step) but no longer
    than ``max_gap_s`` are filled by linear interpolation at that period; the
    filled points are marked ``interpolated``. Longer gaps start a new segment.
@@ -106,6 +106,7 @@ def invalid_reasons(fixes: pd.DataFrame) -> np.ndarray:
 def _circular_mean_deg(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     rad = np.radians(values)
     finite = np.isfinite(rad)
+    rad = np.where(finite, rad, 0.0)  # sin(inf) warns; non-finite headings are left out anyway
     s = np.add.reduceat(np.where(finite, np.sin(rad), 0.0), starts)
     c = np.add.reduceat(np.where(finite, np.cos(rad), 0.0), starts)
     k = np.add.reduceat(finite.astype(np.int64), starts)
@@ -134,14 +135,20 @@ def preprocess(
     *,
     max_gap_s: float = 5.0,
     interpolate: bool = True,
+    min_step_s: float = 0.0,
 ) -> Prepared:
     """Order, merge, fill and split canonical fixes; project to metres. See the module docstring.
 
     ``max_gap_s``: gaps up to this are interpolated (when ``interpolate``),
-    longer ones split the track into segments.
+    longer ones split the track into segments. ``min_step_s``: a fix less
+    than this after the previous one (in time order) is merged into its
+    point, like a repeated timestamp; the default 0 merges only exact
+    repeats. A chain of close fixes merges into one point, at the first time.
     """
     if not np.isfinite(max_gap_s) or max_gap_s <= 0:
         raise ConfigError(f"max_gap_s must be a positive number of seconds, got {max_gap_s}")
+    if not np.isfinite(min_step_s) or min_step_s < 0 or min_step_s >= max_gap_s:
+        raise ConfigError(f"min_step_s must be in [0, max_gap_s), got {min_step_s}")
     missing = [c for c in _CORE if c not in fixes.columns]
     if missing:
         raise ConfigError(f"fixes frame lacks columns {missing}; build it with gradgps.to_fixes")
@@ -175,8 +182,10 @@ def preprocess(
     for k, track in enumerate(order_of_tracks):
         rows = sorted_rows[bounds[k]:bounds[k + 1]]
         t_sorted = t_all[rows]
-        starts = np.flatnonzero(np.r_[True, t_sorted[1:] != t_sorted[:-1]])
-        group_of_row = np.cumsum(np.r_[True, t_sorted[1:] != t_sorted[:-1]]) - 1
+        steps = np.diff(t_sorted)
+        new_point = np.r_[True, steps >= min_step_s if min_step_s > 0 else steps > 0]
+        starts = np.flatnonzero(new_point)
+        group_of_row = np.cumsum(new_point) - 1
         t_u = t_sorted[starts]
         n_rows_u = np.diff(np.r_[starts, rows.size])
         lat_u = _group_mean(lat_all[rows], starts)

@@ -279,7 +279,8 @@ def to_fixes(
         if col is not None:
             values = _numeric(frame, col, table, what=role)
             if role == "heading":
-                values = np.mod(values, 360.0)
+                # An infinite heading has no direction: NaN, quietly (no RuntimeWarning).
+                values = np.mod(np.where(np.isinf(values), np.nan, values), 360.0)
             out[role] = values
     for col in channels:
         if col not in frame.columns:

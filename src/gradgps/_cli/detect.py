@@ -4,16 +4,27 @@ The output has one row per input row, in input order, with every input
 column kept, plus the detector's columns: ``anomaly`` (0/1), ``score``
 (0..1), ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
 ``alert`` (0/1) and ``invalid_reason`` (empty for a usable fix).
+
+CSV input is processed ``--chunk-size`` rows at a time in bounded memory
+(:mod:`gradgps._chunked`), with streaming semantics: rows in file order, one
+streaming detector per track, so a fix whose time is not after the previous
+fix of its track is flagged invalid. ``--chunk-size 0`` and the other
+formats read the whole file and run batch detection, which sorts each track
+by time and merges repeated timestamps first. For time-ordered tracks
+without repeated timestamps both give the same numbers.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from .options import column_map, column_options
+
+if TYPE_CHECKING:
+    from .._track import ColumnMap
 
 __all__ = ["detect"]
 
@@ -35,14 +46,22 @@ __all__ = ["detect"]
               default=None, help="also write a self-contained HTML report (track, bounds, summary)")
 @click.option("--plots", "plots_dir", type=click.Path(file_okay=False, path_type=Path),
               default=None, help="also write the report's figures as PNG files into this folder")
+@click.option("--chunk-size", type=click.IntRange(min=0), default=200_000, show_default=True,
+              help="CSV rows per chunk (bounded memory, file order per track); "
+                   "0 = whole file, batch (sorts each track by time); --report/--plots read "
+                   "the whole file")
 @column_options
 def detect(input_path: Path, output: Path | None, model_dir: Path | None, threshold: float | None,
-           follow: bool, report_path: Path | None, plots_dir: Path | None,
+           follow: bool, report_path: Path | None, plots_dir: Path | None, chunk_size: int,
            fmt: str | None, **cols: Any) -> None:
     """Detect, classify and repair faults in every fix of INPUT; write OUTPUT.
 
-    With --follow, INPUT is read as a live stream (e.g. 'tail -f log.nmea |
-    gradgps detect --follow -') and results go to standard output.
+    CSV input is processed in chunks of --chunk-size rows with one streaming
+    detector per track, in file order (memory stays bounded however large
+    the file); other formats, --chunk-size 0 and --report/--plots process
+    the whole file at once, sorting each track by time. With --follow, INPUT
+    is read as a live stream (e.g. 'tail -f log.nmea | gradgps detect
+    --follow -') and results go to standard output.
     """
     if follow:
         if report_path is not None or plots_dir is not None:
@@ -60,9 +79,13 @@ def detect(input_path: Path, output: Path | None, model_dir: Path | None, thresh
     import pandas as pd
 
     from .._detector import Detector
-    from .._io import read_table, write_table
+    from .._io import read_table, resolve_format, write_table
     from .._track import to_fixes
 
+    whole_file = report_path is not None or plots_dir is not None
+    if chunk_size > 0 and not whole_file and resolve_format(input_path, fmt) == "csv":
+        _detect_in_chunks(input_path, output, model_dir, threshold, chunk_size, column_map(cols))
+        return
     table = read_table(input_path, fmt, column_map(cols))
     fixes = to_fixes(table)
     detector = Detector(model_dir, threshold=threshold)
@@ -85,3 +108,38 @@ def detect(input_path: Path, output: Path | None, model_dir: Path | None, thresh
     from .report import write_report_outputs
 
     write_report_outputs(report_path, plots_dir, fixes, result, detector, elapsed, str(input_path))
+
+
+def _detect_in_chunks(input_path: Path, output: Path, model_dir: Path | None,
+                      threshold: float | None, chunk_size: int, columns: ColumnMap) -> None:
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from .._chunked import detect_csv_in_chunks
+
+    progress = Progress(TextColumn("detect"), BarColumn(), MofNCompleteColumn(),
+                        TextColumn("rows, {task.fields[rate]} rows/s"), TimeElapsedColumn(),
+                        TimeRemainingColumn(), console=Console(stderr=True))
+    task = progress.add_task("detect", total=None, rate="-")
+
+    def advance(rows: int) -> None:
+        progress.advance(task, rows)
+        elapsed = progress.tasks[0].elapsed or 0.0
+        done = progress.tasks[0].completed
+        progress.update(task, rate=f"{done / elapsed:,.0f}" if elapsed > 0 else "-")
+
+    with progress:
+        summary = detect_csv_in_chunks(
+            input_path, output, columns=columns, model=model_dir, threshold=threshold,
+            chunk_size=chunk_size, on_start=lambda total: progress.update(task, total=total),
+            on_chunk=advance)
+    click.echo(f"wrote {output}: {summary.rows:,} rows, {summary.anomalies:,} anomalies "
+               f"({summary.invalid:,} invalid fixes), {summary.alerts:,} alerts; "
+               f"{summary.rows_per_second:,.0f} fixes/s")
