@@ -291,25 +291,42 @@ def _features_kernel(P: FloatArray, S: FloatArray, dt: FloatArray, lat: FloatArr
     return out
 
 
-def _batch_body(Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: Any,
-                h_len: int, starts: NDArray[np.int64], dt: FloatArray, lat: FloatArray,
-                lon: FloatArray, speed: FloatArray, heading: FloatArray) -> FloatArray:
-    """Many segments, each exactly as :func:`_segment_kernel` (compiled twice, below)."""
+@numba.njit(cache=True)
+def _batch_segment(k: int, Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: Any,
+                   h_len: int, starts: NDArray[np.int64], dt: FloatArray, lat: FloatArray,
+                   lon: FloatArray, speed: FloatArray, heading: FloatArray,
+                   out: FloatArray) -> None:
+    """Segment ``k`` of a batch, exactly as :func:`_segment_kernel`, into its rows of ``out``."""
+    a, b = starts[k], starts[k + 1]
+    S = Ss[k, :s_len[k]].copy()
+    H = np.zeros(h_len, np.float32)
+    out[a:b] = _segment_kernel(Ps[k], S, H, gp, dt[a:b], lat[a:b], lon[a:b], speed[a:b],
+                               heading[a:b])
+
+
+# Two drivers over the same per-segment step: one thread (the default: safe to call from
+# any number of the caller's threads), and segments spread over numba's threads (opt-in:
+# with numba's "workqueue" threading layer, two caller threads must not enter it at once;
+# "omp" and "tbb" are fine). They are separate functions, not one function compiled twice,
+# because numba's on-disk cache keys a kernel by its function, not by its flags.
+@numba.njit(cache=True)
+def _batch_serial(Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: Any,
+                  h_len: int, starts: NDArray[np.int64], dt: FloatArray, lat: FloatArray,
+                  lon: FloatArray, speed: FloatArray, heading: FloatArray) -> FloatArray:
     out = np.empty((lat.size, N_POINT_OUT))
-    for k in numba.prange(starts.size - 1):
-        a, b = starts[k], starts[k + 1]
-        S = Ss[k, :s_len[k]].copy()
-        H = np.zeros(h_len, np.float32)
-        out[a:b] = _segment_kernel(Ps[k], S, H, gp, dt[a:b], lat[a:b], lon[a:b], speed[a:b],
-                                   heading[a:b])
+    for k in range(starts.size - 1):
+        _batch_segment(k, Ps, Ss, s_len, gp, h_len, starts, dt, lat, lon, speed, heading, out)
     return out
 
 
-# One thread (the default: safe to call from any number of threads of the caller) and
-# segments spread over numba's threads (opt-in: with numba's "workqueue" threading layer,
-# two caller threads must not enter it at once; "omp" and "tbb" are fine).
-_batch_serial = numba.njit(cache=True)(_batch_body)
-_batch_parallel = numba.njit(cache=True, parallel=True)(_batch_body)
+@numba.njit(cache=True, parallel=True)
+def _batch_parallel(Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: Any,
+                    h_len: int, starts: NDArray[np.int64], dt: FloatArray, lat: FloatArray,
+                    lon: FloatArray, speed: FloatArray, heading: FloatArray) -> FloatArray:
+    out = np.empty((lat.size, N_POINT_OUT))
+    for k in numba.prange(starts.size - 1):
+        _batch_segment(k, Ps, Ss, s_len, gp, h_len, starts, dt, lat, lon, speed, heading, out)
+    return out
 
 
 def grad_segments(params: PipelineParams, frames: list[LocalFrame], gp: NDArray[np.float32],
