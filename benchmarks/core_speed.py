@@ -52,12 +52,14 @@ def synthetic_drive(n: int, period: float, seed: int = 0) -> tuple[np.ndarray, .
     east = np.cumsum(speed * np.sin(h) * period) + rng.normal(0, 1, n)
     north = np.cumsum(speed * np.cos(h) * period) + rng.normal(0, 1, n)
     for start in rng.integers(0, n - 10, n // 500):
-        east[start:start + 3] += 30.0
+        east[start : start + 3] += 30.0
     return east, north, speed, heading
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--points", type=int, default=2_000_000)
     ap.add_argument("--stream-points", type=int, default=20_000)
     ap.add_argument("--repeat", type=int, default=5, help="best of this many runs")
@@ -66,9 +68,11 @@ def main() -> None:
     args = ap.parse_args()
 
     rema = RemaDetector().rema  # the tuned defaults the benchmark detector uses
-    results: dict[str, object] = {"threads": os.environ["NUMBA_NUM_THREADS"],
-                                  "load_average_before": round(os.getloadavg()[0], 2),
-                                  "cpu_count": os.cpu_count()}
+    results: dict[str, object] = {
+        "threads": os.environ["NUMBA_NUM_THREADS"],
+        "load_average_before": round(os.getloadavg()[0], 2),
+        "cpu_count": os.cpu_count(),
+    }
 
     east, north, speed, heading = synthetic_drive(1000, 1.0)
     t0 = time.perf_counter()
@@ -90,8 +94,13 @@ def main() -> None:
         for _ in range(args.repeat):
             t0 = time.perf_counter()
             for i in range(0, args.points, seg):
-                core_batch(east[i:i + seg], north[i:i + seg], params, speed=speed[i:i + seg],
-                           heading=heading[i:i + seg])
+                core_batch(
+                    east[i : i + seg],
+                    north[i : i + seg],
+                    params,
+                    speed=speed[i : i + seg],
+                    heading=heading[i : i + seg],
+                )
             best = min(best, time.perf_counter() - t0)
         results[f"batch_points_per_s_{hz}hz_segments"] = round(args.points / best)
 

@@ -60,25 +60,43 @@ def main() -> None:
         "dataset": args.dataset,
         "modes": {},
     }
-    for name, mode, window in (("stream", "stream", 10), ("window-10", "window", 10),
-                               ("window-50", "window", 50)):
-        cfg = TrainConfig(bias_classes=GRAD_BIAS_CLASSES, mode=mode, window=window,
-                          time_budget_s=args.budget, early_stopping="f1", patience=25,
-                          max_epochs=400, progress=False)
+    for name, mode, window in (
+        ("stream", "stream", 10),
+        ("window-10", "window", 10),
+        ("window-50", "window", 50),
+    ):
+        cfg = TrainConfig(
+            bias_classes=GRAD_BIAS_CLASSES,
+            mode=mode,
+            window=window,
+            time_budget_s=args.budget,
+            early_stopping="f1",
+            patience=25,
+            max_epochs=400,
+            progress=False,
+        )
         started = time.perf_counter()
         trained = train_model(train, val, cfg)
         train_s = time.perf_counter() - started
-        net = GRUModel(export_torch(trained.network), trained.network.scaler_mean.numpy(),
-                       trained.network.scaler_std.numpy(), mode=mode, window=window)
+        net = GRUModel(
+            export_torch(trained.network),
+            trained.network.scaler_mean.numpy(),
+            trained.network.scaler_std.numpy(),
+            mode=mode,
+            window=window,
+        )
         net.predict(test[0][0][:20])  # compile
         started = time.perf_counter()
         prob = np.concatenate([net.predict(s[0]).anomaly for s in test])
         us = 1e6 * (time.perf_counter() - started) / truth.size
         scores = class_scores(truth, prob >= trained.anomaly_threshold)
         results["modes"][name] = {  # type: ignore[index]
-            "anomaly_f1": scores["anomaly"]["f1"], "normal_f1": scores["normal"]["f1"],
-            "us_per_point_network": us, "train_seconds": train_s,
-            "best_epoch": trained.best_epoch, "stop_reason": trained.stop_reason,
+            "anomaly_f1": scores["anomaly"]["f1"],
+            "normal_f1": scores["normal"]["f1"],
+            "us_per_point_network": us,
+            "train_seconds": train_s,
+            "best_epoch": trained.best_epoch,
+            "stop_reason": trained.stop_reason,
         }
         print(name, results["modes"][name])  # type: ignore[index]
     args.json.write_text(json.dumps(results, indent=2) + "\n")

@@ -50,8 +50,11 @@ def _streaming(model: str | None, minutes: float) -> dict[str, float]:
         det.update(t, lat, lon, speed=speed, heading=heading)
         times[i] = clock() - start
     us = times[50:] / 1e3
-    return {"streaming_p50_us": float(np.percentile(us, 50)),
-            "streaming_p99_us": float(np.percentile(us, 99)), "streaming_calls": len(us)}
+    return {
+        "streaming_p50_us": float(np.percentile(us, 50)),
+        "streaming_p99_us": float(np.percentile(us, 99)),
+        "streaming_calls": len(us),
+    }
 
 
 def _batch(model: str | None, points: int, tracks: int, threads: int) -> dict[str, float]:
@@ -92,8 +95,12 @@ def main() -> None:
     parser.add_argument("--model", default=None, help="model directory (default: shipped model)")
     parser.add_argument("--points", type=int, default=1_000_000, help="fixes for the batch run")
     parser.add_argument("--tracks", type=int, default=100, help="tracks in the batch run")
-    parser.add_argument("--threads", type=int, default=os.cpu_count() or 1,
-                        help="numba threads for the second batch run")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="numba threads for the second batch run",
+    )
     parser.add_argument("--stream-minutes", type=float, default=60.0)
     parser.add_argument("--fleet-steps", type=int, default=60)
     args = parser.parse_args()

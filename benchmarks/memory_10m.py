@@ -79,12 +79,34 @@ def main() -> None:
         source.unlink(missing_ok=True)
         started = time.perf_counter()
         rows = write_input(source, args.rows, args.tracks)
-        print(f"wrote {rows:,} rows ({source.stat().st_size / 1e9:.2f} GB) in "
-              f"{time.perf_counter() - started:.0f} s", file=sys.stderr)
-        command = [sys.executable, "-m", "gradgps", "detect", str(source), "-o", str(output),
-                   "--chunk-size", str(args.chunk_size)]
-        env = {**os.environ, **{v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
-                                                 "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")}}
+        print(
+            f"wrote {rows:,} rows ({source.stat().st_size / 1e9:.2f} GB) in "
+            f"{time.perf_counter() - started:.0f} s",
+            file=sys.stderr,
+        )
+        command = [
+            sys.executable,
+            "-m",
+            "gradgps",
+            "detect",
+            str(source),
+            "-o",
+            str(output),
+            "--chunk-size",
+            str(args.chunk_size),
+        ]
+        env = {
+            **os.environ,
+            **{
+                v: "1"
+                for v in (
+                    "OMP_NUM_THREADS",
+                    "OPENBLAS_NUM_THREADS",
+                    "MKL_NUM_THREADS",
+                    "NUMBA_NUM_THREADS",
+                )
+            },
+        }
         load_before = os.getloadavg()[0]
         started = time.perf_counter()
         subprocess.run(command, check=True, env=env)
@@ -92,7 +114,9 @@ def main() -> None:
         usage = resource.getrusage(resource.RUSAGE_CHILDREN)
         peak_kib = usage.ru_maxrss  # KiB on Linux
         cpu = usage.ru_utime + usage.ru_stime
-        out_rows = sum(len(c) for c in pd.read_csv(output, usecols=["anomaly"], chunksize=1_000_000))
+        out_rows = sum(
+            len(c) for c in pd.read_csv(output, usecols=["anomaly"], chunksize=1_000_000)
+        )
         result = {
             "rows_in": rows,
             "rows_out": out_rows,
@@ -106,10 +130,9 @@ def main() -> None:
             "cpu_s": round(cpu, 1),
             "rows_per_cpu_s": round(rows / cpu),
             "load_average_1min": [round(load_before, 2), round(os.getloadavg()[0], 2)],
-            "command": "gradgps detect fleet.csv -o detected.csv --chunk-size "
-                       f"{args.chunk_size}",
+            "command": f"gradgps detect fleet.csv -o detected.csv --chunk-size {args.chunk_size}",
             "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-                       f"{platform.system()} {platform.release()}",
+            f"{platform.system()} {platform.release()}",
             "python": platform.python_version(),
             "numpy": np.__version__,
             "pandas": pd.__version__,

@@ -88,8 +88,9 @@ def _recipe(quick: bool) -> Any:
 
     if not quick:
         return BaselineRecipe()
-    return BaselineRecipe(seeds=(101,), time_budget_s=1.0, max_epochs=1, patience=1,
-                          max_samples_per_epoch=512)
+    return BaselineRecipe(
+        seeds=(101,), time_budget_s=1.0, max_epochs=1, patience=1, max_samples_per_epoch=512
+    )
 
 
 def _grad_model(quick: bool) -> Path | None:
@@ -101,12 +102,21 @@ def _grad_model(quick: bool) -> Path | None:
     return _default_model_dir()
 
 
-def _bench(protocol: str, dataset: str, methods: list[str], args: argparse.Namespace,
-           scale: float = 1.0) -> dict[str, Any]:
+def _bench(
+    protocol: str, dataset: str, methods: list[str], args: argparse.Namespace, scale: float = 1.0
+) -> dict[str, Any]:
     from gradgps._bench import run_bench
 
-    return run_bench(protocol, dataset, methods, seed=0, scale=scale, data_dir=args.data_dir,
-                     model=_grad_model(args.quick), recipe=_recipe(args.quick))
+    return run_bench(
+        protocol,
+        dataset,
+        methods,
+        seed=0,
+        scale=scale,
+        data_dir=args.data_dir,
+        model=_grad_model(args.quick),
+        recipe=_recipe(args.quick),
+    )
 
 
 def _speed(args: argparse.Namespace) -> dict[str, Any]:
@@ -121,9 +131,13 @@ def _speed(args: argparse.Namespace) -> dict[str, Any]:
     fixes = to_fixes(inject_grad(table, seed=0, columns=cmap), cmap)
     out: dict[str, Any] = {"points": len(fixes)}
     for name in POSITION_METHODS:
-        det = make_detector(name, dataset="driveplotr", data_dir=args.data_dir,
-                            model=_grad_model(args.quick) if name == "grad" else None,
-                            recipe=_recipe(args.quick))
+        det = make_detector(
+            name,
+            dataset="driveplotr",
+            data_dir=args.data_dir,
+            model=_grad_model(args.quick) if name == "grad" else None,
+            recipe=_recipe(args.quick),
+        )
         fresh = copy.deepcopy(det)
         det.detect(fixes.iloc[:50])  # compile and warm caches
         batch = []
@@ -143,13 +157,16 @@ def _speed(args: argparse.Namespace) -> dict[str, Any]:
                 speed = rows["speed"].to_numpy(float) if "speed" in rows else None
                 began = time.perf_counter()
                 for i in range(len(rows)):
-                    one.update(cols[0][i], cols[1][i], cols[2][i],
-                               None if speed is None else speed[i])
+                    one.update(
+                        cols[0][i], cols[1][i], cols[2][i], None if speed is None else speed[i]
+                    )
                 elapsed += time.perf_counter() - began
                 count += len(rows)
             stream_us = 1e6 * elapsed / max(count, 1)
-        out[name] = {"batch_us_per_point": 1e6 * min(batch) / len(fixes),
-                     "stream_us_per_point": stream_us}
+        out[name] = {
+            "batch_us_per_point": 1e6 * min(batch) / len(fixes),
+            "stream_us_per_point": stream_us,
+        }
     return out
 
 
@@ -161,8 +178,9 @@ def run_table(name: str, args: argparse.Namespace) -> dict[str, Any]:
     if name == "sensor-grid":
         return _bench("sensor-grid", "driveplotr", SENSOR_METHODS, args)
     if name == "sweep":
-        return {str(s): _bench("grad", "driveplotr", POSITION_METHODS, args, scale=s)
-                for s in SCALES}
+        return {
+            str(s): _bench("grad", "driveplotr", POSITION_METHODS, args, scale=s) for s in SCALES
+        }
     if name == "speed":
         return _speed(args)
     raise SystemExit(f"unknown table {name!r}; known: {', '.join(TABLES)}")
@@ -180,12 +198,16 @@ def _f(value: float | None, pct: bool = False) -> str:
 
 
 def _grad_section(report: dict[str, Any], title: str) -> list[str]:
-    lines = [f"### Protocol `grad`, {title} (test split, seed 0)", "",
-             "| method | normal P | normal R | normal F1 | anomaly P | anomaly R | anomaly F1 |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        f"### Protocol `grad`, {title} (test split, seed 0)",
+        "",
+        "| method | normal P | normal R | normal F1 | anomaly P | anomaly R | anomaly F1 |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for name, block in report["results"].items():
-        cells = [_f(block[c][m]) for c in ("normal", "anomaly")
-                 for m in ("precision", "recall", "f1")]
+        cells = [
+            _f(block[c][m]) for c in ("normal", "anomaly") for m in ("precision", "recall", "f1")
+        ]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return [*lines, ""]
 
@@ -195,9 +217,14 @@ def _sensor_section(report: dict[str, Any]) -> tuple[list[str], list[str]]:
     methods = list(res)
     rows = list(next(iter(res.values())))
     head = " | ".join(methods)
-    lines = ["### Protocol `sensor-grid`, DrivePlotR (test split, seed 0): anomaly F1 (%)", "",
-             f"| row | {head} | GRAD vs best baseline | paper: " + " | paper: ".join(PAPER_COLUMNS)
-             + " |", "|---" * (len(methods) + 2 + len(PAPER_COLUMNS)) + "|"]
+    lines = [
+        "### Protocol `sensor-grid`, DrivePlotR (test split, seed 0): anomaly F1 (%)",
+        "",
+        f"| row | {head} | GRAD vs best baseline | paper: "
+        + " | paper: ".join(PAPER_COLUMNS)
+        + " |",
+        "|---" * (len(methods) + 2 + len(PAPER_COLUMNS)) + "|",
+    ]
     verdicts = []
     for row in rows:
         f1 = {m: res[m][row]["anomaly"]["f1"] for m in methods}
@@ -209,23 +236,36 @@ def _sensor_section(report: dict[str, Any]) -> tuple[list[str], list[str]]:
         else:
             diff = 100 * (g - others[best])
             verdict = f"leads by {diff:.1f}" if diff > 0 else f"trails {best} by {-diff:.1f}"
-            verdicts.append(f"{row}: GRAD {100 * g:.1f}, best baseline {best} "
-                            f"{100 * others[best]:.1f} -> {'leads' if diff > 0 else 'does not lead'}")
+            verdicts.append(
+                f"{row}: GRAD {100 * g:.1f}, best baseline {best} "
+                f"{100 * others[best]:.1f} -> {'leads' if diff > 0 else 'does not lead'}"
+            )
         paper = PAPER_GRID.get(row)
         paper_cells = [f"{v:.1f}" for v in paper] if paper else ["-"] * len(PAPER_COLUMNS)
-        lines.append(f"| {row} | " + " | ".join(_f(f1[m], pct=True) for m in methods)
-                     + f" | {verdict} | " + " | ".join(paper_cells) + " |")
+        lines.append(
+            f"| {row} | "
+            + " | ".join(_f(f1[m], pct=True) for m in methods)
+            + f" | {verdict} | "
+            + " | ".join(paper_cells)
+            + " |"
+        )
     return [*lines, ""], verdicts
 
 
 def _sweep_section(sweep: dict[str, Any], png: str) -> list[str]:
     methods = list(next(iter(sweep.values()))["results"])
-    lines = ["### Magnitude sweep: protocol `grad`, DrivePlotR, anomaly F1 by `--scale`", "",
-             "| method | " + " | ".join(f"× {s}" for s in sweep) + " |",
-             "|---" * (len(sweep) + 1) + "|"]
+    lines = [
+        "### Magnitude sweep: protocol `grad`, DrivePlotR, anomaly F1 by `--scale`",
+        "",
+        "| method | " + " | ".join(f"× {s}" for s in sweep) + " |",
+        "|---" * (len(sweep) + 1) + "|",
+    ]
     for m in methods:
-        lines.append(f"| {m} | " + " | ".join(_f(sweep[s]["results"][m]["anomaly"]["f1"])
-                                              for s in sweep) + " |")
+        lines.append(
+            f"| {m} | "
+            + " | ".join(_f(sweep[s]["results"][m]["anomaly"]["f1"]) for s in sweep)
+            + " |"
+        )
     return [*lines, "", f"![anomaly F1 by fault magnitude]({png})", ""]
 
 
@@ -252,14 +292,20 @@ def _plot_sweep(sweep: dict[str, Any], path: Path) -> None:
 
 
 def _speed_section(speed: dict[str, Any]) -> list[str]:
-    lines = [f"### Speed: µs per point (DrivePlotR test, {speed['points']} points, one core)", "",
-             "| method | batch `detect` | streaming `update` |", "|---|---|---|"]
+    lines = [
+        f"### Speed: µs per point (DrivePlotR test, {speed['points']} points, one core)",
+        "",
+        "| method | batch `detect` | streaming `update` |",
+        "|---|---|---|",
+    ]
     for name, block in speed.items():
         if name == "points":
             continue
         stream = block["stream_us_per_point"]
-        lines.append(f"| {name} | {block['batch_us_per_point']:.1f} | "
-                     f"{'-' if stream is None else f'{stream:.1f}'} |")
+        lines.append(
+            f"| {name} | {block['batch_us_per_point']:.1f} | "
+            f"{'-' if stream is None else f'{stream:.1f}'} |"
+        )
     return [*lines, ""]
 
 
@@ -272,8 +318,10 @@ def _machine() -> str:
                 break
     except OSError:
         pass
-    return f"{cpu}, {os.cpu_count()} logical CPUs, {platform.system()} {platform.release()}, " \
-           f"Python {platform.python_version()}"
+    return (
+        f"{cpu}, {os.cpu_count()} logical CPUs, {platform.system()} {platform.release()}, "
+        f"Python {platform.python_version()}"
+    )
 
 
 def _lead_summary(grad_reports: dict[str, dict[str, Any]]) -> list[str]:
@@ -284,57 +332,87 @@ def _lead_summary(grad_reports: dict[str, dict[str, Any]]) -> list[str]:
         base = {m: res[m]["anomaly"]["f1"] for m in BASELINES if m in res}
         best = max(base, key=lambda m: base[m] or 0.0)
         verdict = "at or above" if g is not None and g >= (base[best] or 0.0) else "BELOW"
-        out.append(f"- {title}: GRAD anomaly F1 {_f(g)} is {verdict} every baseline "
-                   f"(best baseline: {best}, {_f(base[best])}).")
+        out.append(
+            f"- {title}: GRAD anomaly F1 {_f(g)} is {verdict} every baseline "
+            f"(best baseline: {best}, {_f(base[best])})."
+        )
     return out
 
 
-def write_markdown(results: dict[str, Any], seconds: dict[str, float], path: Path,
-                   png: str, quick: bool, command: str) -> None:
-    lines = [START, "", "## GRAD and the baselines, side by side", "",
-             f"Generated by `{command}` on {datetime.date.today().isoformat()}"
-             + (" (**quick mode: tiny data, not results**)" if quick else "") + ".",
-             f"Machine: {_machine()}; every number in one run, one core (threads pinned to 1).",
-             "Wall time per table (s, training of uncached models included): "
-             + ", ".join(f"{k} {v:.0f}" for k, v in seconds.items()) + ".", "",
-             "Methods (all trained ones on the data set's train split with GRAD's recipe: ten "
-             "injection seeds, validation split for early stopping and the threshold, 3-minute "
-             "budget): `grad` = GRAD trained on the data set (under `sensor-grid`: the "
-             "channel-wise GRAD, REMA + MS-SW features per sensor channel into the same GRU, "
-             "`src/gradgps/_channel_grad.py`); `grad-default` = the shipped model (simulated "
-             "drives only); `rema`, `speed-gate`: statistical, no training; `kf`: "
-             "constant-velocity Kalman filter + χ² test (`_kalman.py`); `cnn`: 1-D CNN "
-             "(`_cnn.py`); `cnn-kf`: CNN then KF + χ² (van Wyk et al., `_cnn_kf.py`); "
-             "`lstm-cnn`: convolutions + LSTM + attention (Javed et al.'s ML-C, `_lstm_cnn.py`). "
-             "No WAVED ensemble was built.", "",
-             "Columns marked **paper** are the numbers printed in the paper, measured on its "
-             "own data (MMITSS, Zurich) with its own injection; they are not comparable "
-             "number for number with ours and are shown only as reference.", ""]
+def write_markdown(
+    results: dict[str, Any],
+    seconds: dict[str, float],
+    path: Path,
+    png: str,
+    quick: bool,
+    command: str,
+) -> None:
+    lines = [
+        START,
+        "",
+        "## GRAD and the baselines, side by side",
+        "",
+        f"Generated by `{command}` on {datetime.date.today().isoformat()}"
+        + (" (**quick mode: tiny data, not results**)" if quick else "")
+        + ".",
+        f"Machine: {_machine()}; every number in one run, one core (threads pinned to 1).",
+        "Wall time per table (s, training of uncached models included): "
+        + ", ".join(f"{k} {v:.0f}" for k, v in seconds.items())
+        + ".",
+        "",
+        "Methods (all trained ones on the data set's train split with GRAD's recipe: ten "
+        "injection seeds, validation split for early stopping and the threshold, 3-minute "
+        "budget): `grad` = GRAD trained on the data set (under `sensor-grid`: the "
+        "channel-wise GRAD, REMA + MS-SW features per sensor channel into the same GRU, "
+        "`src/gradgps/_channel_grad.py`); `grad-default` = the shipped model (simulated "
+        "drives only); `rema`, `speed-gate`: statistical, no training; `kf`: "
+        "constant-velocity Kalman filter + χ² test (`_kalman.py`); `cnn`: 1-D CNN "
+        "(`_cnn.py`); `cnn-kf`: CNN then KF + χ² (van Wyk et al., `_cnn_kf.py`); "
+        "`lstm-cnn`: convolutions + LSTM + attention (Javed et al.'s ML-C, `_lstm_cnn.py`). "
+        "No WAVED ensemble was built.",
+        "",
+        "Columns marked **paper** are the numbers printed in the paper, measured on its "
+        "own data (MMITSS, Zurich) with its own injection; they are not comparable "
+        "number for number with ours and are shown only as reference.",
+        "",
+    ]
     grad_reports = {}
     for key, title in (("grad-driveplotr", "DrivePlotR"), ("grad-tuc", "TUC")):
         if key in results:
             grad_reports[title] = results[key]
             lines += _grad_section(results[key], title)
     if grad_reports:
-        lines += ["**paper** (Table 2, GRAD only, percent):", "",
-                  "| data set | normal P | normal R | normal F1 | anomaly P | anomaly R | anomaly F1 |",
-                  "|---|---|---|---|---|---|---|"]
+        lines += [
+            "**paper** (Table 2, GRAD only, percent):",
+            "",
+            "| data set | normal P | normal R | normal F1 | anomaly P | anomaly R | anomaly F1 |",
+            "|---|---|---|---|---|---|---|",
+        ]
         for ds, block in PAPER_TABLE2.items():
-            lines.append(f"| {ds} (paper) | " + " | ".join(f"{v:.2f}" for c in ("normal", "anomaly")
-                                                        for v in block[c]) + " |")
+            lines.append(
+                f"| {ds} (paper) | "
+                + " | ".join(f"{v:.2f}" for c in ("normal", "anomaly") for v in block[c])
+                + " |"
+            )
         lines += ["", *_lead_summary(grad_reports), ""]
     verdicts: list[str] = []
     if "sensor-grid" in results:
         table, verdicts = _sensor_section(results["sensor-grid"])
         lines += table
-        lines += ["`rema` and `speed-gate` look at positions only and flag nothing under "
-                  "`sensor-grid`, so they have no column there.", ""]
+        lines += [
+            "`rema` and `speed-gate` look at positions only and flag nothing under "
+            "`sensor-grid`, so they have no column there.",
+            "",
+        ]
     if "sweep" in results:
         lines += _sweep_section(results["sweep"], png)
     if "speed" in results:
         lines += _speed_section(results["speed"])
-        lines += ["`rema` has no streaming object of its own (its core streams through "
-                  "`CorePipeline`), hence no streaming number. Batch = best of 3.", ""]
+        lines += [
+            "`rema` has no streaming object of its own (its core streams through "
+            "`CorePipeline`), hence no streaming number. Batch = best of 3.",
+            "",
+        ]
     if verdicts:
         lines += ["### Where GRAD leads on the sensor grid, row by row", ""]
         lines += [f"- {v}" for v in verdicts]
@@ -343,7 +421,7 @@ def write_markdown(results: dict[str, Any], seconds: dict[str, float], path: Pat
     block = "\n".join(lines) + "\n"
     old = path.read_text() if path.is_file() else "# Benchmarks\n\n"
     if START in old and END in old:
-        new = old[: old.index(START)] + block + old[old.index(END) + len(END) + 1:]
+        new = old[: old.index(START)] + block + old[old.index(END) + len(END) + 1 :]
     else:
         new = old.rstrip("\n") + "\n\n" + block
     path.write_text(new)
@@ -361,8 +439,11 @@ def main() -> None:
     parser.add_argument("--markdown", type=Path, default=REPO / "BENCHMARKS.md")
     parser.add_argument("--table", choices=TABLES, help="run one table in this process (internal)")
     parser.add_argument("--json", type=Path, help="with --table: write its JSON here (internal)")
-    parser.add_argument("--render-only", action="store_true",
-                        help="rewrite BENCHMARKS.md from the saved bench_all JSON, run nothing")
+    parser.add_argument(
+        "--render-only",
+        action="store_true",
+        help="rewrite BENCHMARKS.md from the saved bench_all JSON, run nothing",
+    )
     args = parser.parse_args()
     if args.table:
         import torch
@@ -396,8 +477,17 @@ def main() -> None:
     _plot_sweep(results["sweep"], args.results / png_name)
     write_markdown(results, seconds, args.markdown, png, args.quick, command)
     (args.results / f"bench_all{'_quick' if args.quick else ''}.json").write_text(
-        json.dumps({"seconds": seconds, "machine": _machine(),
-                    "date": datetime.date.today().isoformat(), "results": results}, indent=1) + "\n")
+        json.dumps(
+            {
+                "seconds": seconds,
+                "machine": _machine(),
+                "date": datetime.date.today().isoformat(),
+                "results": results,
+            },
+            indent=1,
+        )
+        + "\n"
+    )
     print(f"[bench] wrote {args.markdown} and {args.results}", flush=True)
 
 

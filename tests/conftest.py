@@ -19,7 +19,9 @@ SHARED_DATA = Path(os.environ.get("GRADGPS_DATA", REPO.parent / "shared" / "data
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """Folder holding driveplotr_nds.csv and tuc_urban_gt.csv."""
-    present = (SHARED_DATA / "driveplotr_nds.csv").is_file() and (SHARED_DATA / "tuc_urban_gt.csv").is_file()
+    present = (SHARED_DATA / "driveplotr_nds.csv").is_file() and (
+        SHARED_DATA / "tuc_urban_gt.csv"
+    ).is_file()
     if not present:
         msg = f"shared data not found at {SHARED_DATA} (set GRADGPS_DATA or put ../shared/data beside the checkout)"
         if os.environ.get("GRADGPS_REQUIRE_SHARED") == "1":

@@ -26,9 +26,17 @@ def drive(n: int = 120, seed: int = 0, jump_at: int = 60) -> pd.DataFrame:
     north = 0.02 * t**2 + rng.normal(0, 1.0, n)
     east[jump_at % n] += 80.0
     lat, lon = FRAME.to_geodetic(east, north)
-    return pd.DataFrame({"track": "a", "t": t, "lat": lat, "lon": lon,
-                         "speed": 15.0 + rng.normal(0, 0.2, n),
-                         "accel_x_mps2": rng.normal(0, 0.3, n), "gyro_z_dps": rng.normal(0, 2, n)})
+    return pd.DataFrame(
+        {
+            "track": "a",
+            "t": t,
+            "lat": lat,
+            "lon": lon,
+            "speed": 15.0 + rng.normal(0, 0.2, n),
+            "accel_x_mps2": rng.normal(0, 0.3, n),
+            "gyro_z_dps": rng.normal(0, 2, n),
+        }
+    )
 
 
 @settings(max_examples=25, deadline=None)
@@ -67,21 +75,37 @@ def test_kalman_stream_equals_batch(inputs: str) -> None:
     for i, row in enumerate(fixes.itertuples(index=False)):
         if i == 50:  # checkpoint and restore mid-stream
             stream = KalmanDetector.from_params(params).set_state(stream.get_state())
-        r = stream.update(row.t, row.lat, row.lon, row.speed, accel_x_mps2=row.accel_x_mps2,
-                          gyro_z_dps=row.gyro_z_dps)
+        r = stream.update(
+            row.t,
+            row.lat,
+            row.lon,
+            row.speed,
+            accel_x_mps2=row.accel_x_mps2,
+            gyro_z_dps=row.gyro_z_dps,
+        )
         assert r.anomaly == batch["anomaly"].iloc[i]
         assert r.score == pytest.approx(batch["score"].iloc[i], rel=1e-9)
         assert r.lat_clean == pytest.approx(batch["lat_clean"].iloc[i], abs=1e-9)
 
 
-def _random_model(architecture: str, inputs: str, seed: int = 0) -> tuple[WindowModel, torch.nn.Module]:
+def _random_model(
+    architecture: str, inputs: str, seed: int = 0
+) -> tuple[WindowModel, torch.nn.Module]:
     torch.manual_seed(seed)
     width = 4 if inputs == "position" else 6
     net = NETS[architecture](width, 8).eval()
     weights = {k: v.detach().numpy().astype(np.float32) for k, v in net.state_dict().items()}
     assert set(weights) == set(ARCHITECTURES[architecture][0])
-    model = WindowModel(architecture, inputs, 8, np.zeros(width, np.float32),
-                        np.ones(width, np.float32), 0.5, weights, {})
+    model = WindowModel(
+        architecture,
+        inputs,
+        8,
+        np.zeros(width, np.float32),
+        np.ones(width, np.float32),
+        0.5,
+        weights,
+        {},
+    )
     return model, net
 
 
@@ -94,16 +118,19 @@ def test_numpy_forward_equals_torch(architecture: str) -> None:
     np.testing.assert_allclose(model.predict(x), expected, atol=1e-5)
 
 
-@pytest.mark.parametrize(("architecture", "inputs"),
-                         [("cnn", "position"), ("lstm-cnn", "sensor")])
+@pytest.mark.parametrize(("architecture", "inputs"), [("cnn", "position"), ("lstm-cnn", "sensor")])
 def test_window_classifier_stream_equals_batch(architecture: str, inputs: str) -> None:
     fixes = drive(60)
     fixes.loc[30:, "t"] += 100.0  # a long gap: a new segment, fresh window
     model, _ = _random_model(architecture, inputs)
     batch = WindowClassifier(model).detect(fixes)
     stream = WindowClassifier(model)
-    scores = [stream.update(r.t, r.lat, r.lon, r.speed, accel_x_mps2=r.accel_x_mps2,
-                            gyro_z_dps=r.gyro_z_dps).score for r in fixes.itertuples(index=False)]
+    scores = [
+        stream.update(
+            r.t, r.lat, r.lon, r.speed, accel_x_mps2=r.accel_x_mps2, gyro_z_dps=r.gyro_z_dps
+        ).score
+        for r in fixes.itertuples(index=False)
+    ]
     np.testing.assert_allclose(scores, batch["score"], atol=1e-5)
 
 
@@ -116,7 +143,9 @@ def test_cnn_kf_stream_equals_batch_and_flags_the_union() -> None:
     alone = WindowClassifier(cnn).detect(fixes)["anomaly"].to_numpy()
     assert np.all(batch["anomaly"].to_numpy() >= alone)
     stream = CnnKalmanDetector(cnn, kf)
-    flags = [stream.update(r.t, r.lat, r.lon, r.speed).anomaly for r in fixes.itertuples(index=False)]
+    flags = [
+        stream.update(r.t, r.lat, r.lon, r.speed).anomaly for r in fixes.itertuples(index=False)
+    ]
     np.testing.assert_array_equal(flags, batch["anomaly"])
 
 
@@ -135,8 +164,9 @@ def test_window_training_learns_an_obvious_fault() -> None:
         segs += s
         labels += [truth[x.rows] for x in s]
     recipe = BaselineRecipe(time_budget_s=20.0, max_epochs=30, patience=30, window=8)
-    model = train_window_model("cnn", (segs[:4], labels[:4]), (segs[4:], labels[4:]), "position",
-                               recipe)
+    model = train_window_model(
+        "cnn", (segs[:4], labels[:4]), (segs[4:], labels[4:]), "position", recipe
+    )
     p = np.concatenate([model.segment_probability(s) for s in segs[4:]])
     truth = np.concatenate(labels[4:]) == 1
     assert p[truth].mean() > p[~truth].mean() + 0.3
@@ -154,5 +184,9 @@ def test_channel_grad_features_are_the_position_features_of_each_channel() -> No
     for k in range(3):
         x = seg.values[:, k]
         expected = features_reference(seg.t, x, x, FeatureParams(speed_heading=False), RemaParams())
-        np.testing.assert_allclose(feats[:, k * N_CHANNEL:(k + 1) * N_CHANNEL],
-                                   expected[:, :N_CHANNEL], rtol=1e-7, atol=1e-7)
+        np.testing.assert_allclose(
+            feats[:, k * N_CHANNEL : (k + 1) * N_CHANNEL],
+            expected[:, :N_CHANNEL],
+            rtol=1e-7,
+            atol=1e-7,
+        )

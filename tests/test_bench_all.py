@@ -20,16 +20,36 @@ def _tiny_data(folder: Path) -> None:
     """DrivePlotR- and TUC-shaped files from the simulator: a few two-minute drives per split."""
     fleet = simulate_fleet(6, 2.0, 1.0, seed=5)
     ids = dict(zip(sorted(fleet["track"].unique()), [1, 2, 9, 10, 11, 14], strict=True))
-    dp = pd.DataFrame({"drive": fleet["track"].map(ids), "t": fleet["t"].round().astype("int64"),
-                       "lat": fleet["lat"], "lon": fleet["lon"], "speed_mps": fleet["speed"],
-                       "heading_deg": fleet["heading"], "accel_x_g": fleet["accel_x"] / 9.80665,
-                       "gyro_z_dps": fleet["yaw_rate"]})
+    dp = pd.DataFrame(
+        {
+            "drive": fleet["track"].map(ids),
+            "t": fleet["t"].round().astype("int64"),
+            "lat": fleet["lat"],
+            "lon": fleet["lon"],
+            "speed_mps": fleet["speed"],
+            "heading_deg": fleet["heading"],
+            "accel_x_g": fleet["accel_x"] / 9.80665,
+            "gyro_z_dps": fleet["yaw_rate"],
+        }
+    )
     dp.to_csv(folder / "driveplotr_nds.csv", index=False)
-    names = dict(zip(sorted(fleet["track"].unique()),
-                     ["a", "b", "frankfurt_westend_tower", "c", "chemnitz_city", "d"], strict=True))
-    tuc = pd.DataFrame({"trace": fleet["track"].map(names), "t_rel": fleet["t"] - fleet["t"].min(),
-                        "lat": fleet["lat"], "lon": fleet["lon"], "speed_mps": fleet["speed"],
-                        "heading_deg": fleet["heading"]})
+    names = dict(
+        zip(
+            sorted(fleet["track"].unique()),
+            ["a", "b", "frankfurt_westend_tower", "c", "chemnitz_city", "d"],
+            strict=True,
+        )
+    )
+    tuc = pd.DataFrame(
+        {
+            "trace": fleet["track"].map(names),
+            "t_rel": fleet["t"] - fleet["t"].min(),
+            "lat": fleet["lat"],
+            "lon": fleet["lon"],
+            "speed_mps": fleet["speed"],
+            "heading_deg": fleet["heading"],
+        }
+    )
     tuc.to_csv(folder / "tuc_urban_gt.csv", index=False)
 
 
@@ -39,11 +59,28 @@ def test_quick_bench_writes_every_table(tmp_path: Path) -> None:
     _tiny_data(data)
     results, markdown = tmp_path / "results", tmp_path / "BENCHMARKS.md"
     markdown.write_text("# Benchmarks\n\n## Memory\n\nkept\n")
-    env = {**os.environ, "GRADGPS_CACHE": str(tmp_path / "cache"),
-           "PYTHONPATH": str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    subprocess.run([sys.executable, str(REPO / "benchmarks" / "run_all.py"), "--quick",
-                    "--data-dir", str(data), "--results", str(results), "--markdown", str(markdown)],
-                   check=True, env=env, capture_output=True, timeout=600)
+    env = {
+        **os.environ,
+        "GRADGPS_CACHE": str(tmp_path / "cache"),
+        "PYTHONPATH": str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""),
+    }
+    subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "run_all.py"),
+            "--quick",
+            "--data-dir",
+            str(data),
+            "--results",
+            str(results),
+            "--markdown",
+            str(markdown),
+        ],
+        check=True,
+        env=env,
+        capture_output=True,
+        timeout=600,
+    )
     report = json.loads((results / "bench_all_quick.json").read_text())["results"]
     assert set(report) == {"grad-driveplotr", "grad-tuc", "sensor-grid", "sweep", "speed"}
     methods = {"grad", "grad-default", "rema", "speed-gate", "kf", "cnn", "cnn-kf", "lstm-cnn"}

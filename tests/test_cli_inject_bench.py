@@ -221,9 +221,23 @@ def test_bench_unknown_detector_and_missing_data_fail_clearly(tmp_path: Path) ->
 def test_bench_reports_grad_type_confusions(shared_data: Path, tmp_path: Path) -> None:
     """The shipped model names bias and time types, so the report carries both confusion matrices."""
     out = tmp_path / "out.json"
-    args = ["bench", "--protocol", "grad", "--dataset", "driveplotr", "--split", "test",
-            "--seed", "0", "--detector", "grad-default,rema", "--json", str(out),
-            "--data-dir", str(shared_data)]
+    args = [
+        "bench",
+        "--protocol",
+        "grad",
+        "--dataset",
+        "driveplotr",
+        "--split",
+        "test",
+        "--seed",
+        "0",
+        "--detector",
+        "grad-default,rema",
+        "--json",
+        str(out),
+        "--data-dir",
+        str(shared_data),
+    ]
     res = CliRunner().invoke(main, args)
     assert res.exit_code == 0, res.output
     results = json.loads(out.read_text())["results"]

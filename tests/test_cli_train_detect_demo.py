@@ -17,8 +17,22 @@ def test_train_on_own_logs_then_detect_with_that_model(tmp_path: Path) -> None:
     logs = tmp_path / "mylogs.csv"
     simulate_fleet(5, 3.0, 1.0, seed=21).to_csv(logs, index=False)
     model = tmp_path / "model"
-    res = CliRunner().invoke(main, ["train", "--data", str(logs), "--protocol", "grad", "-o",
-                                    str(model), "--time-budget", "5", "--max-epochs", "2"])
+    res = CliRunner().invoke(
+        main,
+        [
+            "train",
+            "--data",
+            str(logs),
+            "--protocol",
+            "grad",
+            "-o",
+            str(model),
+            "--time-budget",
+            "5",
+            "--max-epochs",
+            "2",
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "training points" in res.output
     cfg = json.loads((model / "config.json").read_text())
@@ -31,8 +45,16 @@ def test_train_on_own_logs_then_detect_with_that_model(tmp_path: Path) -> None:
     original = pd.read_csv(logs)
     assert len(written) == len(original)
     assert list(written.columns[: len(original.columns)]) == list(original.columns)
-    for col in ("anomaly", "score", "bias_type", "time_type", "lat_clean", "lon_clean", "alert",
-                "invalid_reason"):
+    for col in (
+        "anomaly",
+        "score",
+        "bias_type",
+        "time_type",
+        "lat_clean",
+        "lon_clean",
+        "alert",
+        "invalid_reason",
+    ):
         assert col in written.columns
     assert Detector(model).model_.checksum == cfg["weights_sha256"]
 

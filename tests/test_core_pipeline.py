@@ -22,8 +22,8 @@ def _signal(n: int = 300, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.nda
     north = np.cumsum(rng.normal(-3, 0.4, n))
     label = np.zeros(n, dtype=bool)
     for start, length in ((50, 2), (120, 1), (126, 2), (135, 1), (250, 50)):
-        east[start:start + length] += 25.0
-        label[start:start + length] = True
+        east[start : start + length] += 25.0
+        label[start : start + length] = True
     return east, north, label
 
 
@@ -52,15 +52,17 @@ def test_streaming_equals_batch_through_state_round_trip(mode: str) -> None:
 def test_pipeline_pieces_agree_with_the_separate_kernels_when_not_feeding_back() -> None:
     east, north, _ = _signal()
     rp = RemaParams(mode="trend", min_margin=3.0)
-    prm = CoreParams(period=1.0, rema=rp, feed_recovered=False,
-                     features=FeatureParams(speed_heading=False))
+    prm = CoreParams(
+        period=1.0, rema=rp, feed_recovered=False, features=FeatureParams(speed_heading=False)
+    )
     out = core_batch(east, north, prm)
     flag = rema_batch(east, rp).flag | rema_batch(north, rp).flag
     np.testing.assert_array_equal(out.flag, flag)
     np.testing.assert_array_equal(out.time_code, classify_time(flag))
     t = np.arange(east.size, dtype=np.float64)
-    np.testing.assert_allclose(out.features, segment_features(t, east, north, prm.features, rp),
-                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        out.features, segment_features(t, east, north, prm.features, rp), rtol=1e-12, atol=1e-12
+    )
 
 
 def test_protocol_shapes_get_their_time_types() -> None:
@@ -85,8 +87,9 @@ def test_tune_rema_finds_parameters_that_beat_the_defaults() -> None:
     assert len(table) == 4
     assert table["score"].is_monotonic_decreasing
     assert best.mode == "trend"
-    assert table.loc[0, "score"] == pytest.approx(0.5 * (table.loc[0, "f1_anomaly"]
-                                                        + table.loc[0, "f1_normal"]))
+    assert table.loc[0, "score"] == pytest.approx(
+        0.5 * (table.loc[0, "f1_anomaly"] + table.loc[0, "f1_normal"])
+    )
     assert table.loc[0, "score"] > 0.8
 
 

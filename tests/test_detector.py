@@ -24,8 +24,16 @@ from gradgps._grad_pipeline import PipelineParams, pipeline_feature_names
 from gradgps._inject import inject_grad
 from gradgps._model_io import save_model
 
-RESULT = ["anomaly", "score", "bias_type", "time_type", "lat_clean", "lon_clean", "alert",
-          "invalid_reason"]
+RESULT = [
+    "anomaly",
+    "score",
+    "bias_type",
+    "time_type",
+    "lat_clean",
+    "lon_clean",
+    "alert",
+    "invalid_reason",
+]
 
 
 def _random_model(directory: Path, threshold: float = 0.5, seed: int = 0) -> Path:
@@ -33,13 +41,19 @@ def _random_model(directory: Path, threshold: float = 0.5, seed: int = 0) -> Pat
     names = pipeline_feature_names(params)
     rng = np.random.default_rng(seed)
     config = {
-        "architecture": {"n_features": len(names), "hidden1": 32, "hidden2": 16,
-                         "n_bias_classes": 3},
+        "architecture": {
+            "n_features": len(names),
+            "hidden1": 32,
+            "hidden2": 16,
+            "n_bias_classes": 3,
+        },
         "mode": "stream",
         "window": 10,
         "features": {"names": names, "params": {"pipeline": params.to_dict()}},
-        "scaler": {"mean": rng.normal(0, 0.5, len(names)).tolist(),
-                   "std": rng.uniform(0.5, 2.0, len(names)).tolist()},
+        "scaler": {
+            "mean": rng.normal(0, 0.5, len(names)).tolist(),
+            "std": rng.uniform(0.5, 2.0, len(names)).tolist(),
+        },
         "thresholds": {"anomaly": threshold},
         "rema": {},
         "class_names": {"anomaly": ["normal", "anomaly"], "bias": ["none", "noise", "jump"]},
@@ -63,8 +77,18 @@ def _stream(det: Detector, fixes: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for r in fixes.itertuples(index=False):
         res = det.update(r.t, r.lat, r.lon, speed=r.speed, heading=r.heading)
-        rows.append([res.anomaly, res.score, res.bias_type, res.time_type, res.lat_clean,
-                     res.lon_clean, res.alert, res.invalid_reason])
+        rows.append(
+            [
+                res.anomaly,
+                res.score,
+                res.bias_type,
+                res.time_type,
+                res.lat_clean,
+                res.lon_clean,
+                res.alert,
+                res.invalid_reason,
+            ]
+        )
     return pd.DataFrame(rows, columns=RESULT)
 
 
@@ -112,10 +136,12 @@ def test_checkpoint_in_json_and_restore_continues_identically(model_dir: Path, c
 def test_invalid_fixes_are_flagged_and_do_not_touch_state(model_dir: Path) -> None:
     fixes = to_fixes(simulate_fleet(1, 1.0, 1.0, seed=4))
     det, ref = Detector(model_dir), Detector(model_dir)
-    bad = [(math.nan, 41.0, -96.0, "time missing or not finite"),
-           (1e12, math.nan, -96.0, "latitude missing or not finite"),
-           (1e12, 95.0, -96.0, "latitude outside +-90"),
-           (1e12, 41.0, 181.0, "longitude outside +-180")]
+    bad = [
+        (math.nan, 41.0, -96.0, "time missing or not finite"),
+        (1e12, math.nan, -96.0, "latitude missing or not finite"),
+        (1e12, 95.0, -96.0, "latitude outside +-90"),
+        (1e12, 41.0, 181.0, "longitude outside +-180"),
+    ]
     for i, r in enumerate(fixes.itertuples(index=False)):
         a = det.update(r.t, r.lat, r.lon, r.speed, r.heading)
         b = ref.update(r.t, r.lat, r.lon, r.speed, r.heading)

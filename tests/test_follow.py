@@ -48,8 +48,13 @@ def test_csv_stream_matches_detector_update_and_keeps_bad_lines(drive_csv):
     assert list(rows[0]) == ["t", "lat", "lon", "speed", "heading", *RESULT_FIELDS]
     detector = Detector()
     for row in rows[:n]:
-        expected = detector.update(float(row["t"]), float(row["lat"]), float(row["lon"]),
-                                   float(row["speed"]), float(row["heading"]))
+        expected = detector.update(
+            float(row["t"]),
+            float(row["lat"]),
+            float(row["lon"]),
+            float(row["speed"]),
+            float(row["heading"]),
+        )
         assert int(row["anomaly"]) == expected.anomaly
         assert float(row["score"]) == pytest.approx(expected.score, rel=1e-9)
         assert float(row["lat_clean"]) == pytest.approx(expected.lat_clean, abs=1e-9)
@@ -68,11 +73,14 @@ def test_one_detector_per_track():
     out: list[str] = []
     follow_lines(lines, out.append)
     rows = _rows(out)
-    assert all(r["invalid_reason"] == "" for r in rows)  # interleaved times stay increasing per track
+    assert all(
+        r["invalid_reason"] == "" for r in rows
+    )  # interleaved times stay increasing per track
     a = Detector()
     for r in rows[::2]:
         assert float(r["score"]) == pytest.approx(
-            a.update(float(r["time"]), float(r["lat"]), float(r["lon"])).score)
+            a.update(float(r["time"]), float(r["lat"]), float(r["lon"])).score
+        )
 
 
 def test_nmea_stream_scores_each_epoch_once():
@@ -80,11 +88,15 @@ def test_nmea_stream_scores_each_epoch_once():
     for k in range(5):
         tod = f"1235{10 + k:02d}"
         lat = f"4807.{38 + k:03d},N"
-        lines += [_sentence(f"GPGGA,{tod},{lat},01131.000,E,1,08,0.9,545.4,M,46.9,M,,"),
-                  _sentence(f"GPRMC,{tod},A,{lat},01131.000,E,022.4,084.4,230394,003.1,W")]
-    lines += ["$GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00*74",
-              "$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*00",
-              "garbage"]
+        lines += [
+            _sentence(f"GPGGA,{tod},{lat},01131.000,E,1,08,0.9,545.4,M,46.9,M,,"),
+            _sentence(f"GPRMC,{tod},A,{lat},01131.000,E,022.4,084.4,230394,003.1,W"),
+        ]
+    lines += [
+        "$GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00*74",
+        "$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*00",
+        "garbage",
+    ]
     out: list[str] = []
     counts = follow_lines(lines, out.append)
     rows = _rows(out)
@@ -101,10 +113,15 @@ def test_nmea_stream_scores_each_epoch_once():
     assert (counts.fixes, counts.invalid) == (5, 3)
 
 
-@pytest.mark.parametrize(("text", "seconds"), [
-    ("1700000000", 1700000000.0), ("1700000000500", 1700000000.5),
-    ("2023-11-14T22:13:20Z", 1700000000.0), ("2023-11-14 22:13:20", 1700000000.0),
-])
+@pytest.mark.parametrize(
+    ("text", "seconds"),
+    [
+        ("1700000000", 1700000000.0),
+        ("1700000000500", 1700000000.5),
+        ("2023-11-14T22:13:20Z", 1700000000.0),
+        ("2023-11-14 22:13:20", 1700000000.0),
+    ],
+)
 def test_parse_time(text, seconds):
     assert parse_time(text) == pytest.approx(seconds)
 
@@ -120,9 +137,15 @@ def test_cli_follow_with_stdin(drive_csv):
 def test_each_result_is_written_before_the_next_line_arrives(drive_csv):
     """A real pipe: the answer to line k arrives while line k+1 has not been sent."""
     env = {**os.environ, "PYTHONPATH": str(REPO / "src"), "OMP_NUM_THREADS": "1"}
-    with subprocess.Popen([sys.executable, "-m", "gradgps", "detect", "--follow", "-"],
-                          stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                          stderr=subprocess.DEVNULL, text=True, env=env, bufsize=1) as proc:
+    with subprocess.Popen(
+        [sys.executable, "-m", "gradgps", "detect", "--follow", "-"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        env=env,
+        bufsize=1,
+    ) as proc:
         assert proc.stdin is not None
         assert proc.stdout is not None
         lines = drive_csv.splitlines()

@@ -47,7 +47,9 @@ def test_local_distance_matches_haversine() -> None:
     frame = LocalFrame(52.5, 13.4)
     lat, lon = 52.55, 13.45
     e, n = frame.to_local(lat, lon)
-    assert float(np.hypot(e, n)) == pytest.approx(float(haversine_m(52.5, 13.4, lat, lon)), rel=5e-3)
+    assert float(np.hypot(e, n)) == pytest.approx(
+        float(haversine_m(52.5, 13.4, lat, lon)), rel=5e-3
+    )
 
 
 @pytest.mark.parametrize(("lat0", "lon0"), [(float("nan"), 0.0), (91.0, 0.0), (0.0, 181.0)])
@@ -58,7 +60,9 @@ def test_bad_origin_is_a_config_error(lat0: float, lon0: float) -> None:
 
 @settings(max_examples=100, deadline=None)
 @given(lat0=lat0s, lon0=lon0s, de=st.floats(-1e5, 1e5), dn=st.floats(-1e5, 1e5))
-def test_scalar_kernels_match_the_vectorised_frame(lat0: float, lon0: float, de: float, dn: float) -> None:
+def test_scalar_kernels_match_the_vectorised_frame(
+    lat0: float, lon0: float, de: float, dn: float
+) -> None:
     from gradgps._geo import to_geodetic_scalar, to_local_scalar
 
     frame = LocalFrame(lat0, lon0)

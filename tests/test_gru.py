@@ -76,10 +76,14 @@ def test_any_layer_sizes(features):
     model = GRUModel(weights, mean, std)
     assert model.state_size == 16
     np.testing.assert_allclose(
-        model.predict_stream(features)[0].anomaly, reference_stream(weights, mean, std, features)[0], atol=1e-6
+        model.predict_stream(features)[0].anomaly,
+        reference_stream(weights, mean, std, features)[0],
+        atol=1e-6,
     )
     np.testing.assert_allclose(
-        model.new_stream().update(features[0])[1:], reference_stream(weights, mean, std, features[:1])[1][0], atol=1e-6
+        model.new_stream().update(features[0])[1:],
+        reference_stream(weights, mean, std, features[:1])[1][0],
+        atol=1e-6,
     )
 
 

@@ -71,15 +71,24 @@ def test_clean_drive_keeps_offset_small() -> None:
 
 @settings(max_examples=60, deadline=None)
 @given(
-    steps=st.lists(st.tuples(st.floats(-40, 40), st.floats(-40, 40), st.floats(0.1, 2.0),
-                             st.one_of(st.just(float("nan")), st.floats(0, 40)),
-                             st.floats(0, 360)), min_size=1, max_size=60),
+    steps=st.lists(
+        st.tuples(
+            st.floats(-40, 40),
+            st.floats(-40, 40),
+            st.floats(0.1, 2.0),
+            st.one_of(st.just(float("nan")), st.floats(0, 40)),
+            st.floats(0, 360),
+        ),
+        min_size=1,
+        max_size=60,
+    ),
     threshold=st.floats(1.0, 20.0),
     max_fault_s=st.floats(1.0, 30.0),
     trust_clean_s=st.floats(0.0, 20.0),
 )
-def test_kernel_matches_reference(steps: list[tuple[float, ...]], threshold: float,
-                                  max_fault_s: float, trust_clean_s: float) -> None:
+def test_kernel_matches_reference(
+    steps: list[tuple[float, ...]], threshold: float, max_fault_s: float, trust_clean_s: float
+) -> None:
     arr = np.array(steps)
     dt = arr[:, 2]
     east, north = np.cumsum(arr[:, 0]), np.cumsum(arr[:, 1])

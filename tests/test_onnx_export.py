@@ -20,8 +20,9 @@ def _session(proto):
     options = ort.SessionOptions()
     options.intra_op_num_threads = 1
     options.inter_op_num_threads = 1
-    return ort.InferenceSession(proto.SerializeToString(), options,
-                                providers=["CPUExecutionProvider"])
+    return ort.InferenceSession(
+        proto.SerializeToString(), options, providers=["CPUExecutionProvider"]
+    )
 
 
 def _run(session, features, h1, h2):
@@ -32,8 +33,11 @@ def _run(session, features, h1, h2):
 def random_model() -> GRUModel:
     rng = np.random.default_rng(3)
     n_features, n_bias = 9, 3
-    return GRUModel(random_weights(n_features, n_bias, seed=4), rng.normal(size=n_features),
-                    rng.uniform(0.5, 2.0, size=n_features))
+    return GRUModel(
+        random_weights(n_features, n_bias, seed=4),
+        rng.normal(size=n_features),
+        rng.uniform(0.5, 2.0, size=n_features),
+    )
 
 
 def test_onnx_matches_stream_inference_with_states(random_model):
@@ -59,8 +63,12 @@ def test_onnx_batch_axis_runs_tracks_independently(random_model):
     rng = np.random.default_rng(6)
     a, b = rng.normal(size=(2, 50, random_model.n_features))
     session = _session(build_onnx(random_model))
-    anomaly, _, _, _ = _run(session, np.stack([a, b], axis=1),
-                            np.zeros((1, 2, 32), np.float32), np.zeros((1, 2, 16), np.float32))
+    anomaly, _, _, _ = _run(
+        session,
+        np.stack([a, b], axis=1),
+        np.zeros((1, 2, 32), np.float32),
+        np.zeros((1, 2, 16), np.float32),
+    )
     np.testing.assert_allclose(anomaly[:, 0], random_model.predict_stream(a)[0].anomaly, atol=1e-5)
     np.testing.assert_allclose(anomaly[:, 1], random_model.predict_stream(b)[0].anomaly, atol=1e-5)
 
@@ -83,10 +91,21 @@ def test_cli_exports_the_shipped_model_and_it_runs_on_real_features(tmp_path):
     drive = simulate_drive(minutes=3.0, seed=2)
     frame = LocalFrame(float(drive["lat"].iloc[0]), float(drive["lon"].iloc[0]))
     columns = {c: drive[c].to_numpy(np.float64) for c in ("t", "lat", "lon", "speed", "heading")}
-    features = grad_features(loaded.params, frame, columns["t"], columns["lat"], columns["lon"],
-                             columns["speed"], columns["heading"])
+    features = grad_features(
+        loaded.params,
+        frame,
+        columns["t"],
+        columns["lat"],
+        columns["lon"],
+        columns["speed"],
+        columns["heading"],
+    )
     ours = gru_model(*load_model(loaded.path)).predict_stream(features)[0]
-    anomaly, bias, _, _ = _run(_session(proto), features[:, None, :],
-                               np.zeros((1, 1, 32), np.float32), np.zeros((1, 1, 16), np.float32))
+    anomaly, bias, _, _ = _run(
+        _session(proto),
+        features[:, None, :],
+        np.zeros((1, 1, 32), np.float32),
+        np.zeros((1, 1, 16), np.float32),
+    )
     np.testing.assert_allclose(anomaly[:, 0], ours.anomaly, atol=1e-5)
     np.testing.assert_allclose(bias[:, 0, :], ours.bias, atol=1e-5)

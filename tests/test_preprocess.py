@@ -51,18 +51,30 @@ def test_heading_merged_and_interpolated_on_the_circle() -> None:
 
 
 def test_invalid_rows_set_aside_with_reason() -> None:
-    fx = _fixes([0.0, 1.0, np.nan, 3.0, 4.0], lat=[41.0, np.nan, 41.0, 95.0, 41.0],
-                lon=[-95.0, -95.0, -95.0, -95.0, 200.0])
+    fx = _fixes(
+        [0.0, 1.0, np.nan, 3.0, 4.0],
+        lat=[41.0, np.nan, 41.0, 95.0, 41.0],
+        lon=[-95.0, -95.0, -95.0, -95.0, 200.0],
+    )
     p = preprocess(fx)
     assert p.row_point.tolist()[0] == 0
     assert (p.row_point[1:] == -1).all()
-    assert list(p.row_reason) == ["", "latitude missing or not finite", "time missing or not finite",
-                                  "latitude outside +-90", "longitude outside +-180"]
+    assert list(p.row_reason) == [
+        "",
+        "latitude missing or not finite",
+        "time missing or not finite",
+        "latitude outside +-90",
+        "longitude outside +-180",
+    ]
 
 
 def test_tracks_get_their_own_frames_and_segments() -> None:
-    fx = _fixes([0.0, 1.0, 0.0, 1.0], track=["x", "x", "y", "y"],
-                lat=[10.0, 10.0001, 50.0, 50.0001], lon=[20.0, 20.0, 30.0, 30.0])
+    fx = _fixes(
+        [0.0, 1.0, 0.0, 1.0],
+        track=["x", "x", "y", "y"],
+        lat=[10.0, 10.0001, 50.0, 50.0001],
+        lon=[20.0, 20.0, 30.0, 30.0],
+    )
     p = preprocess(fx)
     assert set(p.frames) == {"x", "y"}
     assert p.points["segment"].tolist() == [0, 0, 1, 1]
@@ -83,12 +95,15 @@ def test_empty_input_and_bad_parameters() -> None:
 @st.composite
 def messy_tracks(draw: st.DrawFn) -> pd.DataFrame:
     n = draw(st.integers(0, 60))
-    t = draw(st.lists(st.sampled_from([float(x) for x in range(40)] + [np.nan]), min_size=n, max_size=n))
+    t = draw(
+        st.lists(st.sampled_from([float(x) for x in range(40)] + [np.nan]), min_size=n, max_size=n)
+    )
     track = draw(st.lists(st.sampled_from(["a", "b", "c"]), min_size=n, max_size=n))
     lat = draw(st.lists(st.floats(-0.01, 0.01), min_size=n, max_size=n))
     lon = draw(st.lists(st.floats(-0.01, 0.01), min_size=n, max_size=n))
-    return to_fixes(pd.DataFrame({"track": track, "t": t, "lat": np.add(lat, 45.0),
-                                  "lon": np.add(lon, 7.0)}))
+    return to_fixes(
+        pd.DataFrame({"track": track, "t": t, "lat": np.add(lat, 45.0), "lon": np.add(lon, 7.0)})
+    )
 
 
 @settings(max_examples=150, deadline=None)

@@ -24,11 +24,17 @@ def _injected(seed: int = 0) -> tuple[np.ndarray, ...]:
     east = e_true + rng.normal(0, 1.0, n)
     north = n_true + rng.normal(0, 1.0, n)
     label = np.zeros(n, dtype=bool)
-    for start, length, dx in ((60, 2, 40.0), (130, 4, -35.0), (210, 1, 50.0), (290, 2, 30.0),
-                              (297, 1, 30.0), (305, 3, -30.0)):
-        east[start:start + length] += dx
-        north[start:start + length] += 0.5 * dx
-        label[start:start + length] = True
+    for start, length, dx in (
+        (60, 2, 40.0),
+        (130, 4, -35.0),
+        (210, 1, 50.0),
+        (290, 2, 30.0),
+        (297, 1, 30.0),
+        (305, 3, -30.0),
+    ):
+        east[start : start + length] += dx
+        north[start : start + length] += 0.5 * dx
+        label[start : start + length] = True
     return east, north, e_true, n_true, speed, heading, label
 
 
@@ -41,7 +47,9 @@ def test_kernel_matches_reference(method: str) -> None:
     speed = speed.copy()
     speed[::7] = np.nan  # falls back to the velocity EMA there
     got = recover(codes, 1.0, east, north, ema_e, ema_n, prm, speed=speed, heading=heading)
-    ref = recover_reference(codes, 1.0, east, north, ema_e, ema_n, prm, speed=speed, heading=heading)
+    ref = recover_reference(
+        codes, 1.0, east, north, ema_e, ema_n, prm, speed=speed, heading=heading
+    )
     for a, b in zip(got, ref, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
 
@@ -59,8 +67,9 @@ def test_pipeline_recovery_lowers_the_error_of_injected_faults() -> None:
     corrupted = rmse(east, north, e_true, n_true, label)
     errors = {}
     for method in ("ema", "velocity"):
-        prm = CoreParams(rema=RemaParams(mode="trend", min_margin=4.0),
-                         recovery=RecoveryParams(method=method))
+        prm = CoreParams(
+            rema=RemaParams(mode="trend", min_margin=4.0), recovery=RecoveryParams(method=method)
+        )
         out = core_batch(east, north, prm, speed=speed, heading=heading)
         assert out.flag[label].mean() > 0.8
         errors[method] = rmse(out.east_clean, out.north_clean, e_true, n_true, label)

@@ -43,7 +43,7 @@ def test_paper_bounds_from_std_of_ss_minus_one_previous_emas() -> None:
     prm = RemaParams(slide_size=8, sensitivity=2.0)
     out = rema_batch(x, prm)
     t = 30
-    ema_before = out.ema[t - 8:t - 1]
+    ema_before = out.ema[t - 8 : t - 1]
     centre = 0.5 * (out.lower[t] + out.upper[t])
     half = 0.5 * (out.upper[t] - out.lower[t])
     assert half == pytest.approx(2.0 * np.std(ema_before))
@@ -55,8 +55,9 @@ def test_paper_bounds_from_std_of_ss_minus_one_previous_emas() -> None:
 def test_paper_outlier_resets_ema_punishes_alpha_and_raw_value_feeds_next() -> None:
     x = np.r_[np.zeros(20), 100.0, np.zeros(3)]
     x[:20] += np.tile([0.1, -0.1], 10)
-    prm = RemaParams(alpha=0.5, alpha_min=0.1, punish=0.2, reward=0.05, slide_size=6,
-                     min_margin=0.5)
+    prm = RemaParams(
+        alpha=0.5, alpha_min=0.1, punish=0.2, reward=0.05, slide_size=6, min_margin=0.5
+    )
     out = rema_batch(x, prm)
     assert out.flag.tolist().index(1) == 20
     assert out.alpha[19] == pytest.approx(0.9)
@@ -106,12 +107,24 @@ def test_kernel_matches_reference(mode: str) -> None:
     with_steps=st.booleans(),
 )
 def test_kernel_matches_reference_on_generated_tracks(
-    values: list[float], mode: str, ss: int, sens: float, margin: float, growth: float,
-    reacquire: int, with_steps: bool,
+    values: list[float],
+    mode: str,
+    ss: int,
+    sens: float,
+    margin: float,
+    growth: float,
+    reacquire: int,
+    with_steps: bool,
 ) -> None:
     x = np.cumsum(values)
-    prm = RemaParams(mode=mode, slide_size=ss, sensitivity=sens, min_margin=margin,
-                     run_growth=growth, reacquire_after=reacquire)
+    prm = RemaParams(
+        mode=mode,
+        slide_size=ss,
+        sensitivity=sens,
+        min_margin=margin,
+        run_growth=growth,
+        reacquire_after=reacquire,
+    )
     # Known steps: the true steps with every third one unknown (NaN) and a small error.
     steps = np.diff(x, prepend=x[0]) + 0.5 if with_steps else None
     if steps is not None:

@@ -21,16 +21,26 @@ pytest.importorskip("matplotlib")
 def test_demo_report_for_10000_points_is_offline_and_small(tmp_path):
     out = tmp_path / "demo"
     # One drive of 167 min at 1 Hz: 10,020 fixes.
-    result = CliRunner().invoke(main, ["demo", "--tracks", "1", "--minutes", "167",
-                                       "--out", str(out)])
+    result = CliRunner().invoke(
+        main, ["demo", "--tracks", "1", "--minutes", "167", "--out", str(out)]
+    )
     assert result.exit_code == 0, result.output
     report = out / "report.html"
     assert f"report: {report}" in result.output.replace("\n", "")
     size = report.stat().st_size
     assert size < 5e6
     text = report.read_text(encoding="utf-8")
-    for section in ("id='summary'", "id='track'", "id='channels'", "id='anomalies'",
-                    "REMA bounds", "input rows", "by bias type", "alerts", "throughput"):
+    for section in (
+        "id='summary'",
+        "id='track'",
+        "id='channels'",
+        "id='anomalies'",
+        "REMA bounds",
+        "input rows",
+        "by bias type",
+        "alerts",
+        "throughput",
+    ):
         assert section in text
     assert "<td>10,020</td>" in text
     assert text.count("src='data:image/png;base64,") >= 2
@@ -44,9 +54,19 @@ def test_detect_writes_report_and_plots(tmp_path):
     source = tmp_path / "in.csv"
     drives[["track", "t", "lat", "lon", "speed", "heading"]].to_csv(source, index=False)
     plots = tmp_path / "plots"
-    result = CliRunner().invoke(main, ["detect", str(source), "-o", str(tmp_path / "o.csv"),
-                                       "--report", str(tmp_path / "r.html"),
-                                       "--plots", str(plots)])
+    result = CliRunner().invoke(
+        main,
+        [
+            "detect",
+            str(source),
+            "-o",
+            str(tmp_path / "o.csv"),
+            "--report",
+            str(tmp_path / "r.html"),
+            "--plots",
+            str(plots),
+        ],
+    )
     assert result.exit_code == 0, result.output
     names = sorted(p.name for p in plots.iterdir())
     assert names[-1] == "track.png"
@@ -71,7 +91,8 @@ def test_bounds_are_the_pipelines_own_and_hold_clean_points():
     warm = params.rema.slide_size
     assert np.all(np.isnan(bounds.east_lower[:1]))
     inside = (bounds.east[warm:] >= bounds.east_lower[warm:]) & (
-        bounds.east[warm:] <= bounds.east_upper[warm:])
+        bounds.east[warm:] <= bounds.east_upper[warm:]
+    )
     assert inside.mean() > 0.9
     half = 0.5 * (bounds.north_upper[warm:] - bounds.north_lower[warm:])
     assert np.all(half >= params.rema.min_margin - 1e-9)

@@ -41,13 +41,28 @@ def _messages(store, *, status_at: int = 7):
 
     for i in range(N):
         status = Status(status=-1 if i == status_at else 0, service=1)
-        fixes.append((T0 + i, Fix(header=header(T0 + i), status=status, latitude=48.0 + i * 9e-5,
-                                  longitude=11.0, altitude=500.0,
-                                  position_covariance=np.zeros(9), position_covariance_type=0)))
+        fixes.append(
+            (
+                T0 + i,
+                Fix(
+                    header=header(T0 + i),
+                    status=status,
+                    latitude=48.0 + i * 9e-5,
+                    longitude=11.0,
+                    altitude=500.0,
+                    position_covariance=np.zeros(9),
+                    position_covariance_type=0,
+                ),
+            )
+        )
     for k in range(10 * N):
         twist = Twist(linear=Vector3(x=6.0, y=8.0, z=0.5), angular=Vector3(x=0.0, y=0.0, z=0.0))
-        twists.append((T0 + k / 10, TwistStamped(header=header(T0 + k // 10, (k % 10) * 100_000_000),
-                                                 twist=twist)))
+        twists.append(
+            (
+                T0 + k / 10,
+                TwistStamped(header=header(T0 + k // 10, (k % 10) * 100_000_000), twist=twist),
+            )
+        )
     return fixes, twists
 
 

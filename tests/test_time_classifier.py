@@ -23,16 +23,16 @@ from gradgps._time_classifier import (
 def _flags(n: int, *runs: tuple[int, int]) -> np.ndarray:
     f = np.zeros(n, dtype=np.int8)
     for start, length in runs:
-        f[start:start + length] = 1
+        f[start : start + length] = 1
     return f
 
 
 def test_transient_fault_of_one_to_five_points() -> None:
     for length in range(1, 6):
         codes = classify_time(_flags(50, (20, length)))
-        assert set(codes[20:20 + length]) == {TRANSIENT}
+        assert set(codes[20 : 20 + length]) == {TRANSIENT}
         assert codes[:20].max() == NONE
-        assert codes[20 + length:].max() == NONE
+        assert codes[20 + length :].max() == NONE
 
 
 def test_intermittent_episode_first_burst_transient_then_intermittent() -> None:
@@ -50,13 +50,17 @@ def test_intermittent_episode_first_burst_transient_then_intermittent() -> None:
 def test_permanent_fault_at_segment_end() -> None:
     codes = classify_time(_flags(400, (340, 60)))
     prm = TimeParams()
-    assert set(codes[340:340 + prm.permanent_run - 1]) == {TRANSIENT}
-    assert set(codes[340 + prm.permanent_run - 1:]) == {PERMANENT}
+    assert set(codes[340 : 340 + prm.permanent_run - 1]) == {TRANSIENT}
+    assert set(codes[340 + prm.permanent_run - 1 :]) == {PERMANENT}
 
 
 @settings(max_examples=60, deadline=None)
-@given(flags=st.lists(st.booleans(), max_size=200), perm=st.integers(1, 12),
-       gap=st.integers(1, 20), bursts=st.integers(1, 4))
+@given(
+    flags=st.lists(st.booleans(), max_size=200),
+    perm=st.integers(1, 12),
+    gap=st.integers(1, 20),
+    bursts=st.integers(1, 4),
+)
 def test_kernel_matches_reference(flags: list[bool], perm: int, gap: int, bursts: int) -> None:
     prm = TimeParams(permanent_run=perm, episode_gap=gap, intermittent_bursts=bursts)
     np.testing.assert_array_equal(classify_time(flags, prm), classify_time_reference(flags, prm))

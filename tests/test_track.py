@@ -16,7 +16,10 @@ from gradgps._track import resolve_columns
         (["timestamp", "latitude", "longitude"], ("timestamp", "latitude", "longitude")),
         (["Time", "Latitude", "Longitude"], ("Time", "Latitude", "Longitude")),
         (["ts", "gps_lat", "gps_lon"], ("ts", "gps_lat", "gps_lon")),
-        (["GPS Time", "GPS Latitude", "GPS Longitude"], ("GPS Time", "GPS Latitude", "GPS Longitude")),
+        (
+            ["GPS Time", "GPS Latitude", "GPS Longitude"],
+            ("GPS Time", "GPS Latitude", "GPS Longitude"),
+        ),
         (["t_rel", "lat", "lng"], ("t_rel", "lat", "lng")),
         (["time", "lat", "long"], ("time", "lat", "long")),
     ],
@@ -49,12 +52,14 @@ def test_non_numeric_latitude_names_row_line_and_column() -> None:
 
 
 def test_iso_times_blank_values_and_heading_wrap() -> None:
-    frame = pd.DataFrame({
-        "time": ["2024-05-01T10:00:00Z", "2024-05-01T10:00:01.5Z", ""],
-        "lat": ["41.0", "", "41.1"],
-        "lon": [-95.0, -95.1, -95.2],
-        "course": [370.0, -10.0, 5.0],
-    })
+    frame = pd.DataFrame(
+        {
+            "time": ["2024-05-01T10:00:00Z", "2024-05-01T10:00:01.5Z", ""],
+            "lat": ["41.0", "", "41.1"],
+            "lon": [-95.0, -95.1, -95.2],
+            "course": [370.0, -10.0, 5.0],
+        }
+    )
     fx = to_fixes(frame)
     assert fx["t"].iloc[1] - fx["t"].iloc[0] == pytest.approx(1.5)
     assert fx["t"].iloc[0] == pytest.approx(1714557600.0)
@@ -65,13 +70,22 @@ def test_iso_times_blank_values_and_heading_wrap() -> None:
 
 
 def test_millisecond_epochs_are_scaled() -> None:
-    fx = to_fixes(pd.DataFrame({"timestamp": [1_700_000_000_000, 1_700_000_001_000],
-                                "lat": [1.0, 1.0], "lon": [2.0, 2.0]}))
+    fx = to_fixes(
+        pd.DataFrame(
+            {
+                "timestamp": [1_700_000_000_000, 1_700_000_001_000],
+                "lat": [1.0, 1.0],
+                "lon": [2.0, 2.0],
+            }
+        )
+    )
     assert fx["t"].tolist() == [1_700_000_000.0, 1_700_000_001.0]
 
 
 def test_bad_time_names_the_row() -> None:
-    frame = pd.DataFrame({"time": ["2024-05-01T10:00:00Z", "yesterday"], "lat": [1, 1], "lon": [2, 2]})
+    frame = pd.DataFrame(
+        {"time": ["2024-05-01T10:00:00Z", "yesterday"], "lat": [1, 1], "lon": [2, 2]}
+    )
     with pytest.raises(InputError, match=r"row 2.*'time'.*not a time"):
         to_fixes(frame)
 

@@ -20,13 +20,31 @@ from gradgps._tuning import tune_time
 @pytest.mark.shared
 def test_tune_rema_cli_writes_settings_that_bench_loads(shared_data: Path, tmp_path: Path) -> None:
     grid = tmp_path / "grid.json"
-    grid.write_text(json.dumps({"min_margin": [3.0, 8.0], "sensitivity": [5.0],
-                                "slide_size": [6], "run_growth": [0.5]}))
+    grid.write_text(
+        json.dumps(
+            {"min_margin": [3.0, 8.0], "sensitivity": [5.0], "slide_size": [6], "run_growth": [0.5]}
+        )
+    )
     out = tmp_path / "rema.json"
     table = tmp_path / "table.csv"
-    res = CliRunner().invoke(main, [
-        "tune-rema", "--dataset", "driveplotr", "--seeds", "0", "--grid", str(grid),
-        "--data-dir", str(shared_data), "--table", str(table), "-o", str(out)])
+    res = CliRunner().invoke(
+        main,
+        [
+            "tune-rema",
+            "--dataset",
+            "driveplotr",
+            "--seeds",
+            "0",
+            "--grid",
+            str(grid),
+            "--data-dir",
+            str(shared_data),
+            "--table",
+            str(table),
+            "-o",
+            str(out),
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "2 REMA combinations" in res.output
     settings = json.loads(out.read_text())
@@ -36,17 +54,42 @@ def test_tune_rema_cli_writes_settings_that_bench_loads(shared_data: Path, tmp_p
     detector = RemaDetector.from_file(out)
     assert detector.rema.min_margin == 8.0
     assert detector.time.permanent_run == settings["time"]["permanent_run"]
-    res = CliRunner().invoke(main, [
-        "bench", "--protocol", "grad", "--dataset", "driveplotr", "--split", "validation",
-        "--detector", "rema", "--rema-params", str(out), "--data-dir", str(shared_data)])
+    res = CliRunner().invoke(
+        main,
+        [
+            "bench",
+            "--protocol",
+            "grad",
+            "--dataset",
+            "driveplotr",
+            "--split",
+            "validation",
+            "--detector",
+            "rema",
+            "--rema-params",
+            str(out),
+            "--data-dir",
+            str(shared_data),
+        ],
+    )
     assert res.exit_code == 0, res.output
 
 
 def test_tune_rema_cli_rejects_a_bad_grid(tmp_path: Path) -> None:
     grid = tmp_path / "grid.json"
     grid.write_text('{"min_margin": 3}')
-    res = CliRunner().invoke(main, ["tune-rema", "--dataset", "driveplotr", "--grid", str(grid),
-                                    "-o", str(tmp_path / "x.json")])
+    res = CliRunner().invoke(
+        main,
+        [
+            "tune-rema",
+            "--dataset",
+            "driveplotr",
+            "--grid",
+            str(grid),
+            "-o",
+            str(tmp_path / "x.json"),
+        ],
+    )
     assert res.exit_code != 0
     assert "non-empty lists" in res.output
 
@@ -111,8 +154,9 @@ def test_make_detector_knows_the_rema_detectors() -> None:
 @pytest.mark.shared
 def test_rema_beats_the_speed_gate_on_driveplotr_test(shared_data: Path) -> None:
     """Issue C acceptance: REMA alone beats the speed gate on anomaly F1 (grad, seed 0)."""
-    report = run_bench("grad", "driveplotr", ["rema", "speed-gate"], split="test", seed=0,
-                       data_dir=shared_data)
+    report = run_bench(
+        "grad", "driveplotr", ["rema", "speed-gate"], split="test", seed=0, data_dir=shared_data
+    )
     rema, gate = report["results"]["rema"], report["results"]["speed-gate"]
     assert rema["anomaly"]["f1"] > gate["anomaly"]["f1"] + 0.3
     assert rema["normal"]["f1"] > 0.95

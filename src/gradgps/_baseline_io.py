@@ -83,7 +83,9 @@ def segments(
     lat = fixes["lat"].to_numpy(dtype=np.float64)
     lon = fixes["lon"].to_numpy(dtype=np.float64)
     channels = (
-        None if inputs == "position" else fixes[list(names)].to_numpy(dtype=np.float64, na_value=np.nan)
+        None
+        if inputs == "position"
+        else fixes[list(names)].to_numpy(dtype=np.float64, na_value=np.nan)
     )
     order = usable[np.lexsort((t[usable], pd.factorize(tracks[usable])[0]))]
     out: list[Segment] = []
@@ -99,7 +101,9 @@ def segments(
             values = channels[rows]
         cuts = np.flatnonzero(np.diff(t[rows]) > max_gap_s) + 1
         for piece, vals in zip(np.split(rows, cuts), np.split(values, cuts), strict=True):
-            out.append(Segment(str(tracks[rows[0]]), piece, t[piece], np.ascontiguousarray(vals), frame))
+            out.append(
+                Segment(str(tracks[rows[0]]), piece, t[piece], np.ascontiguousarray(vals), frame)
+            )
     return out, reason
 
 
@@ -123,7 +127,8 @@ def result_frame(
         {
             "anomaly": np.asarray(anomaly, dtype=np.int8),
             "score": np.asarray(score, dtype=np.float64),
-            "bias_type": np.full(n, None, dtype=object) if bias_type is None
+            "bias_type": np.full(n, None, dtype=object)
+            if bias_type is None
             else np.asarray(bias_type, dtype=object),
             "time_type": np.full(n, None, dtype=object),
             "lat_clean": np.asarray(lat_clean, dtype=np.float64),

@@ -48,8 +48,14 @@ from ._window_detector import (
 if TYPE_CHECKING:
     from torch import nn
 
-__all__ = ["BaselineRecipe", "dataset_cnn_kf", "dataset_kalman", "dataset_window_model",
-           "labelled_fixes", "train_window_model"]
+__all__ = [
+    "BaselineRecipe",
+    "dataset_cnn_kf",
+    "dataset_kalman",
+    "dataset_window_model",
+    "labelled_fixes",
+    "train_window_model",
+]
 
 PROTOCOL_INPUTS = {"grad": "position", "sensor-grid": "sensor"}
 SENSOR_EXTRA = ["accel_x_mps2", "gyro_z_dps"]
@@ -78,12 +84,15 @@ class BaselineRecipe:
 
 def _inputs(protocol: str) -> str:
     if protocol not in PROTOCOL_INPUTS:
-        raise ConfigError(f"unknown protocol {protocol!r}; choose one of {', '.join(PROTOCOL_INPUTS)}")
+        raise ConfigError(
+            f"unknown protocol {protocol!r}; choose one of {', '.join(PROTOCOL_INPUTS)}"
+        )
     return PROTOCOL_INPUTS[protocol]
 
 
-def labelled_fixes(table: pd.DataFrame, protocol: str, seed: int | None,
-                   scale: float = 1.0) -> tuple[pd.DataFrame, np.ndarray, pd.DataFrame]:
+def labelled_fixes(
+    table: pd.DataFrame, protocol: str, seed: int | None, scale: float = 1.0
+) -> tuple[pd.DataFrame, np.ndarray, pd.DataFrame]:
     """``(fixes, label_anomaly per row, labelled table)``; ``seed=None`` gives the clean fixes."""
     cmap: ColumnMap = to_fixes(table).attrs["columns"]
     channels = SENSOR_EXTRA if protocol == "sensor-grid" else []
@@ -99,8 +108,9 @@ def labelled_fixes(table: pd.DataFrame, protocol: str, seed: int | None,
     return fixes, labelled["label_anomaly"].to_numpy(np.int64), labelled
 
 
-def _labelled_segments(table: pd.DataFrame, protocol: str, seeds: Sequence[int]
-                       ) -> tuple[list[Segment], list[np.ndarray]]:
+def _labelled_segments(
+    table: pd.DataFrame, protocol: str, seeds: Sequence[int]
+) -> tuple[list[Segment], list[np.ndarray]]:
     segs: list[Segment] = []
     labels: list[np.ndarray] = []
     for seed in seeds:
@@ -116,8 +126,9 @@ def _labelled_segments(table: pd.DataFrame, protocol: str, seeds: Sequence[int]
 # ----------------------------------------------------------------------------
 
 
-def fit_kalman(train: pd.DataFrame, val: pd.DataFrame, protocol: str,
-               recipe: BaselineRecipe) -> KalmanParams:
+def fit_kalman(
+    train: pd.DataFrame, val: pd.DataFrame, protocol: str, recipe: BaselineRecipe
+) -> KalmanParams:
     """``q``, ``r`` on the clean train split; threshold on the injected validation split."""
     clean, _, _ = labelled_fixes(train, protocol, None)
     val_fixes, val_truth, _ = labelled_fixes(val, protocol, recipe.val_seed)
@@ -192,9 +203,14 @@ def _packed_windows(rows: Sequence[np.ndarray], window: int) -> tuple[np.ndarray
     return np.vstack(parts), np.concatenate(targets)
 
 
-def train_window_model(architecture: str, train: tuple[list[Segment], list[np.ndarray]],
-                       val: tuple[list[Segment], list[np.ndarray]], inputs: str,
-                       recipe: BaselineRecipe, notes: dict[str, Any] | None = None) -> WindowModel:
+def train_window_model(
+    architecture: str,
+    train: tuple[list[Segment], list[np.ndarray]],
+    val: tuple[list[Segment], list[np.ndarray]],
+    inputs: str,
+    recipe: BaselineRecipe,
+    notes: dict[str, Any] | None = None,
+) -> WindowModel:
     """Train ``cnn`` or ``lstm-cnn`` on labelled segments; best validation-F1 epoch, tuned threshold."""
     import torch
     from torch import nn
@@ -202,13 +218,16 @@ def train_window_model(architecture: str, train: tuple[list[Segment], list[np.nd
     from ._training import _best_threshold, _class_weights, _f1, _fit_scaler, _optimise
 
     if architecture not in NETS:
-        raise ConfigError(f"unknown window architecture {architecture!r}; choose one of {list(NETS)}")
+        raise ConfigError(
+            f"unknown window architecture {architecture!r}; choose one of {list(NETS)}"
+        )
     raw = [input_rows(s, inputs) for s in train[0]]
     mean, std = _fit_scaler(np.vstack(raw))
     data, targets = _packed_windows([scale_rows(r, mean, std) for r in raw], recipe.window)
     labels = np.concatenate(train[1]).astype(np.int64)
-    val_windows = np.vstack([windows(scale_rows(input_rows(s, inputs), mean, std), recipe.window)
-                             for s in val[0]])
+    val_windows = np.vstack(
+        [windows(scale_rows(input_rows(s, inputs), mean, std), recipe.window) for s in val[0]]
+    )
     val_truth = np.concatenate(val[1]).astype(bool)
     offsets = np.arange(-recipe.window + 1, 1)
 
@@ -230,17 +249,19 @@ def train_window_model(architecture: str, train: tuple[list[Segment], list[np.nd
             def val_probability() -> np.ndarray:
                 net.eval()
                 with torch.no_grad():
-                    parts = [torch.softmax(net(torch.from_numpy(val_windows[lo:lo + 4096])), -1)[:, 1]
-                             for lo in range(0, len(val_windows), 4096)]
+                    parts = [
+                        torch.softmax(net(torch.from_numpy(val_windows[lo : lo + 4096])), -1)[:, 1]
+                        for lo in range(0, len(val_windows), 4096)
+                    ]
                 return torch.cat(parts).numpy()
 
             for epoch in range(1, recipe.max_epochs + 1):
                 net.train()
                 losses = []
-                pick = rng.permutation(len(targets))[:recipe.max_samples_per_epoch]
+                pick = rng.permutation(len(targets))[: recipe.max_samples_per_epoch]
                 out_of_time = False
                 for lo in range(0, len(pick), recipe.batch_size):
-                    chosen = pick[lo:lo + recipe.batch_size]
+                    chosen = pick[lo : lo + recipe.batch_size]
                     x = torch.from_numpy(data[targets[chosen, None] + offsets])
                     y = torch.from_numpy(labels[chosen])
                     losses.append(_optimise(optimizer, loss_fn(net(x), y)))
@@ -248,8 +269,14 @@ def train_window_model(architecture: str, train: tuple[list[Segment], list[np.nd
                         out_of_time = True
                         break
                 val_f1 = _f1(val_truth, val_probability() >= 0.5)
-                history.append({"epoch": epoch, "train_loss": float(np.mean(losses)),
-                                "val_f1": val_f1, "seconds": time.perf_counter() - began})
+                history.append(
+                    {
+                        "epoch": epoch,
+                        "train_loss": float(np.mean(losses)),
+                        "val_f1": val_f1,
+                        "seconds": time.perf_counter() - began,
+                    }
+                )
                 if val_f1 > best_f1:
                     best_f1, best_epoch = val_f1, epoch
                     best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
@@ -266,8 +293,15 @@ def train_window_model(architecture: str, train: tuple[list[Segment], list[np.nd
         torch.set_num_threads(threads)
         torch.use_deterministic_algorithms(deterministic)
     weights = {k: v.detach().numpy().astype(np.float32) for k, v in net.state_dict().items()}
-    config = {"training": {"recipe": asdict(recipe), "best_epoch": best_epoch,
-                           "stop_reason": stop_reason, "history": history, **(notes or {})}}
+    config = {
+        "training": {
+            "recipe": asdict(recipe),
+            "best_epoch": best_epoch,
+            "stop_reason": stop_reason,
+            "history": history,
+            **(notes or {}),
+        }
+    }
     return WindowModel(architecture, inputs, recipe.window, mean, std, threshold, weights, config)
 
 
@@ -276,13 +310,19 @@ def train_window_model(architecture: str, train: tuple[list[Segment], list[np.nd
 # ----------------------------------------------------------------------------
 
 
-def _cache_dir(kind: str, dataset: str, protocol: str, recipe: BaselineRecipe,
-               data_dir: str | Path | None) -> Path:
+def _cache_dir(
+    kind: str, dataset: str, protocol: str, recipe: BaselineRecipe, data_dir: str | Path | None
+) -> Path:
     from . import __version__
     from ._datasets import find_data_dir
 
-    key: dict[str, Any] = {"version": __version__, "kind": kind, "dataset": dataset,
-                           "protocol": protocol, "recipe": asdict(recipe)}
+    key: dict[str, Any] = {
+        "version": __version__,
+        "kind": kind,
+        "dataset": dataset,
+        "protocol": protocol,
+        "recipe": asdict(recipe),
+    }
     if dataset != "simulated":
         folder = find_data_dir(data_dir)
         key["files"] = sorted((p.name, p.stat().st_size) for p in folder.glob("*.csv"))
@@ -294,12 +334,18 @@ def _cache_dir(kind: str, dataset: str, protocol: str, recipe: BaselineRecipe,
 def _splits(dataset: str, data_dir: str | Path | None) -> tuple[pd.DataFrame, pd.DataFrame]:
     from ._datasets import load_dataset
 
-    return (load_dataset(dataset, "train", data_dir=data_dir),
-            load_dataset(dataset, "validation", data_dir=data_dir))
+    return (
+        load_dataset(dataset, "train", data_dir=data_dir),
+        load_dataset(dataset, "validation", data_dir=data_dir),
+    )
 
 
-def dataset_kalman(dataset: str, protocol: str, data_dir: str | Path | None = None,
-                   recipe: BaselineRecipe | None = None) -> KalmanParams:
+def dataset_kalman(
+    dataset: str,
+    protocol: str,
+    data_dir: str | Path | None = None,
+    recipe: BaselineRecipe | None = None,
+) -> KalmanParams:
     """The ``kf`` filter fitted on ``dataset`` for ``protocol`` (cached as JSON)."""
     rec = recipe or BaselineRecipe()
     target = _cache_dir("kf", dataset, protocol, rec, data_dir) / "kalman.json"
@@ -310,24 +356,36 @@ def dataset_kalman(dataset: str, protocol: str, data_dir: str | Path | None = No
     return KalmanParams.from_dict(json.loads(target.read_text()))
 
 
-def dataset_window_model(architecture: str, dataset: str, protocol: str,
-                         data_dir: str | Path | None = None,
-                         recipe: BaselineRecipe | None = None) -> WindowModel:
+def dataset_window_model(
+    architecture: str,
+    dataset: str,
+    protocol: str,
+    data_dir: str | Path | None = None,
+    recipe: BaselineRecipe | None = None,
+) -> WindowModel:
     """``cnn`` or ``lstm-cnn`` trained on ``dataset`` for ``protocol`` (cached model directory)."""
     rec = recipe or BaselineRecipe()
     target = _cache_dir(architecture, dataset, protocol, rec, data_dir)
     if not (target / "config.json").is_file():
         train, val = _splits(dataset, data_dir)
-        model = train_window_model(architecture, _labelled_segments(train, protocol, rec.seeds),
-                                   _labelled_segments(val, protocol, (rec.val_seed,)),
-                                   _inputs(protocol), rec,
-                                   {"dataset": dataset, "protocol": protocol})
+        model = train_window_model(
+            architecture,
+            _labelled_segments(train, protocol, rec.seeds),
+            _labelled_segments(val, protocol, (rec.val_seed,)),
+            _inputs(protocol),
+            rec,
+            {"dataset": dataset, "protocol": protocol},
+        )
         save_window_model(target, model)
     return load_window_model(target)
 
 
-def dataset_cnn_kf(dataset: str, protocol: str, data_dir: str | Path | None = None,
-                   recipe: BaselineRecipe | None = None) -> tuple[WindowModel, KalmanParams]:
+def dataset_cnn_kf(
+    dataset: str,
+    protocol: str,
+    data_dir: str | Path | None = None,
+    recipe: BaselineRecipe | None = None,
+) -> tuple[WindowModel, KalmanParams]:
     """The ``cnn`` model and a ``kf`` filter whose threshold is re-tuned with the CNN in front."""
     rec = recipe or BaselineRecipe()
     cnn = dataset_window_model("cnn", dataset, protocol, data_dir, rec)
@@ -341,5 +399,3 @@ def dataset_cnn_kf(dataset: str, protocol: str, data_dir: str | Path | None = No
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(json.dumps({**kf.to_dict(), "threshold": threshold}) + "\n")
     return cnn, KalmanParams.from_dict(json.loads(target.read_text()))
-
-

@@ -39,7 +39,15 @@ __all__ = ["DETECTOR_NAMES", "PROTOCOLS", "Detector", "bench_units", "make_detec
 PROTOCOLS = ("grad", "sensor-grid")
 #: Names :func:`make_detector` knows, for help texts and error messages.
 DETECTOR_NAMES = (
-    "speed-gate", "rema", "rema-paper", "grad", "grad-default", "kf", "cnn", "cnn-kf", "lstm-cnn"
+    "speed-gate",
+    "rema",
+    "rema-paper",
+    "grad",
+    "grad-default",
+    "kf",
+    "cnn",
+    "cnn-kf",
+    "lstm-cnn",
 )
 _SENSOR_CHANNELS = ["accel_x_mps2", "gyro_z_dps"]
 GRAD_BIAS = ("noise", "jump")
@@ -81,7 +89,9 @@ def make_detector(
     ``recipe`` (default: GRAD's data, budget and stopping) and cached, see
     :mod:`gradgps._baseline_training`.
     """
-    if name in ("kf", "cnn", "cnn-kf", "lstm-cnn") or (name == "grad" and protocol == "sensor-grid"):
+    if name in ("kf", "cnn", "cnn-kf", "lstm-cnn") or (
+        name == "grad" and protocol == "sensor-grid"
+    ):
         if dataset is None:
             raise ConfigError(f"detector {name!r} needs a dataset to train on")
         return _trained_baseline(name, dataset, protocol, data_dir, recipe)
@@ -115,7 +125,10 @@ def make_detector(
 
 
 def _trained_baseline(
-    name: str, dataset: str, protocol: str, data_dir: str | Path | None,
+    name: str,
+    dataset: str,
+    protocol: str,
+    data_dir: str | Path | None,
     recipe: BaselineRecipe | None,
 ) -> Detector:
     from . import _baseline_training as bt

@@ -60,9 +60,20 @@ def channel_features(segment: Segment, features: FeatureParams, rema: RemaParams
     period = float(segment.t[1] - segment.t[0]) if n > 1 and segment.t[1] > segment.t[0] else 1.0
     long_n, short_n = features.points(period)
     zeros, nan = np.zeros(n), np.full(n, np.nan)
-    parts = [features_batch_kernel(_filled(segment.values[:, k]), zeros, nan, nan, period, long_n,
-                                   short_n, rema.to_array(), False)[:, :N_CHANNEL]
-             for k in range(segment.values.shape[1])]
+    parts = [
+        features_batch_kernel(
+            _filled(segment.values[:, k]),
+            zeros,
+            nan,
+            nan,
+            period,
+            long_n,
+            short_n,
+            rema.to_array(),
+            False,
+        )[:, :N_CHANNEL]
+        for k in range(segment.values.shape[1])
+    ]
     return np.hstack(parts)
 
 
@@ -95,12 +106,20 @@ class ChannelGradDetector:
         anomaly = np.nan_to_num(score) >= m.threshold
         bias = np.where(anomaly, bias, "none")
         bias[reason != ""] = None
-        return result_frame(fixes, reason, anomaly, score, fixes["lat"].to_numpy(np.float64),
-                            fixes["lon"].to_numpy(np.float64), bias)
+        return result_frame(
+            fixes,
+            reason,
+            anomaly,
+            score,
+            fixes["lat"].to_numpy(np.float64),
+            fixes["lon"].to_numpy(np.float64),
+            bias,
+        )
 
 
-def _sequences(table: pd.DataFrame, seeds: Sequence[int], features: FeatureParams,
-               rema: RemaParams) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def _sequences(
+    table: pd.DataFrame, seeds: Sequence[int], features: FeatureParams, rema: RemaParams
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     from ._baseline_training import labelled_fixes
 
     index = {name: i for i, name in enumerate(SENSOR_BIAS_CLASSES)}
@@ -109,13 +128,19 @@ def _sequences(table: pd.DataFrame, seeds: Sequence[int], features: FeatureParam
         fixes, truth, labelled = labelled_fixes(table, "sensor-grid", seed)
         kinds = np.array([index[str(v)] for v in labelled["label_type"].to_numpy(object)])
         for seg in segments(fixes, "sensor")[0]:
-            out.append((channel_features(seg, features, rema).astype(np.float32),
-                        truth[seg.rows], kinds[seg.rows]))
+            out.append(
+                (
+                    channel_features(seg, features, rema).astype(np.float32),
+                    truth[seg.rows],
+                    kinds[seg.rows],
+                )
+            )
     return out
 
 
-def dataset_channel_grad(dataset: str, data_dir: str | Path | None = None,
-                         recipe: Any = None) -> ChannelGradModel:
+def dataset_channel_grad(
+    dataset: str, data_dir: str | Path | None = None, recipe: Any = None
+) -> ChannelGradModel:
     """Channel-wise GRAD trained on ``dataset`` under ``sensor-grid`` (cached; see module doc).
 
     ``recipe`` is a :class:`gradgps._baseline_training.BaselineRecipe` (seeds, budget, stopping).
@@ -126,10 +151,17 @@ def dataset_channel_grad(dataset: str, data_dir: str | Path | None = None,
 
     rec = recipe or BaselineRecipe()
     features, rema = FeatureParams(speed_heading=False), RemaParams()
-    key: dict[str, Any] = {"version": __version__, "recipe": asdict(rec), "dataset": dataset,
-                           "features": asdict(features), "rema": asdict(rema)}
+    key: dict[str, Any] = {
+        "version": __version__,
+        "recipe": asdict(rec),
+        "dataset": dataset,
+        "features": asdict(features),
+        "rema": asdict(rema),
+    }
     if dataset != "simulated":
-        key["files"] = sorted((p.name, p.stat().st_size) for p in find_data_dir(data_dir).glob("*.csv"))
+        key["files"] = sorted(
+            (p.name, p.stat().st_size) for p in find_data_dir(data_dir).glob("*.csv")
+        )
     digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16]
     cache = Path(os.environ.get("GRADGPS_CACHE", Path.home() / ".cache" / "gradgps"))
     target = cache / "baselines" / f"channel-grad-{dataset}-{digest}"
@@ -137,27 +169,48 @@ def dataset_channel_grad(dataset: str, data_dir: str | Path | None = None,
         from ._training import TrainConfig, train_model
 
         train, val = _splits(dataset, data_dir)
-        config = TrainConfig(bias_classes=SENSOR_BIAS_CLASSES, mode="stream",
-                             time_budget_s=rec.time_budget_s, seed=rec.seed, progress=False,
-                             early_stopping="f1", patience=rec.patience,
-                             learning_rate=rec.learning_rate, max_epochs=rec.max_epochs)
-        trained = train_model(_sequences(train, rec.seeds, features, rema),
-                              _sequences(val, (rec.val_seed,), features, rema), config)
+        config = TrainConfig(
+            bias_classes=SENSOR_BIAS_CLASSES,
+            mode="stream",
+            time_budget_s=rec.time_budget_s,
+            seed=rec.seed,
+            progress=False,
+            early_stopping="f1",
+            patience=rec.patience,
+            learning_rate=rec.learning_rate,
+            max_epochs=rec.max_epochs,
+        )
+        trained = train_model(
+            _sequences(train, rec.seeds, features, rema),
+            _sequences(val, (rec.val_seed,), features, rema),
+            config,
+        )
         target.mkdir(parents=True, exist_ok=True)
         np.savez(target / "weights.npz", allow_pickle=False, **trained.weights())
-        cfg = {"threshold": trained.anomaly_threshold,
-               "scaler": {"mean": trained.network.scaler_mean.tolist(),
-                          "std": trained.network.scaler_std.tolist()},
-               "best_epoch": trained.best_epoch, "stop_reason": trained.stop_reason}
+        cfg = {
+            "threshold": trained.anomaly_threshold,
+            "scaler": {
+                "mean": trained.network.scaler_mean.tolist(),
+                "std": trained.network.scaler_std.tolist(),
+            },
+            "best_epoch": trained.best_epoch,
+            "stop_reason": trained.stop_reason,
+        }
         (target / "config.json").write_text(json.dumps(cfg) + "\n")
     try:
         cfg = json.loads((target / "config.json").read_text())
         with np.load(target / "weights.npz", allow_pickle=False) as data:
             weights = {k: data[k] for k in data.files}
-        gru = GRUModel(weights, np.asarray(cfg["scaler"]["mean"]), np.asarray(cfg["scaler"]["std"]),
-                       mode="stream")
+        gru = GRUModel(
+            weights,
+            np.asarray(cfg["scaler"]["mean"]),
+            np.asarray(cfg["scaler"]["std"]),
+            mode="stream",
+        )
     except (OSError, KeyError, ValueError) as exc:
-        raise ModelError(f"{target}: unusable channel-GRAD model ({exc}); delete it to retrain") from exc
+        raise ModelError(
+            f"{target}: unusable channel-GRAD model ({exc}); delete it to retrain"
+        ) from exc
     if not 0.0 < float(cfg["threshold"]) < 1.0:
         raise ConfigError(f"{target}: threshold {cfg['threshold']} outside (0, 1)")
     return ChannelGradModel(gru, float(cfg["threshold"]), features, rema)

@@ -26,8 +26,16 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 __all__ = ["CNN_WEIGHTS", "cnn_forward", "conv1d_same", "softmax_anomaly"]
 
-CNN_WEIGHTS = ("conv1.weight", "conv1.bias", "conv2.weight", "conv2.bias",
-               "dense.weight", "dense.bias", "out.weight", "out.bias")
+CNN_WEIGHTS = (
+    "conv1.weight",
+    "conv1.bias",
+    "conv2.weight",
+    "conv2.bias",
+    "dense.weight",
+    "dense.bias",
+    "out.weight",
+    "out.bias",
+)
 
 
 def conv1d_same(x: np.ndarray, weight: np.ndarray, bias: np.ndarray) -> np.ndarray:

@@ -47,13 +47,23 @@ class CnnKalmanDetector:
         k = self.kalman
         q, r = np.array(k.q), np.array(k.r)
         cnn_flags = [p >= self.cnn.threshold for p in probs]
-        outs = [kf_segment(seg, q, r, k.threshold, k.joint, flag)
-                for seg, flag in zip(segs, cnn_flags, strict=True)]
-        return filter_result(fixes, k, segs, reason, outs, cnn_flags,
-                             [p.astype(np.float64) for p in probs])
+        outs = [
+            kf_segment(seg, q, r, k.threshold, k.joint, flag)
+            for seg, flag in zip(segs, cnn_flags, strict=True)
+        ]
+        return filter_result(
+            fixes, k, segs, reason, outs, cnn_flags, [p.astype(np.float64) for p in probs]
+        )
 
-    def update(self, t: float, lat: float, lon: float, speed: float | None = None,
-               heading: float | None = None, **channels: float) -> PointResult:
+    def update(
+        self,
+        t: float,
+        lat: float,
+        lon: float,
+        speed: float | None = None,
+        heading: float | None = None,
+        **channels: float,
+    ) -> PointResult:
         """One reading of this detector's track: CNN verdict, then the filter with it forced."""
         c = self._cnn_stream.update(t, lat, lon, speed, heading, **channels)
         if c.invalid_reason:
@@ -68,4 +78,3 @@ class CnnKalmanDetector:
         self._cnn_stream.set_state(state["cnn"])
         self._kf_stream.set_state(state["kf"])
         return self
-

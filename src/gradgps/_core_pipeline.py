@@ -123,18 +123,25 @@ def _score(row: FloatArray) -> float:
 
 
 @numba.njit(cache=True, error_model="numpy")
-def core_step(P: FloatArray, S: FloatArray, east: float, north: float, speed: float,
-              heading: float, out: FloatArray) -> None:
+def core_step(
+    P: FloatArray,
+    S: FloatArray,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+    out: FloatArray,
+) -> None:
     """Advance the whole statistical pipeline by one point; fill ``out`` (see module doc)."""
     rs_e, rr_e, rs_n, rr_n, h_e, h_n, cnt, ts, rec = _layout(P)
     ss = int(P[P_SS])
     period = P[_P_PERIOD]
     rema_p = P[:N_PARAMS]
-    row_e = out[N_RESULT:N_RESULT + N_OUT]
-    row_n = out[N_RESULT + N_OUT:N_RESULT + 2 * N_OUT]
+    row_e = out[N_RESULT : N_RESULT + N_OUT]
+    row_n = out[N_RESULT + N_OUT : N_RESULT + 2 * N_OUT]
     step_e, step_n = velocity_step(speed, heading, period)
-    rema_step(rema_p, S[rs_e:rs_e + N_STATE], S[rr_e:rr_e + ss], east, step_e, row_e)
-    rema_step(rema_p, S[rs_n:rs_n + N_STATE], S[rr_n:rr_n + ss], north, step_n, row_n)
+    rema_step(rema_p, S[rs_e : rs_e + N_STATE], S[rr_e : rr_e + ss], east, step_e, row_e)
+    rema_step(rema_p, S[rs_n : rs_n + N_STATE], S[rr_n : rr_n + ss], north, step_n, row_n)
     count = int(S[cnt]) + 1
     S[cnt] = count
     win_e = history_push(S[h_e:h_n], count, east)
@@ -142,21 +149,39 @@ def core_step(P: FloatArray, S: FloatArray, east: float, north: float, speed: fl
     f0 = N_RESULT + 2 * N_OUT
     long_n = int(P[_P_LONG])
     short_n = int(P[_P_SHORT])
-    channel_features_step(win_e, long_n, short_n, period, row_e, out[f0:f0 + N_CHANNEL])
-    channel_features_step(win_n, long_n, short_n, period, row_n,
-                          out[f0 + N_CHANNEL:f0 + 2 * N_CHANNEL])
+    channel_features_step(win_e, long_n, short_n, period, row_e, out[f0 : f0 + N_CHANNEL])
+    channel_features_step(
+        win_n, long_n, short_n, period, row_n, out[f0 + N_CHANNEL : f0 + 2 * N_CHANNEL]
+    )
     if P[_P_CROSS] != 0.0:
         c0 = f0 + 2 * N_CHANNEL
         if count == 1:
             out[c0] = np.nan
             out[c0 + 1] = np.nan
         else:
-            cross_features_step(east - win_e[win_e.size - 2], north - win_n[win_n.size - 2],
-                                period, speed, heading, out[c0:c0 + 2])
+            cross_features_step(
+                east - win_e[win_e.size - 2],
+                north - win_n[win_n.size - 2],
+                period,
+                speed,
+                heading,
+                out[c0 : c0 + 2],
+            )
     flag = 1.0 if row_e[O_FLAG] != 0.0 or row_n[O_FLAG] != 0.0 else 0.0
-    code = time_step(P[_P_TIME:_P_TIME + 3], S[ts:ts + N_TIME_STATE], flag)
-    recovery_step(P[_P_REC:_P_REC + 2], S[rec:rec + N_RECOVERY_STATE], code, period, east, north,
-                  row_e[O_EMA], row_n[O_EMA], speed, heading, out[R_EAST:R_ALERT + 1])
+    code = time_step(P[_P_TIME : _P_TIME + 3], S[ts : ts + N_TIME_STATE], flag)
+    recovery_step(
+        P[_P_REC : _P_REC + 2],
+        S[rec : rec + N_RECOVERY_STATE],
+        code,
+        period,
+        east,
+        north,
+        row_e[O_EMA],
+        row_n[O_EMA],
+        speed,
+        heading,
+        out[R_EAST : R_ALERT + 1],
+    )
     if P[_P_FEED] != 0.0 and code in (TRANSIENT, INTERMITTENT):
         # Only into the channel that flagged: the other one accepted its value.
         if row_e[O_FLAG] != 0.0:
@@ -169,9 +194,16 @@ def core_step(P: FloatArray, S: FloatArray, east: float, north: float, speed: fl
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _core_batch_kernel(P: FloatArray, east: FloatArray, north: FloatArray, speed: FloatArray,
-                       heading: FloatArray, features: FloatArray, results: FloatArray,
-                       emas: FloatArray) -> None:
+def _core_batch_kernel(
+    P: FloatArray,
+    east: FloatArray,
+    north: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    features: FloatArray,
+    results: FloatArray,
+    emas: FloatArray,
+) -> None:
     """Fill ``features``, ``results`` and ``emas`` (allocated by the caller, see :func:`core_batch`).
 
     The per-point row is built in one reused scratch array and only what
@@ -206,11 +238,20 @@ class CoreParams:
 
     def to_array(self) -> FloatArray:
         long_n, short_n = self.features.points(self.period)
-        return np.concatenate([
-            self.rema.to_array(), self.time.to_array(), self.recovery.to_array(),
-            [self.period, long_n, short_n, float(self.features.speed_heading),
-             float(self.feed_recovered)],
-        ])
+        return np.concatenate(
+            [
+                self.rema.to_array(),
+                self.time.to_array(),
+                self.recovery.to_array(),
+                [
+                    self.period,
+                    long_n,
+                    short_n,
+                    float(self.features.speed_heading),
+                    float(self.feed_recovered),
+                ],
+            ]
+        )
 
     def n_features(self) -> int:
         return 2 * N_CHANNEL + (2 if self.features.speed_heading else 0)
@@ -220,10 +261,14 @@ class CoreParams:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> CoreParams:
-        return cls(period=float(data["period"]), rema=RemaParams.from_dict(data["rema"]),
-                   features=FeatureParams(**data["features"]), time=TimeParams(**data["time"]),
-                   recovery=RecoveryParams(**data["recovery"]),
-                   feed_recovered=bool(data["feed_recovered"]))
+        return cls(
+            period=float(data["period"]),
+            rema=RemaParams.from_dict(data["rema"]),
+            features=FeatureParams(**data["features"]),
+            time=TimeParams(**data["time"]),
+            recovery=RecoveryParams(**data["recovery"]),
+            feed_recovered=bool(data["feed_recovered"]),
+        )
 
 
 class CoreOutput(NamedTuple):
@@ -254,15 +299,23 @@ def _split(features: FloatArray, results: FloatArray, emas: FloatArray) -> CoreO
     )
 
 
-def core_batch(east: ArrayLike, north: ArrayLike, params: CoreParams | None = None, *,
-               speed: ArrayLike | None = None, heading: ArrayLike | None = None) -> CoreOutput:
+def core_batch(
+    east: ArrayLike,
+    north: ArrayLike,
+    params: CoreParams | None = None,
+    *,
+    speed: ArrayLike | None = None,
+    heading: ArrayLike | None = None,
+) -> CoreOutput:
     """The pipeline over one segment (arrays of one length; speed/heading optional)."""
     prm = params or CoreParams()
     e = np.ascontiguousarray(east, dtype=np.float64)
     n = e.size
     arrays = []
     for name, values in (("north", north), ("speed", speed), ("heading", heading)):
-        arr = np.full(n, np.nan) if values is None else np.ascontiguousarray(values, dtype=np.float64)
+        arr = (
+            np.full(n, np.nan) if values is None else np.ascontiguousarray(values, dtype=np.float64)
+        )
         if arr.shape != (n,):
             raise ConfigError(f"{name} must have one value per point ({n}), got shape {arr.shape}")
         arrays.append(arr)
@@ -291,28 +344,39 @@ class CorePipeline:
         self._P = self.params.to_array()
         self._S = _new_state(self._P)
         self._out = np.zeros(N_RESULT + 2 * N_OUT + self.params.n_features())
-        self.features = self._out[N_RESULT + 2 * N_OUT:]
+        self.features = self._out[N_RESULT + 2 * N_OUT :]
 
-    def update(self, east: float, north: float, speed: float = np.nan,
-               heading: float = np.nan) -> tuple[int, int, float, float, int, float]:
+    def update(
+        self, east: float, north: float, speed: float = np.nan, heading: float = np.nan
+    ) -> tuple[int, int, float, float, int, float]:
         core_step(self._P, self._S, east, north, speed, heading, self._out)
         o = self._out
-        return (int(o[R_FLAG]), int(o[R_CODE]), float(o[R_EAST]), float(o[R_NORTH]),
-                int(o[R_ALERT]), float(o[R_SCORE]))
+        return (
+            int(o[R_FLAG]),
+            int(o[R_CODE]),
+            float(o[R_EAST]),
+            float(o[R_NORTH]),
+            int(o[R_ALERT]),
+            float(o[R_SCORE]),
+        )
 
     def get_state(self) -> dict[str, Any]:
         # JSON has no infinity: the time classifier's "no earlier run" gap is stored as None.
-        return {"params": self.params.to_dict(),
-                "state": [None if not np.isfinite(v) else float(v) for v in self._S]}
+        return {
+            "params": self.params.to_dict(),
+            "state": [None if not np.isfinite(v) else float(v) for v in self._S],
+        }
 
     def set_state(self, state: dict[str, Any]) -> CorePipeline:
         params = CoreParams.from_dict(state["params"])
         P = params.to_array()
         values = np.array([np.inf if v is None else v for v in state["state"]], dtype=np.float64)
         if values.shape != (_state_size(P),):
-            raise ConfigError(f"pipeline state has {values.size} values, expected {_state_size(P)}: "
-                              "it was saved by another version or with other parameters")
+            raise ConfigError(
+                f"pipeline state has {values.size} values, expected {_state_size(P)}: "
+                "it was saved by another version or with other parameters"
+            )
         self.params, self._P, self._S = params, P, values
         self._out = np.zeros(N_RESULT + 2 * N_OUT + params.n_features())
-        self.features = self._out[N_RESULT + 2 * N_OUT:]
+        self.features = self._out[N_RESULT + 2 * N_OUT :]
         return self

@@ -81,9 +81,16 @@ MIN_STEP_S = 1e-3
 
 #: Name of the model shipped inside the package, used by ``Detector()``.
 DEFAULT_MODEL = "default"
-RESULT_DTYPES = {"anomaly": "int8", "score": "float64", "bias_type": "object",
-                 "time_type": "object", "lat_clean": "float64", "lon_clean": "float64",
-                 "alert": "int8", "invalid_reason": "object"}
+RESULT_DTYPES = {
+    "anomaly": "int8",
+    "score": "float64",
+    "bias_type": "object",
+    "time_type": "object",
+    "lat_clean": "float64",
+    "lon_clean": "float64",
+    "alert": "int8",
+    "invalid_reason": "object",
+}
 
 
 @dataclass(frozen=True)
@@ -107,27 +114,39 @@ def _default_model_dir() -> Path:
 def _load_cached(path: str, mtime_ns: int) -> GradModel:
     weights, config = load_model(path)
     if config.get("mode") != "stream":
-        raise ModelError(f"{path}: the Detector runs stream-mode models (one GRU step per fix); "
-                         f"this one is {config.get('mode')!r}. Train it with --mode stream")
+        raise ModelError(
+            f"{path}: the Detector runs stream-mode models (one GRU step per fix); "
+            f"this one is {config.get('mode')!r}. Train it with --mode stream"
+        )
     try:
         params = PipelineParams.from_dict(config["features"]["params"]["pipeline"])
         _check_buffers(params)
     except (GradGPSError, KeyError, TypeError, ValueError, OverflowError) as exc:
-        raise ModelError(f"{path}/config.json: no usable pipeline settings ({exc}); "
-                         "the model was not trained by gradgps train") from exc
+        raise ModelError(
+            f"{path}/config.json: no usable pipeline settings ({exc}); "
+            "the model was not trained by gradgps train"
+        ) from exc
     names = pipeline_feature_names(params)
     if list(config["features"]["names"]) != names:
-        raise ModelError(f"{path}/config.json: its features {config['features']['names']} are not "
-                         f"the ones this version computes ({names}); retrain the model")
+        raise ModelError(
+            f"{path}/config.json: its features {config['features']['names']} are not "
+            f"the ones this version computes ({names}); retrain the model"
+        )
     threshold = float(config["thresholds"]["anomaly"])
     params = PipelineParams(**{**params.__dict__, "threshold": threshold})
     try:
         net = gru_model(weights, config)
     except GradGPSError as exc:
         raise ModelError(f"{path}/config.json: {exc}; retrain the model") from exc
-    return GradModel(path=path, params=params, gru_params=net.params, dims=net.dims,
-                     bias_classes=tuple(config["class_names"]["bias"]),
-                     checksum=str(config["weights_sha256"]), config=config)
+    return GradModel(
+        path=path,
+        params=params,
+        gru_params=net.params,
+        dims=net.dims,
+        bias_classes=tuple(config["class_names"]["bias"]),
+        checksum=str(config["weights_sha256"]),
+        config=config,
+    )
 
 
 #: Most fixes a feature window may hold (at the fastest rate, 1 kHz): 1,000 s.
@@ -139,8 +158,10 @@ def _check_buffers(params: PipelineParams) -> None:
     would not fit in memory, before a stream meets them (a hand-edited config)."""
     long_n, _ = params.features.points(MIN_STEP_S)
     if long_n > _MAX_WINDOW_POINTS:
-        raise ValueError(f"a {params.features.long_window_s} s window needs {long_n:,} slots "
-                         f"at 1 kHz, more than {_MAX_WINDOW_POINTS:,}")
+        raise ValueError(
+            f"a {params.features.long_window_s} s window needs {long_n:,} slots "
+            f"at 1 kHz, more than {_MAX_WINDOW_POINTS:,}"
+        )
     P = params.array(MIN_STEP_S, LocalFrame(0.0, 0.0), np.ones(4, np.int64))
     if P.dtype != np.float64 or not np.isfinite(P).all():
         raise ValueError("a setting is not a finite number")
@@ -151,8 +172,10 @@ def load_grad_model(model: str | os.PathLike[str] | None = None) -> GradModel:
     """Load (and cache) a model directory; ``None`` means the default model shipped with gradgps."""
     path = _default_model_dir() if model is None else Path(model)
     if not path.is_dir():
-        raise ModelError(f"{path}: no such model directory; pass a directory written by "
-                         "'gradgps train' (or nothing, for the default model)")
+        raise ModelError(
+            f"{path}: no such model directory; pass a directory written by "
+            "'gradgps train' (or nothing, for the default model)"
+        )
     resolved = str(path.resolve())
     stamp = max((p.stat().st_mtime_ns for p in path.iterdir()), default=0)
     return _load_cached(resolved, stamp)
@@ -226,17 +249,23 @@ class Detector:
     alarms).
     """
 
-    def __init__(self, model: str | os.PathLike[str] | None = None, *,
-                 threshold: float | None = None) -> None:
+    def __init__(
+        self, model: str | os.PathLike[str] | None = None, *, threshold: float | None = None
+    ) -> None:
         self.model = model
         self.threshold = threshold
         loaded = load_grad_model(model)
         if threshold is not None:
             if not (0.0 < threshold < 1.0):
                 raise ConfigError(f"threshold must be in (0, 1), got {threshold}")
-            loaded = GradModel(**{**loaded.__dict__,
-                                  "params": PipelineParams(**{**loaded.params.__dict__,
-                                                              "threshold": float(threshold)})})
+            loaded = GradModel(
+                **{
+                    **loaded.__dict__,
+                    "params": PipelineParams(
+                        **{**loaded.params.__dict__, "threshold": float(threshold)}
+                    ),
+                }
+            )
         self.model_ = loaded
         self._out = np.zeros(N_POINT_OUT)
         self._reset()
@@ -262,11 +291,28 @@ class Detector:
     def _step(self, dt: float, lat: float, lon: float, speed: float, heading: float) -> None:
         assert self._P is not None
         assert self._S is not None
-        grad_step(self._P, self._S, self._H, self.model_.gru_params, dt, lat, lon, speed, heading,
-                  self._out)
+        grad_step(
+            self._P,
+            self._S,
+            self._H,
+            self.model_.gru_params,
+            dt,
+            lat,
+            lon,
+            speed,
+            heading,
+            self._out,
+        )
 
-    def update(self, t: float, lat: float, lon: float, speed: float | None = None,
-               heading: float | None = None, **channels: float) -> PointResult:
+    def update(
+        self,
+        t: float,
+        lat: float,
+        lon: float,
+        speed: float | None = None,
+        heading: float | None = None,
+        **channels: float,
+    ) -> PointResult:
         """Score one fix of this detector's track; returns at once, never raises on bad values.
 
         ``channels`` (other sensor readings) are accepted for interface
@@ -275,9 +321,16 @@ class Detector:
         t_f, lat_f, lon_f = _number(t), _number(lat), _number(lon)
         reason = _check_fix(t_f, lat_f, lon_f, self._last_t)
         if reason:
-            return PointResult(anomaly=1, score=math.nan, bias_type="none", time_type="none",
-                               lat_clean=math.nan, lon_clean=math.nan, alert=0,
-                               invalid_reason=reason)
+            return PointResult(
+                anomaly=1,
+                score=math.nan,
+                bias_type="none",
+                time_type="none",
+                lat_clean=math.nan,
+                lon_clean=math.nan,
+                alert=0,
+                invalid_reason=reason,
+            )
         sp, hd = _reading(speed), _reading(heading)
         if self._frame is None:
             self._frame = LocalFrame(lat_f, lon_f)
@@ -342,11 +395,15 @@ class Detector:
         """Restore a state from :meth:`get_state` (same model); returns self."""
         try:
             if state["format"] != _STATE_FORMAT:
-                raise ConfigError(f"detector state format {state['format']!r} is not supported "
-                                  f"(this gradgps writes format {_STATE_FORMAT})")
+                raise ConfigError(
+                    f"detector state format {state['format']!r} is not supported "
+                    f"(this gradgps writes format {_STATE_FORMAT})"
+                )
             if state["model_checksum"] != self.model_.checksum:
-                raise ConfigError("detector state was saved with another model; "
-                                  "restore it into a Detector of the same model")
+                raise ConfigError(
+                    "detector state was saved with another model; "
+                    "restore it into a Detector of the same model"
+                )
             if float(state["threshold"]) != self.model_.params.threshold:
                 raise ConfigError("detector state was saved with another threshold")
 
@@ -363,8 +420,11 @@ class Detector:
             new_first = None if first is None else tuple(_decode_float(v) for v in first)
             if new_first is not None and len(new_first) != 5:
                 raise ValueError(f"'first' holds {len(new_first)} values, expected 5")
-            P, S, H = arr(state["P"], np.float64), arr(state["S"], np.float64), \
-                arr(state["H"], np.float32)
+            P, S, H = (
+                arr(state["P"], np.float64),
+                arr(state["S"], np.float64),
+                arr(state["H"], np.float32),
+            )
         except (KeyError, TypeError, ValueError, IndexError) as exc:
             raise ConfigError(f"not a detector state: {exc}") from exc
         # Assigned only once everything parsed: a bad state leaves this detector as it was.
@@ -389,8 +449,9 @@ class Detector:
         if not set(CANONICAL_COLUMNS[:4]) <= set(fixes.columns):
             fixes = to_fixes(fixes)
         m = self.model_
-        prepared = preprocess(fixes, max_gap_s=m.params.max_gap_s, interpolate=False,
-                              min_step_s=MIN_STEP_S)
+        prepared = preprocess(
+            fixes, max_gap_s=m.params.max_gap_s, interpolate=False, min_step_s=MIN_STEP_S
+        )
         pts = prepared.points
         n = len(pts)
         out = np.zeros((n, N_POINT_OUT))
@@ -405,23 +466,39 @@ class Detector:
         if slices:
             starts = np.array([sl.start for sl in slices] + [slices[-1].stop], np.int64)
             frames = [prepared.frames[str(tracks[sl.start])] for sl in slices]
-            out = grad_segments(m.params, frames, m.gru_params, m.dims, starts, t, lat, lon,
-                                speed, heading, threads=threads)
+            out = grad_segments(
+                m.params,
+                frames,
+                m.gru_params,
+                m.dims,
+                starts,
+                t,
+                lat,
+                lon,
+                speed,
+                heading,
+                threads=threads,
+            )
         return self._rows(prepared.to_rows(out), prepared.row_reason, fixes.index)
 
-    def _rows(self, out: NDArray[np.float64], reason: NDArray[Any], index: pd.Index) -> pd.DataFrame:
+    def _rows(
+        self, out: NDArray[np.float64], reason: NDArray[Any], index: pd.Index
+    ) -> pd.DataFrame:
         invalid = reason != ""
         bias_names = np.array(self.model_.bias_classes, dtype=object)
         time_names = np.array(TIME_TYPES, dtype=object)
         codes_b = np.where(invalid, 0, np.nan_to_num(out[:, O_BIAS])).astype(np.int64)
         codes_t = np.where(invalid, 0, np.nan_to_num(out[:, O_TIME])).astype(np.int64)
-        return pd.DataFrame({
-            "anomaly": np.where(invalid, 1, np.nan_to_num(out[:, O_FLAG])).astype(np.int8),
-            "score": out[:, O_SCORE],
-            "bias_type": bias_names[codes_b],
-            "time_type": time_names[codes_t],
-            "lat_clean": out[:, O_LAT],
-            "lon_clean": out[:, O_LON],
-            "alert": np.where(invalid, 0, np.nan_to_num(out[:, O_ALERT])).astype(np.int8),
-            "invalid_reason": reason.astype(object),
-        }, index=index)
+        return pd.DataFrame(
+            {
+                "anomaly": np.where(invalid, 1, np.nan_to_num(out[:, O_FLAG])).astype(np.int8),
+                "score": out[:, O_SCORE],
+                "bias_type": bias_names[codes_b],
+                "time_type": time_names[codes_t],
+                "lat_clean": out[:, O_LAT],
+                "lon_clean": out[:, O_LON],
+                "alert": np.where(invalid, 0, np.nan_to_num(out[:, O_ALERT])).astype(np.int8),
+                "invalid_reason": reason.astype(object),
+            },
+            index=index,
+        )

@@ -50,7 +50,9 @@ class InputError(GradGPSError, ValueError):
     def _format(self) -> str:
         where: list[str] = []
         if self.row is not None:
-            where.append(f"row {self.row}" + (f" (line {self.line})" if self.line is not None else ""))
+            where.append(
+                f"row {self.row}" + (f" (line {self.line})" if self.line is not None else "")
+            )
         elif self.line is not None:
             where.append(f"line {self.line}")
         if self.column is not None:

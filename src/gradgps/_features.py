@@ -52,9 +52,17 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 
 CHANNEL_FEATURES = (
-    "slope", "intercept", "se",            # long window
-    "std", "rsi", "range", "diff",          # short window
-    "rema_distance", "rema_width", "rema_flag", "rema_alpha",  # REMA
+    "slope",
+    "intercept",
+    "se",  # long window
+    "std",
+    "rsi",
+    "range",
+    "diff",  # short window
+    "rema_distance",
+    "rema_width",
+    "rema_flag",
+    "rema_alpha",  # REMA
 )
 N_CHANNEL = len(CHANNEL_FEATURES)
 CROSS_FEATURES = ("speed_gap", "heading_gap")
@@ -105,7 +113,7 @@ def history_push(hist: FloatArray, count: int, x: float) -> FloatArray:
     hist[pos] = x
     hist[pos + size] = x
     m = min(count, size)
-    return hist[pos + size - m + 1:pos + size + 1]
+    return hist[pos + size - m + 1 : pos + size + 1]
 
 
 # Sums may be reordered (so LLVM vectorises the window loops); no flag that
@@ -115,8 +123,9 @@ SUM_FASTMATH = {"reassoc", "contract"}
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=SUM_FASTMATH)
-def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: float,
-                          rema_row: FloatArray, out: FloatArray) -> None:
+def channel_features_step(
+    win: FloatArray, long_n: int, short_n: int, period: float, rema_row: FloatArray, out: FloatArray
+) -> None:
     """Features of one channel at the newest point from ``win``, the recent values (oldest first).
 
     Values enter relative to the newest one (translation invariance). The
@@ -187,7 +196,6 @@ def channel_features_step(win: FloatArray, long_n: int, short_n: int, period: fl
     out[10] = rema_row[O_ALPHA]
 
 
-
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def velocity_step(speed: float, heading: float, period: float) -> tuple[float, float]:
     """(east, north) metres a car at ``speed`` m/s on course ``heading`` degrees moves in ``period`` s.
@@ -201,8 +209,9 @@ def velocity_step(speed: float, heading: float, period: float) -> tuple[float, f
     return speed * np.sin(h) * period, speed * np.cos(h) * period
 
 
-def velocity_steps(speed: ArrayLike | None, heading: ArrayLike | None, period: float,
-                   n: int) -> tuple[FloatArray, FloatArray]:
+def velocity_steps(
+    speed: ArrayLike | None, heading: ArrayLike | None, period: float, n: int
+) -> tuple[FloatArray, FloatArray]:
     """:func:`velocity_step` over arrays (all NaN when speed or heading is absent)."""
     if speed is None or heading is None:
         return np.full(n, np.nan), np.full(n, np.nan)
@@ -212,8 +221,9 @@ def velocity_steps(speed: ArrayLike | None, heading: ArrayLike | None, period: f
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def cross_features_step(step_e: float, step_n: float, period: float, speed: float,
-                        heading: float, out: FloatArray) -> None:
+def cross_features_step(
+    step_e: float, step_n: float, period: float, speed: float, heading: float, out: FloatArray
+) -> None:
     """Implied-vs-reported speed (m/s) and course (degrees) from the last step."""
     implied = np.hypot(step_e, step_n) / period
     out[0] = implied - speed
@@ -225,9 +235,17 @@ def cross_features_step(step_e: float, step_n: float, period: float, speed: floa
 
 
 @numba.njit(cache=True, error_model="numpy")
-def features_batch_kernel(east: FloatArray, north: FloatArray, speed: FloatArray,
-                          heading: FloatArray, period: float, long_n: int, short_n: int,
-                          rema_p: FloatArray, cross: bool) -> FloatArray:
+def features_batch_kernel(
+    east: FloatArray,
+    north: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    period: float,
+    long_n: int,
+    short_n: int,
+    rema_p: FloatArray,
+    cross: bool,
+) -> FloatArray:
     n = east.size
     width = 2 * N_CHANNEL + (2 if cross else 0)
     out = np.empty((n, width))
@@ -244,15 +262,22 @@ def features_batch_kernel(east: FloatArray, north: FloatArray, speed: FloatArray
         win_e = history_push(hist_e, i + 1, east[i])
         win_n = history_push(hist_n, i + 1, north[i])
         channel_features_step(win_e, long_n, short_n, period, rema_e[i], out[i, :N_CHANNEL])
-        channel_features_step(win_n, long_n, short_n, period, rema_n[i],
-                              out[i, N_CHANNEL:2 * N_CHANNEL])
+        channel_features_step(
+            win_n, long_n, short_n, period, rema_n[i], out[i, N_CHANNEL : 2 * N_CHANNEL]
+        )
         if cross:
             if i == 0:
                 out[i, 2 * N_CHANNEL] = np.nan
                 out[i, 2 * N_CHANNEL + 1] = np.nan
             else:
-                cross_features_step(east[i] - east[i - 1], north[i] - north[i - 1], period,
-                                    speed[i], heading[i], out[i, 2 * N_CHANNEL:])
+                cross_features_step(
+                    east[i] - east[i - 1],
+                    north[i] - north[i - 1],
+                    period,
+                    speed[i],
+                    heading[i],
+                    out[i, 2 * N_CHANNEL :],
+                )
     return out
 
 
@@ -291,7 +316,9 @@ def segment_features(
     e = np.ascontiguousarray(east, dtype=np.float64)
     nn = np.ascontiguousarray(north, dtype=np.float64)
     if not (t_a.shape == e.shape == nn.shape) or t_a.ndim != 1:
-        raise ConfigError(f"t, east, north must be 1-D of one length, got {t_a.shape}, {e.shape}, {nn.shape}")
+        raise ConfigError(
+            f"t, east, north must be 1-D of one length, got {t_a.shape}, {e.shape}, {nn.shape}"
+        )
     period = _segment_period(t_a)
     long_n, short_n = prm.points(period)
     sp = _optional(speed, e.size, "speed")
@@ -300,13 +327,14 @@ def segment_features(
     return features_batch_kernel(e, nn, sp, hd, period, long_n, short_n, rema_p, prm.speed_heading)
 
 
-def _channel_reference(x: FloatArray, period: float, long_n: int, short_n: int,
-                       rema_rows: FloatArray) -> FloatArray:
+def _channel_reference(
+    x: FloatArray, period: float, long_n: int, short_n: int, rema_rows: FloatArray
+) -> FloatArray:
     """Readable per-point features of one channel with NumPy on explicit windows."""
     n = x.size
     out = np.zeros((n, N_CHANNEL))
     for i in range(n):
-        win = x[max(0, i - long_n + 1):i + 1] - x[i]
+        win = x[max(0, i - long_n + 1) : i + 1] - x[i]
         tt = np.arange(win.size) * period
         if win.size >= 2:
             slope, intercept = np.polyfit(tt, win, 1)
@@ -315,7 +343,7 @@ def _channel_reference(x: FloatArray, period: float, long_n: int, short_n: int,
             out[i, 1] = fitted[-1]
             if win.size > 2:
                 out[i, 2] = np.sqrt(np.sum((win - fitted) ** 2) / (win.size - 2))
-        short = x[max(0, i - short_n):i + 1]
+        short = x[max(0, i - short_n) : i + 1]
         steps = np.diff(short)
         if steps.size:
             out[i, 3] = np.std(steps / period)

@@ -48,8 +48,16 @@ from ._track import ColumnMap, resolve_columns
 
 __all__ = ["NMEA_FIELDS", "RESULT_FIELDS", "FollowCounts", "follow_lines", "parse_time"]
 
-RESULT_FIELDS = ("anomaly", "score", "bias_type", "time_type", "lat_clean", "lon_clean", "alert",
-                 "invalid_reason")
+RESULT_FIELDS = (
+    "anomaly",
+    "score",
+    "bias_type",
+    "time_type",
+    "lat_clean",
+    "lon_clean",
+    "alert",
+    "invalid_reason",
+)
 NMEA_FIELDS = ("line", "sentence", "time", "lat", "lon", "speed", "heading", "epoch_line")
 _DAY = 86400.0
 
@@ -75,14 +83,29 @@ def _text(value: float | int | str | None) -> str:
 def _result_fields(result: PointResult | None, reason: str = "") -> list[str]:
     if result is None:  # not a fix at all: nothing to say but why
         return [""] * (len(RESULT_FIELDS) - 1) + [reason]
-    return [_text(result.anomaly), _text(result.score), _text(result.bias_type),
-            _text(result.time_type), _text(result.lat_clean), _text(result.lon_clean),
-            _text(result.alert), result.invalid_reason]
+    return [
+        _text(result.anomaly),
+        _text(result.score),
+        _text(result.bias_type),
+        _text(result.time_type),
+        _text(result.lat_clean),
+        _text(result.lon_clean),
+        _text(result.alert),
+        result.invalid_reason,
+    ]
 
 
 def _invalid(reason: str) -> PointResult:
-    return PointResult(anomaly=1, score=math.nan, bias_type="none", time_type="none",
-                       lat_clean=math.nan, lon_clean=math.nan, alert=0, invalid_reason=reason)
+    return PointResult(
+        anomaly=1,
+        score=math.nan,
+        bias_type="none",
+        time_type="none",
+        lat_clean=math.nan,
+        lon_clean=math.nan,
+        alert=0,
+        invalid_reason=reason,
+    )
 
 
 def parse_time(text: str) -> float:
@@ -108,11 +131,15 @@ def parse_time(text: str) -> float:
 class _CsvFollower:
     """One CSV stream: the header fixes the columns, then one fix per line."""
 
-    def __init__(self, header: list[str], columns: ColumnMap | None, new_detector: Callable[[], Detector]) -> None:
+    def __init__(
+        self, header: list[str], columns: ColumnMap | None, new_detector: Callable[[], Detector]
+    ) -> None:
         self.header = header
         roles = resolve_columns(header, columns, source="<stdin>")
-        self.index = {role: (None if name is None else header.index(name))
-                      for role, name in roles.as_dict().items()}
+        self.index = {
+            role: (None if name is None else header.index(name))
+            for role, name in roles.as_dict().items()
+        }
         self.new_detector = new_detector
         self.detectors: dict[str, Detector] = {}
 
@@ -157,7 +184,7 @@ class _CsvFollower:
     def line(self, text: str) -> tuple[list[str], PointResult | None]:
         fields = next(csv.reader([text]))
         result = self.score(fields)
-        shown = (fields + [""] * len(self.header))[:len(self.header)]
+        shown = (fields + [""] * len(self.header))[: len(self.header)]
         return shown + _result_fields(result), result
 
 
@@ -200,13 +227,17 @@ class _NmeaFollower:
             _, epoch_line, verdict = self.last_epoch
             scored = None
         else:
-            if not (math.isnan(tod) or math.isnan(self.last_tod)) and tod < self.last_tod - _DAY / 2:
+            if (
+                not (math.isnan(tod) or math.isnan(self.last_tod))
+                and tod < self.last_tod - _DAY / 2
+            ):
                 self.day_offset += _DAY  # midnight
             if not math.isnan(tod):
                 self.last_tod = tod
             epoch_line = n
-            verdict = scored = self.detector.update(tod + self.day_offset, lat, lon, epoch.speed,
-                                                    epoch.course)
+            verdict = scored = self.detector.update(
+                tod + self.day_offset, lat, lon, epoch.speed, epoch.course
+            )
             self.last_epoch = (tod, n, verdict)
         shown = [_text(v) for v in (tod + self.day_offset, lat, lon, epoch.speed, epoch.course)]
         return [str(n), kind, *shown, str(epoch_line), *_result_fields(verdict)], scored
@@ -221,9 +252,15 @@ def _csv_text(fields: list[str]) -> str:
     return buffer.getvalue()
 
 
-def follow_lines(lines: Iterable[str], write: Callable[[str], None], *,
-                 model: str | os.PathLike[str] | None = None, threshold: float | None = None,
-                 columns: ColumnMap | None = None, fmt: str | None = None) -> FollowCounts:
+def follow_lines(
+    lines: Iterable[str],
+    write: Callable[[str], None],
+    *,
+    model: str | os.PathLike[str] | None = None,
+    threshold: float | None = None,
+    columns: ColumnMap | None = None,
+    fmt: str | None = None,
+) -> FollowCounts:
     """Score every line of ``lines`` as it comes; ``write`` gets the header, then one line per input line.
 
     ``write`` is called with one CSV line (no newline) at a time and should
@@ -242,8 +279,9 @@ def follow_lines(lines: Iterable[str], write: Callable[[str], None], *,
         if follower is None:
             kind = fmt or ("nmea" if text.lstrip().startswith(("$", "!")) else "csv")
             if kind == "csv":
-                follower = _CsvFollower(next(csv.reader([text])), columns,
-                                        lambda: Detector(model, threshold=threshold))
+                follower = _CsvFollower(
+                    next(csv.reader([text])), columns, lambda: Detector(model, threshold=threshold)
+                )
                 write(_csv_text(follower.out_header()))
                 continue
             follower = _NmeaFollower(Detector(model, threshold=threshold))

@@ -177,4 +177,6 @@ def to_geodetic_scalar(c: FloatArray, east: float, north: float) -> tuple[float,
     x = px + u * c[9]
     y = py + u * c[10]
     z = pz + u * c[11]
-    return math.degrees(math.atan2(z, math.hypot(x, y) * (1.0 - _E2))), math.degrees(math.atan2(y, x))
+    return math.degrees(math.atan2(z, math.hypot(x, y) * (1.0 - _E2))), math.degrees(
+        math.atan2(y, x)
+    )

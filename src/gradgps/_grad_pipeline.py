@@ -112,8 +112,14 @@ class PipelineParams:
     max_gap_s: float = 5.0
 
     def core(self, period: float) -> CoreParams:
-        return CoreParams(period=period, rema=self.rema, features=self.features, time=self.time,
-                          recovery=self.recovery, feed_recovered=True)
+        return CoreParams(
+            period=period,
+            rema=self.rema,
+            features=self.features,
+            time=self.time,
+            recovery=self.recovery,
+            feed_recovered=True,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         from dataclasses import asdict
@@ -135,10 +141,16 @@ class PipelineParams:
     def array(self, period: float, frame: LocalFrame, dims: NDArray[np.int64]) -> FloatArray:
         """``P`` for one segment sampled every ``period`` s in ``frame``, GRU of ``dims``."""
         core = self.core(period).to_array()
-        rest = np.concatenate([
-            self.offset.to_array(), self.time.to_array(), self.recovery.to_array(),
-            [self.threshold, period], np.asarray(dims, dtype=np.float64), frame.constants(),
-        ])
+        rest = np.concatenate(
+            [
+                self.offset.to_array(),
+                self.time.to_array(),
+                self.recovery.to_array(),
+                [self.threshold, period],
+                np.asarray(dims, dtype=np.float64),
+                frame.constants(),
+            ]
+        )
         return np.concatenate([core, rest])
 
 
@@ -162,17 +174,34 @@ def _n_core_features(Pc: FloatArray) -> int:
 
 
 @numba.njit(cache=True)
-def _features_point(P: FloatArray, S: FloatArray, core_out: FloatArray, off_out: FloatArray,
-                    dt: float, lat: float, lon: float, speed: float, heading: float,
-                    x: Any) -> tuple[float, float]:
+def _features_point(
+    P: FloatArray,
+    S: FloatArray,
+    core_out: FloatArray,
+    off_out: FloatArray,
+    dt: float,
+    lat: float,
+    lon: float,
+    speed: float,
+    heading: float,
+    x: Any,
+) -> tuple[float, float]:
     """Project, run core + offset tracker, write the feature vector into ``x``; return (east, north)."""
     Pc = P[:N_CORE_PARAMS]
     rest = P[N_CORE_PARAMS:]
     core_size = S.size - (N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE)
-    east, north = to_local_scalar(rest[_FRAME:_FRAME + N_FRAME_CONSTANTS], lat, lon)
+    east, north = to_local_scalar(rest[_FRAME : _FRAME + N_FRAME_CONSTANTS], lat, lon)
     core_step(Pc, S[:core_size], east, north, speed, heading, core_out)
-    offset_step(rest[_OFF:_OFF + N_OFFSET_PARAMS], S[core_size:core_size + N_OFFSET_STATE], dt, east, north,
-                speed, heading, off_out)
+    offset_step(
+        rest[_OFF : _OFF + N_OFFSET_PARAMS],
+        S[core_size : core_size + N_OFFSET_STATE],
+        dt,
+        east,
+        north,
+        speed,
+        heading,
+        off_out,
+    )
     f0 = N_RESULT + 2 * N_OUT
     nc = _n_core_features(Pc)
     for k in range(nc):
@@ -194,10 +223,23 @@ def _compress(v: float) -> float:
 
 
 @numba.njit(cache=True)
-def _decide_point(P: FloatArray, S: FloatArray, H: Any, gp: Any, dims: Any, x: Any,
-                  scratch: Any, gru_out: Any, core_out: FloatArray, rec_out: FloatArray,
-                  east: float, north: float, speed: float, heading: float,
-                  out: FloatArray) -> None:
+def _decide_point(
+    P: FloatArray,
+    S: FloatArray,
+    H: Any,
+    gp: Any,
+    dims: Any,
+    x: Any,
+    scratch: Any,
+    gru_out: Any,
+    core_out: FloatArray,
+    rec_out: FloatArray,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+    out: FloatArray,
+) -> None:
     """GRU on ``x`` -> threshold -> time type -> recovery -> clean position in degrees."""
     rest = P[N_CORE_PARAMS:]
     core_size = S.size - (N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE)
@@ -213,12 +255,23 @@ def _decide_point(P: FloatArray, S: FloatArray, H: Any, gp: Any, dims: Any, x: A
         for k in range(2, dims[3]):
             if gru_out[1 + k] > gru_out[1 + best]:
                 best = k
-    code = time_step(rest[_TIME:_TIME + 3], S[ts:ts + N_TIME_STATE], flag)
-    recovery_step(rest[_REC:_REC + 2], S[rs:rs + N_RECOVERY_STATE], code, rest[_PERIOD], east,
-                  north, core_out[N_RESULT + O_EMA], core_out[N_RESULT + N_OUT + O_EMA], speed,
-                  heading, rec_out)
-    lat_c, lon_c = to_geodetic_scalar(rest[_FRAME:_FRAME + N_FRAME_CONSTANTS], rec_out[0],
-                                      rec_out[1])
+    code = time_step(rest[_TIME : _TIME + 3], S[ts : ts + N_TIME_STATE], flag)
+    recovery_step(
+        rest[_REC : _REC + 2],
+        S[rs : rs + N_RECOVERY_STATE],
+        code,
+        rest[_PERIOD],
+        east,
+        north,
+        core_out[N_RESULT + O_EMA],
+        core_out[N_RESULT + N_OUT + O_EMA],
+        speed,
+        heading,
+        rec_out,
+    )
+    lat_c, lon_c = to_geodetic_scalar(
+        rest[_FRAME : _FRAME + N_FRAME_CONSTANTS], rec_out[0], rec_out[1]
+    )
     out[O_FLAG] = flag
     out[O_SCORE] = score
     out[O_BIAS] = best
@@ -243,8 +296,18 @@ def _core_width(P: FloatArray) -> int:
 
 
 @numba.njit(cache=True)
-def grad_step(P: FloatArray, S: FloatArray, H: Any, gp: Any, dt: float, lat: float, lon: float,
-              speed: float, heading: float, out: FloatArray) -> None:
+def grad_step(
+    P: FloatArray,
+    S: FloatArray,
+    H: Any,
+    gp: Any,
+    dt: float,
+    lat: float,
+    lon: float,
+    speed: float,
+    heading: float,
+    out: FloatArray,
+) -> None:
     """One fix of one segment: advance ``S`` and ``H`` and write the 7 outputs into ``out``."""
     dims = _dims(P)
     core_out = np.empty(_core_width(P))
@@ -254,14 +317,23 @@ def grad_step(P: FloatArray, S: FloatArray, H: Any, gp: Any, dt: float, lat: flo
     scratch = np.empty(_scratch_size(dims), np.float32)
     gru_out = np.empty(1 + dims[3], np.float32)
     east, north = _features_point(P, S, core_out, off_out, dt, lat, lon, speed, heading, x)
-    _decide_point(P, S, H, gp, dims, x, scratch, gru_out, core_out, rec_out, east, north, speed,
-                  heading, out)
+    _decide_point(
+        P, S, H, gp, dims, x, scratch, gru_out, core_out, rec_out, east, north, speed, heading, out
+    )
 
 
 @numba.njit(cache=True)
-def _segment_kernel(P: FloatArray, S: FloatArray, H: Any, gp: Any, dt: FloatArray,
-                    lat: FloatArray, lon: FloatArray, speed: FloatArray,
-                    heading: FloatArray) -> FloatArray:
+def _segment_kernel(
+    P: FloatArray,
+    S: FloatArray,
+    H: Any,
+    gp: Any,
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
     dims = _dims(P)
     core_out = np.empty(_core_width(P))
     off_out = np.empty(N_OFFSET_FEATURES)
@@ -271,37 +343,73 @@ def _segment_kernel(P: FloatArray, S: FloatArray, H: Any, gp: Any, dt: FloatArra
     gru_out = np.empty(1 + dims[3], np.float32)
     out = np.empty((lat.size, N_POINT_OUT))
     for i in range(lat.size):
-        east, north = _features_point(P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i],
-                                      heading[i], x)
-        _decide_point(P, S, H, gp, dims, x, scratch, gru_out, core_out, rec_out, east, north,
-                      speed[i], heading[i], out[i])
+        east, north = _features_point(
+            P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i], x
+        )
+        _decide_point(
+            P,
+            S,
+            H,
+            gp,
+            dims,
+            x,
+            scratch,
+            gru_out,
+            core_out,
+            rec_out,
+            east,
+            north,
+            speed[i],
+            heading[i],
+            out[i],
+        )
     return out
 
 
 @numba.njit(cache=True)
-def _features_kernel(P: FloatArray, S: FloatArray, dt: FloatArray, lat: FloatArray,
-                     lon: FloatArray, speed: FloatArray, heading: FloatArray,
-                     n_features: int) -> FloatArray:
+def _features_kernel(
+    P: FloatArray,
+    S: FloatArray,
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    n_features: int,
+) -> FloatArray:
     core_out = np.empty(_core_width(P))
     off_out = np.empty(N_OFFSET_FEATURES)
     out = np.empty((lat.size, n_features))
     for i in range(lat.size):
-        _features_point(P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i],
-                        out[i])
+        _features_point(
+            P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i], out[i]
+        )
     return out
 
 
 @numba.njit(cache=True)
-def _batch_segment(k: int, Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: Any,
-                   h_len: int, starts: NDArray[np.int64], dt: FloatArray, lat: FloatArray,
-                   lon: FloatArray, speed: FloatArray, heading: FloatArray,
-                   out: FloatArray) -> None:
+def _batch_segment(
+    k: int,
+    Ps: FloatArray,
+    Ss: FloatArray,
+    s_len: NDArray[np.int64],
+    gp: Any,
+    h_len: int,
+    starts: NDArray[np.int64],
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    out: FloatArray,
+) -> None:
     """Segment ``k`` of a batch, exactly as :func:`_segment_kernel`, into its rows of ``out``."""
     a, b = starts[k], starts[k + 1]
-    S = Ss[k, :s_len[k]].copy()
+    S = Ss[k, : s_len[k]].copy()
     H = np.zeros(h_len, np.float32)
-    out[a:b] = _segment_kernel(Ps[k], S, H, gp, dt[a:b], lat[a:b], lon[a:b], speed[a:b],
-                               heading[a:b])
+    out[a:b] = _segment_kernel(
+        Ps[k], S, H, gp, dt[a:b], lat[a:b], lon[a:b], speed[a:b], heading[a:b]
+    )
 
 
 # Two drivers over the same per-segment step: one thread (the default: safe to call from
@@ -310,9 +418,19 @@ def _batch_segment(k: int, Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int
 # "omp" and "tbb" are fine). They are separate functions, not one function compiled twice,
 # because numba's on-disk cache keys a kernel by its function, not by its flags.
 @numba.njit(cache=True)
-def _batch_serial(Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: Any,
-                  h_len: int, starts: NDArray[np.int64], dt: FloatArray, lat: FloatArray,
-                  lon: FloatArray, speed: FloatArray, heading: FloatArray) -> FloatArray:
+def _batch_serial(
+    Ps: FloatArray,
+    Ss: FloatArray,
+    s_len: NDArray[np.int64],
+    gp: Any,
+    h_len: int,
+    starts: NDArray[np.int64],
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
     out = np.empty((lat.size, N_POINT_OUT))
     for k in range(starts.size - 1):
         _batch_segment(k, Ps, Ss, s_len, gp, h_len, starts, dt, lat, lon, speed, heading, out)
@@ -320,19 +438,38 @@ def _batch_serial(Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: 
 
 
 @numba.njit(cache=True, parallel=True)
-def _batch_parallel(Ps: FloatArray, Ss: FloatArray, s_len: NDArray[np.int64], gp: Any,
-                    h_len: int, starts: NDArray[np.int64], dt: FloatArray, lat: FloatArray,
-                    lon: FloatArray, speed: FloatArray, heading: FloatArray) -> FloatArray:
+def _batch_parallel(
+    Ps: FloatArray,
+    Ss: FloatArray,
+    s_len: NDArray[np.int64],
+    gp: Any,
+    h_len: int,
+    starts: NDArray[np.int64],
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
     out = np.empty((lat.size, N_POINT_OUT))
     for k in numba.prange(starts.size - 1):
         _batch_segment(k, Ps, Ss, s_len, gp, h_len, starts, dt, lat, lon, speed, heading, out)
     return out
 
 
-def grad_segments(params: PipelineParams, frames: list[LocalFrame], gp: NDArray[np.float32],
-                  dims: NDArray[np.int64], starts: NDArray[np.int64], t: FloatArray,
-                  lat: FloatArray, lon: FloatArray, speed: FloatArray,
-                  heading: FloatArray, threads: int = 1) -> FloatArray:
+def grad_segments(
+    params: PipelineParams,
+    frames: list[LocalFrame],
+    gp: NDArray[np.float32],
+    dims: NDArray[np.int64],
+    starts: NDArray[np.int64],
+    t: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    threads: int = 1,
+) -> FloatArray:
     """:func:`grad_segment` over many segments (``starts`` = their boundaries, one frame
     each); with ``threads`` > 1 on that many numba threads. Same numbers either way."""
     n_seg = starts.size - 1
@@ -350,9 +487,20 @@ def grad_segments(params: PipelineParams, frames: list[LocalFrame], gp: NDArray[
     s_len = np.array([len(x) for x in states], np.int64)
     Ss = np.zeros((n_seg, int(s_len.max())))
     for k, x in enumerate(states):
-        Ss[k, :x.size] = x
-    args = (np.array(Ps), Ss, s_len, gp, int(dims[1] + dims[2]), starts.astype(np.int64), dt,
-            lat, lon, speed, heading)
+        Ss[k, : x.size] = x
+    args = (
+        np.array(Ps),
+        Ss,
+        s_len,
+        gp,
+        int(dims[1] + dims[2]),
+        starts.astype(np.int64),
+        dt,
+        lat,
+        lon,
+        speed,
+        heading,
+    )
     if threads <= 1:
         return np.asarray(_batch_serial(*args))
     previous = numba.get_num_threads()
@@ -372,21 +520,38 @@ def segment_period(t: FloatArray) -> float:
     return float(t[1] - t[0]) if t.size >= 2 else 1.0
 
 
-def grad_features(params: PipelineParams, frame: LocalFrame, t: FloatArray, lat: FloatArray,
-                  lon: FloatArray, speed: FloatArray, heading: FloatArray) -> FloatArray:
+def grad_features(
+    params: PipelineParams,
+    frame: LocalFrame,
+    t: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
     """The GRU's input features (n, F) float64 for one segment (training and inspection)."""
     names = pipeline_feature_names(params)
     dims = np.array([len(names), 0, 0, 0], np.int64)
     P = params.array(segment_period(t), frame, dims)
-    return np.asarray(_features_kernel(P, new_state(P), _segment_dt(t), lat, lon, speed, heading,
-                                       len(names)))
+    return np.asarray(
+        _features_kernel(P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names))
+    )
 
 
-def grad_segment(params: PipelineParams, frame: LocalFrame, gp: NDArray[np.float32],
-                 dims: NDArray[np.int64], t: FloatArray, lat: FloatArray, lon: FloatArray,
-                 speed: FloatArray, heading: FloatArray) -> FloatArray:
+def grad_segment(
+    params: PipelineParams,
+    frame: LocalFrame,
+    gp: NDArray[np.float32],
+    dims: NDArray[np.int64],
+    t: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
     """Per-point outputs (n, 7) for one segment, from a fresh state (see the O_* columns)."""
     P = params.array(segment_period(t), frame, dims)
     H = np.zeros(int(dims[1] + dims[2]), np.float32)
-    return np.asarray(_segment_kernel(P, new_state(P), H, gp, _segment_dt(t), lat, lon, speed,
-                                      heading))
+    return np.asarray(
+        _segment_kernel(P, new_state(P), H, gp, _segment_dt(t), lat, lon, speed, heading)
+    )

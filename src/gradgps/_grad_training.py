@@ -50,18 +50,20 @@ def labelled_sequences(
     """
     for col in ("label_anomaly", "label_bias"):
         if col not in labelled.columns:
-            raise ConfigError(f"labelled table lacks {col!r}; produce it with an injection protocol")
+            raise ConfigError(
+                f"labelled table lacks {col!r}; produce it with an injection protocol"
+            )
     fixes = to_fixes(labelled, columns)
     prepared = preprocess(fixes, max_gap_s=params.max_gap_s, interpolate=False)
     n_pts = len(prepared.points)
     ok = prepared.row_point >= 0
     anomaly = np.zeros(n_pts, np.int64)
-    np.maximum.at(anomaly, prepared.row_point[ok],
-                  labelled["label_anomaly"].to_numpy(np.int64)[ok])
+    np.maximum.at(anomaly, prepared.row_point[ok], labelled["label_anomaly"].to_numpy(np.int64)[ok])
     index = {name: i for i, name in enumerate(bias_classes)}
     try:
-        bias_rows = np.array([index[str(v)] for v in labelled["label_bias"].to_numpy(object)],
-                             dtype=np.int64)
+        bias_rows = np.array(
+            [index[str(v)] for v in labelled["label_bias"].to_numpy(object)], dtype=np.int64
+        )
     except KeyError as exc:
         raise ConfigError(f"bias label {exc} is not one of {list(bias_classes)}") from exc
     bias = np.zeros(n_pts, np.int64)
@@ -76,8 +78,15 @@ def labelled_sequences(
     tracks = pts["track"].to_numpy(object)
     out: list[LabelledSequence] = []
     for _, sl in prepared.segment_slices():
-        feats = grad_features(params, prepared.frames[str(tracks[sl.start])], t[sl], lat[sl],
-                              lon[sl], speed[sl], heading[sl])
+        feats = grad_features(
+            params,
+            prepared.frames[str(tracks[sl.start])],
+            t[sl],
+            lat[sl],
+            lon[sl],
+            speed[sl],
+            heading[sl],
+        )
         out.append((feats.astype(np.float32), anomaly[sl], bias[sl]))
     return out
 
@@ -107,8 +116,12 @@ class TrainReport:
     history: list[dict[str, Any]] = field(default_factory=list)
 
 
-def _sequences(tables: Sequence[pd.DataFrame], params: PipelineParams, seeds: Sequence[int],
-               scales: Sequence[float]) -> list[LabelledSequence]:
+def _sequences(
+    tables: Sequence[pd.DataFrame],
+    params: PipelineParams,
+    seeds: Sequence[int],
+    scales: Sequence[float],
+) -> list[LabelledSequence]:
     out: list[LabelledSequence] = []
     for table in tables:
         cmap: ColumnMap = to_fixes(table).attrs["columns"]
@@ -167,18 +180,32 @@ def train_grad(
     val = _sequences(val_tables, prm, (spec.val_seed,), (1.0,))
     if not train or not val:
         raise ConfigError("training needs at least one training and one validation segment")
-    config = TrainConfig(bias_classes=GRAD_BIAS_CLASSES, mode=mode, window=window,
-                         time_budget_s=time_budget_s, seed=seed, progress=progress,
-                         early_stopping=early_stopping, patience=patience, learning_rate=learning_rate,
-                         max_epochs=max_epochs, batch_size=batch_size)
+    config = TrainConfig(
+        bias_classes=GRAD_BIAS_CLASSES,
+        mode=mode,
+        window=window,
+        time_budget_s=time_budget_s,
+        seed=seed,
+        progress=progress,
+        early_stopping=early_stopping,
+        patience=patience,
+        learning_rate=learning_rate,
+        max_epochs=max_epochs,
+        batch_size=batch_size,
+    )
     with torch.random.fork_rng():
         trained = train_model(train, val, config)
     threshold = float(trained.anomaly_threshold)
     tuned = PipelineParams(**{**prm.__dict__, "threshold": threshold})
-    cfg = trained.model_config(pipeline_feature_names(tuned), {"pipeline": tuned.to_dict()},
-                               tuned.rema.__dict__)
-    cfg["training"]["data"] = {"seeds": list(spec.seeds), "scales": list(spec.scales),
-                               "val_seed": spec.val_seed, **(notes or {})}
+    cfg = trained.model_config(
+        pipeline_feature_names(tuned), {"pipeline": tuned.to_dict()}, tuned.rema.__dict__
+    )
+    cfg["training"]["data"] = {
+        "seeds": list(spec.seeds),
+        "scales": list(spec.scales),
+        "val_seed": spec.val_seed,
+        **(notes or {}),
+    }
     save_model(Path(directory), export_torch(trained.network), cfg)
     return TrainReport(
         n_train_points=sum(len(s[1]) for s in train),
@@ -221,7 +248,10 @@ def dataset_model(dataset: str, data_dir: str | Path | None = None) -> Path:
     if not (target / "config.json").is_file():
         from ._datasets import load_dataset
 
-        train_grad([load_dataset(dataset, "train", data_dir=data_dir)],
-                   [load_dataset(dataset, "validation", data_dir=data_dir)], target,
-                   notes={"source": f"dataset {dataset}", "protocol": "grad"})
+        train_grad(
+            [load_dataset(dataset, "train", data_dir=data_dir)],
+            [load_dataset(dataset, "validation", data_dir=data_dir)],
+            target,
+            notes={"source": f"dataset {dataset}", "protocol": "grad"},
+        )
     return target

@@ -117,7 +117,9 @@ def read_table(path: str | Path, fmt: str | None = None, columns: ColumnMap | No
     kind = resolve_format(path, fmt)
     if kind == "rosbag":
         table = read_rosbag(path)
-        return table if columns is None else replace(table, columns=_override(table.columns, columns))
+        return (
+            table if columns is None else replace(table, columns=_override(table.columns, columns))
+        )
     check_readable(path)
     if kind == "csv":
         table = _read_csv(path, columns)
@@ -209,7 +211,9 @@ class TableWriter:
         if self._columns is None:
             self._columns = columns
         elif columns != self._columns:
-            raise ConfigError(f"chunk columns {columns} differ from the first chunk's {self._columns}")
+            raise ConfigError(
+                f"chunk columns {columns} differ from the first chunk's {self._columns}"
+            )
         try:
             if self.kind == "csv":
                 self._write_csv(frame)
@@ -233,14 +237,17 @@ class TableWriter:
             import pyarrow as pa
             import pyarrow.parquet as pq
         except ImportError as exc:
-            raise ConfigError(f"writing Parquet needs pyarrow ({exc}); install gradgps[io]") from None
+            raise ConfigError(
+                f"writing Parquet needs pyarrow ({exc}); install gradgps[io]"
+            ) from None
         if self._parquet is None:
             table = pa.Table.from_pandas(frame, preserve_index=False)
             self._parquet = pq.ParquetWriter(self.partial, table.schema)
         else:
             try:
-                table = pa.Table.from_pandas(frame, schema=self._parquet.schema,
-                                             preserve_index=False)
+                table = pa.Table.from_pandas(
+                    frame, schema=self._parquet.schema, preserve_index=False
+                )
             except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
                 raise ConfigError(
                     f"cannot write {str(self.path)!r}: rows {self.rows + 1}.. do not fit the "

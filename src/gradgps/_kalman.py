@@ -134,8 +134,17 @@ def kf_reference(
 
 
 @numba.njit(cache=True)
-def kf_step(state: FloatArray, z: FloatArray, dt: float, q: FloatArray, r: FloatArray,
-            threshold: float, joint: bool, forced: bool, out: FloatArray) -> None:
+def kf_step(
+    state: FloatArray,
+    z: FloatArray,
+    dt: float,
+    q: FloatArray,
+    r: FloatArray,
+    threshold: float,
+    joint: bool,
+    forced: bool,
+    out: FloatArray,
+) -> None:
     """Advance every channel by one reading; ``out`` = ``[flag, max NIS, clean values]``."""
     c = z.size
     nis_sum = 0.0
@@ -192,8 +201,15 @@ def kf_step(state: FloatArray, z: FloatArray, dt: float, q: FloatArray, r: Float
 
 
 @numba.njit(cache=True)
-def kf_segment_kernel(values: FloatArray, dt: FloatArray, q: FloatArray, r: FloatArray,
-                      threshold: float, joint: bool, forced: NDArray[np.bool_]) -> FloatArray:
+def kf_segment_kernel(
+    values: FloatArray,
+    dt: FloatArray,
+    q: FloatArray,
+    r: FloatArray,
+    threshold: float,
+    joint: bool,
+    forced: NDArray[np.bool_],
+) -> FloatArray:
     n, c = values.shape
     state = np.zeros((c, N_CHANNEL_STATE))
     out = np.empty((n, 2 + c))
@@ -203,7 +219,9 @@ def kf_segment_kernel(values: FloatArray, dt: FloatArray, q: FloatArray, r: Floa
 
 
 @numba.njit(cache=True)
-def _neg_log_likelihood(values: FloatArray, dt: FloatArray, q: float, r: float) -> tuple[float, int]:
+def _neg_log_likelihood(
+    values: FloatArray, dt: FloatArray, q: float, r: float
+) -> tuple[float, int]:
     """Sum of ``log S + y²/S`` over the innovations of one channel (no test, every reading used)."""
     x = v = p00 = p01 = p11 = 0.0
     started = False
@@ -219,8 +237,11 @@ def _neg_log_likelihood(values: FloatArray, dt: FloatArray, q: float, r: float) 
             continue
         d = dt[i]
         x += v * d
-        p00, p01, p11 = (p00 + 2.0 * d * p01 + d * d * p11 + q * d * d * d / 3.0,
-                         p01 + d * p11 + q * d * d / 2.0, p11 + q * d)
+        p00, p01, p11 = (
+            p00 + 2.0 * d * p01 + d * d * p11 + q * d * d * d / 3.0,
+            p01 + d * p11 + q * d * d / 2.0,
+            p11 + q * d,
+        )
         s = p00 + r
         y = z - x
         if count > 0 or i > 2:  # the diffuse start says nothing about q and r
@@ -237,13 +258,26 @@ def _dt(t: FloatArray) -> FloatArray:
     return np.diff(t, prepend=t[:1]) if t.size else t.copy()
 
 
-def kf_segment(segment: Segment, q: FloatArray, r: FloatArray, threshold: float, joint: bool,
-               forced: NDArray[np.bool_] | None = None) -> FloatArray:
+def kf_segment(
+    segment: Segment,
+    q: FloatArray,
+    r: FloatArray,
+    threshold: float,
+    joint: bool,
+    forced: NDArray[np.bool_] | None = None,
+) -> FloatArray:
     """The filter over one segment: ``(n, 2 + C)`` rows of ``[flag, NIS, clean values]``."""
     n = len(segment.t)
     mask = np.zeros(n, bool) if forced is None else np.ascontiguousarray(forced, dtype=bool)
-    return kf_segment_kernel(segment.values, _dt(segment.t), np.asarray(q, np.float64),
-                             np.asarray(r, np.float64), float(threshold), joint, mask)
+    return kf_segment_kernel(
+        segment.values,
+        _dt(segment.t),
+        np.asarray(q, np.float64),
+        np.asarray(r, np.float64),
+        float(threshold),
+        joint,
+        mask,
+    )
 
 
 def fit_noise(segs: Sequence[Segment]) -> tuple[FloatArray, FloatArray]:
@@ -258,23 +292,37 @@ def fit_noise(segs: Sequence[Segment]) -> tuple[FloatArray, FloatArray]:
             for r in _R_GRID:
                 total = 0.0
                 for seg in segs:
-                    total += _neg_log_likelihood(np.ascontiguousarray(seg.values[:, k]), _dt(seg.t),
-                                                 float(q), float(r))[0]
+                    total += _neg_log_likelihood(
+                        np.ascontiguousarray(seg.values[:, k]), _dt(seg.t), float(q), float(r)
+                    )[0]
                 if total < best:
                     best, q_best[k], r_best[k] = total, q, r
     return q_best, r_best
 
 
-def tune_threshold(segs: Sequence[Segment], labels: Sequence[np.ndarray], q: FloatArray,
-                   r: FloatArray, joint: bool,
-                   forced: Sequence[NDArray[np.bool_]] | None = None) -> float:
+def tune_threshold(
+    segs: Sequence[Segment],
+    labels: Sequence[np.ndarray],
+    q: FloatArray,
+    r: FloatArray,
+    joint: bool,
+    forced: Sequence[NDArray[np.bool_]] | None = None,
+) -> float:
     """The NIS threshold on a grid with the best anomaly F1 over labelled segments (ties: higher)."""
     truth = np.concatenate(labels).astype(bool)
     best_f1, best = -1.0, float(_THRESHOLD_GRID[-1])
     for threshold in _THRESHOLD_GRID[::-1]:
-        flags = np.concatenate([
-            kf_segment(seg, q, r, float(threshold), joint, None if forced is None else forced[i])[:, 0]
-            for i, seg in enumerate(segs)]) == 1.0
+        flags = (
+            np.concatenate(
+                [
+                    kf_segment(
+                        seg, q, r, float(threshold), joint, None if forced is None else forced[i]
+                    )[:, 0]
+                    for i, seg in enumerate(segs)
+                ]
+            )
+            == 1.0
+        )
         tp = int(np.sum(flags & truth))
         denominator = int(flags.sum() + truth.sum())
         f1 = 2.0 * tp / denominator if denominator else 0.0
@@ -298,34 +346,52 @@ class KalmanParams:
         return self.inputs == "position"
 
     def to_dict(self) -> dict[str, Any]:
-        return {"inputs": self.inputs, "q": list(self.q), "r": list(self.r),
-                "threshold": self.threshold, "max_gap_s": self.max_gap_s}
+        return {
+            "inputs": self.inputs,
+            "q": list(self.q),
+            "r": list(self.r),
+            "threshold": self.threshold,
+            "max_gap_s": self.max_gap_s,
+        }
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> KalmanParams:
         try:
-            return cls(str(data["inputs"]), tuple(float(v) for v in data["q"]),
-                       tuple(float(v) for v in data["r"]), float(data["threshold"]),
-                       float(data["max_gap_s"]))
+            return cls(
+                str(data["inputs"]),
+                tuple(float(v) for v in data["q"]),
+                tuple(float(v) for v in data["r"]),
+                float(data["threshold"]),
+                float(data["max_gap_s"]),
+            )
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigError(f"not Kalman filter settings: {exc}") from exc
 
 
-def detect_with_filter(fixes: pd.DataFrame, params: KalmanParams,
-                       forced: dict[str, Any] | None = None) -> tuple[list[Segment], np.ndarray,
-                                                                     list[FloatArray]]:
+def detect_with_filter(
+    fixes: pd.DataFrame, params: KalmanParams, forced: dict[str, Any] | None = None
+) -> tuple[list[Segment], np.ndarray, list[FloatArray]]:
     """Segments, invalid reasons and per-segment filter outputs for a batch of fixes."""
     segs, reason = segments(fixes, params.inputs, params.max_gap_s)
     q, r = np.array(params.q), np.array(params.r)
-    outs = [kf_segment(seg, q, r, params.threshold, params.joint,
-                       None if forced is None else forced[str(i)]) for i, seg in enumerate(segs)]
+    outs = [
+        kf_segment(
+            seg, q, r, params.threshold, params.joint, None if forced is None else forced[str(i)]
+        )
+        for i, seg in enumerate(segs)
+    ]
     return segs, reason, outs
 
 
-def filter_result(fixes: pd.DataFrame, params: KalmanParams, segs: Sequence[Segment],
-                  reason: np.ndarray, outs: Sequence[FloatArray],
-                  extra_flag: Sequence[np.ndarray] | None = None,
-                  extra_score: Sequence[np.ndarray] | None = None) -> pd.DataFrame:
+def filter_result(
+    fixes: pd.DataFrame,
+    params: KalmanParams,
+    segs: Sequence[Segment],
+    reason: np.ndarray,
+    outs: Sequence[FloatArray],
+    extra_flag: Sequence[np.ndarray] | None = None,
+    extra_score: Sequence[np.ndarray] | None = None,
+) -> pd.DataFrame:
     """The detector-interface frame from filter outputs (shared by ``kf`` and ``cnn-kf``)."""
     n = len(fixes)
     anomaly = np.zeros(n, np.int8)
@@ -367,8 +433,12 @@ class KalmanDetector:
         det.params_ = params
         return det
 
-    def fit(self, train_fixes: Sequence[pd.DataFrame], val_fixes: Sequence[pd.DataFrame],
-            val_labels: Sequence[np.ndarray]) -> KalmanDetector:
+    def fit(
+        self,
+        train_fixes: Sequence[pd.DataFrame],
+        val_fixes: Sequence[pd.DataFrame],
+        val_labels: Sequence[np.ndarray],
+    ) -> KalmanDetector:
         """``q``, ``r`` from the clean ``train_fixes``; threshold from labelled ``val_fixes``.
 
         ``val_labels[i]`` holds one 0/1 label per row of ``val_fixes[i]``.
@@ -383,8 +453,9 @@ class KalmanDetector:
             val_truth += [np.asarray(labels)[s.rows] for s in segs]
         joint = self.inputs == "position"
         threshold = tune_threshold(val_segs, val_truth, q, r, joint)
-        self.params_ = KalmanParams(self.inputs, tuple(q.tolist()), tuple(r.tolist()), threshold,
-                                    self.max_gap_s)
+        self.params_ = KalmanParams(
+            self.inputs, tuple(q.tolist()), tuple(r.tolist()), threshold, self.max_gap_s
+        )
         return self
 
     def _fitted(self) -> KalmanParams:
@@ -406,19 +477,47 @@ class KalmanDetector:
         self._last_t: float | None = None
         self._state: FloatArray | None = None
 
-    def update(self, t: float, lat: float, lon: float, speed: float | None = None,
-               heading: float | None = None, **channels: float) -> PointResult:
+    def update(
+        self,
+        t: float,
+        lat: float,
+        lon: float,
+        speed: float | None = None,
+        heading: float | None = None,
+        **channels: float,
+    ) -> PointResult:
         """Judge one reading of this detector's track (time order), as :meth:`detect` would."""
         return self.step(t, lat, lon, speed, channels, forced=False)
 
-    def step(self, t: float, lat: float, lon: float, speed: float | None,
-             channels: Mapping[str, float], *, forced: bool) -> PointResult:
+    def step(
+        self,
+        t: float,
+        lat: float,
+        lon: float,
+        speed: float | None,
+        channels: Mapping[str, float],
+        *,
+        forced: bool,
+    ) -> PointResult:
         """:meth:`update` with ``forced``: flag the reading and never use it (``cnn-kf``)."""
         params = self._fitted()
-        if not (math.isfinite(t) and math.isfinite(lat) and math.isfinite(lon)
-                and abs(lat) <= 90.0 and abs(lon) <= 180.0):
-            return PointResult(0, math.nan, None, None, math.nan, math.nan, 0,
-                               invalid_reason="time, latitude or longitude unusable")
+        if not (
+            math.isfinite(t)
+            and math.isfinite(lat)
+            and math.isfinite(lon)
+            and abs(lat) <= 90.0
+            and abs(lon) <= 180.0
+        ):
+            return PointResult(
+                0,
+                math.nan,
+                None,
+                None,
+                math.nan,
+                math.nan,
+                0,
+                invalid_reason="time, latitude or longitude unusable",
+            )
         if self._frame is None:
             self._frame = LocalFrame(float(lat), float(lon))
         if params.inputs == "position":
@@ -433,20 +532,32 @@ class KalmanDetector:
         dt = 0.0 if gap or self._last_t is None else float(t) - self._last_t
         self._last_t = float(t)
         out = np.empty(2 + z.size)
-        kf_step(self._state, z, dt, np.array(params.q), np.array(params.r), params.threshold,
-                params.joint, forced, out)
+        kf_step(
+            self._state,
+            z,
+            dt,
+            np.array(params.q),
+            np.array(params.r),
+            params.threshold,
+            params.joint,
+            forced,
+            out,
+        )
         lat_c, lon_c = float(lat), float(lon)
         if out[0] == 1.0 and params.inputs == "position":
             la, lo = self._frame.to_geodetic(out[2], out[3])
             lat_c, lon_c = float(la), float(lo)
-        return PointResult(int(out[0]), float(out[1] / (out[1] + params.threshold)), None, None,
-                           lat_c, lon_c, 0)
+        return PointResult(
+            int(out[0]), float(out[1] / (out[1] + params.threshold)), None, None, lat_c, lon_c, 0
+        )
 
     def get_state(self) -> dict[str, Any]:
         """The stream's memory as plain JSON-able data (the fitted settings are not state)."""
-        return {"frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
-                "last_t": self._last_t,
-                "state": None if self._state is None else self._state.tolist()}
+        return {
+            "frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
+            "last_t": self._last_t,
+            "state": None if self._state is None else self._state.tolist(),
+        }
 
     def set_state(self, state: dict[str, Any]) -> KalmanDetector:
         try:

@@ -26,10 +26,25 @@ from ._cnn import conv1d_same, softmax_anomaly
 
 __all__ = ["LSTM_CNN_WEIGHTS", "lstm_cnn_forward"]
 
-LSTM_CNN_WEIGHTS = ("conv1.weight", "conv1.bias", "conv2.weight", "conv2.bias", "conv3.weight",
-                    "conv3.bias", "lstm.weight_ih_l0", "lstm.weight_hh_l0", "lstm.bias_ih_l0",
-                    "lstm.bias_hh_l0", "attention.weight", "attention.bias", "attention_v.weight",
-                    "dense.weight", "dense.bias", "out.weight", "out.bias")
+LSTM_CNN_WEIGHTS = (
+    "conv1.weight",
+    "conv1.bias",
+    "conv2.weight",
+    "conv2.bias",
+    "conv3.weight",
+    "conv3.bias",
+    "lstm.weight_ih_l0",
+    "lstm.weight_hh_l0",
+    "lstm.bias_ih_l0",
+    "lstm.bias_hh_l0",
+    "attention.weight",
+    "attention.bias",
+    "attention_v.weight",
+    "dense.weight",
+    "dense.bias",
+    "out.weight",
+    "out.bias",
+)
 
 
 def _sigmoid(v: np.ndarray) -> np.ndarray:
@@ -49,9 +64,9 @@ def _lstm(weights: Mapping[str, np.ndarray], x: np.ndarray) -> np.ndarray:
     for s in range(steps):
         gates = inputs[:, s] + h @ w_hh.T
         i = _sigmoid(gates[:, :size])
-        f = _sigmoid(gates[:, size:2 * size])
-        g = np.tanh(gates[:, 2 * size:3 * size])
-        o = _sigmoid(gates[:, 3 * size:])
+        f = _sigmoid(gates[:, size : 2 * size])
+        g = np.tanh(gates[:, 2 * size : 3 * size])
+        o = _sigmoid(gates[:, 3 * size :])
         c = f * c + i * g
         h = o * np.tanh(c)
         out[:, s] = h

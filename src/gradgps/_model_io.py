@@ -169,8 +169,9 @@ def _check_weights(
                 f"config.json says {shape}; {_RETRAIN}"
             )
         if not np.all(np.abs(array) <= _FLOAT32_MAX):  # NaN compares False
-            raise ModelError(f"{source}: array {name!r} holds NaN, infinite or beyond-float32 "
-                             f"values; {_RETRAIN}")
+            raise ModelError(
+                f"{source}: array {name!r} holds NaN, infinite or beyond-float32 values; {_RETRAIN}"
+            )
 
 
 def save_model(

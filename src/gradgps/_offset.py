@@ -82,12 +82,21 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-OFFSET_FEATURES = ("offset_east", "offset_north", "offset_norm", "offset_change", "residual_east",
-                   "residual_north", "clean_distance", "fault_age_s")
+OFFSET_FEATURES = (
+    "offset_east",
+    "offset_north",
+    "offset_norm",
+    "offset_change",
+    "residual_east",
+    "residual_north",
+    "clean_distance",
+    "fault_age_s",
+)
 N_OFFSET_FEATURES = len(OFFSET_FEATURES)
 N_OFFSET_PARAMS = 8
 P_THRESHOLD, P_LEAK, P_ALPHA, P_FAST_LEAK, P_DRIFT, P_MAX_FAULT, P_BIAS_ALPHA, P_TRUST = range(
-    N_OFFSET_PARAMS)
+    N_OFFSET_PARAMS
+)
 # State: count, last east, last north, last ve, last vn (reported, NaN if none),
 # cv ve, cv vn, offset east, offset north, clean-track east, north, fault age (s),
 # velocity bias east, north (m/s).
@@ -115,10 +124,16 @@ class OffsetParams:
     trust_clean_s: float = 10.0
 
     def to_array(self) -> FloatArray:
-        if not (self.threshold_m > 0 and 0 <= self.leak_per_s < 1 and 0 < self.cv_alpha <= 1
-                and 0 <= self.fast_leak_per_s < 1 and self.drift_per_s >= 0
-                and self.max_fault_s > 0 and 0 <= self.bias_alpha <= 1
-                and self.trust_clean_s >= 0):
+        if not (
+            self.threshold_m > 0
+            and 0 <= self.leak_per_s < 1
+            and 0 < self.cv_alpha <= 1
+            and 0 <= self.fast_leak_per_s < 1
+            and self.drift_per_s >= 0
+            and self.max_fault_s > 0
+            and 0 <= self.bias_alpha <= 1
+            and self.trust_clean_s >= 0
+        ):
             raise ConfigError(
                 "offset tracker needs threshold_m > 0, 0 <= leak_per_s < 1, 0 < cv_alpha <= 1, "
                 "0 <= fast_leak_per_s < 1, drift_per_s >= 0, max_fault_s > 0, "
@@ -126,8 +141,18 @@ class OffsetParams:
                 f"{self.cv_alpha}, {self.fast_leak_per_s}, {self.drift_per_s}, {self.max_fault_s}, "
                 f"{self.bias_alpha}, {self.trust_clean_s}"
             )
-        return np.array([self.threshold_m, self.leak_per_s, self.cv_alpha, self.fast_leak_per_s,
-                         self.drift_per_s, self.max_fault_s, self.bias_alpha, self.trust_clean_s])
+        return np.array(
+            [
+                self.threshold_m,
+                self.leak_per_s,
+                self.cv_alpha,
+                self.fast_leak_per_s,
+                self.drift_per_s,
+                self.max_fault_s,
+                self.bias_alpha,
+                self.trust_clean_s,
+            ]
+        )
 
 
 def _velocity(speed: float, heading: float) -> tuple[float, float]:
@@ -138,7 +163,11 @@ def _velocity(speed: float, heading: float) -> tuple[float, float]:
 
 
 def offset_features_reference(
-    dt: ArrayLike, east: ArrayLike, north: ArrayLike, speed: ArrayLike, heading: ArrayLike,
+    dt: ArrayLike,
+    east: ArrayLike,
+    north: ArrayLike,
+    speed: ArrayLike,
+    heading: ArrayLike,
     params: OffsetParams | None = None,
 ) -> FloatArray:
     """Readable version of the tracker over one segment; ``dt[i]`` = t[i] - t[i-1] (dt[0] unused)."""
@@ -190,10 +219,10 @@ def offset_features_reference(
                 cv[c] = prm.cv_alpha * step[c] / d[i] + (1 - prm.cv_alpha) * cv[c]
                 if reported and not in_fault:  # bias + residual / dt: the step's disagreement
                     bias[c] += prm.bias_alpha * residual[c] / d[i]
-            gate = min(prm.threshold_m + prm.drift_per_s * age,
-                       0.5 * max(abs(offset[c]), abs(before)))
-            if in_fault and (abs(offset[c]) <= prm.threshold_m
-                             or abs(fix[i, c] - clean[c]) < gate):
+            gate = min(
+                prm.threshold_m + prm.drift_per_s * age, 0.5 * max(abs(offset[c]), abs(before))
+            )
+            if in_fault and (abs(offset[c]) <= prm.threshold_m or abs(fix[i, c] - clean[c]) < gate):
                 offset[c] = 0.0  # it ended: what is left is prediction error
             if explained and abs(offset[c]) <= prm.threshold_m:
                 clean[c] = fix[i, c]  # a clean step from a clean fix: re-anchor
@@ -202,14 +231,31 @@ def offset_features_reference(
         if age > prm.max_fault_s:  # held too long to be a fault: start afresh here
             offset, clean, age = [0.0, 0.0], [fix[i, 0], fix[i, 1]], 0.0
         distance = math.hypot(fix[i, 0] - clean[0], fix[i, 1] - clean[1])
-        out[i] = (offset[0], offset[1], math.hypot(*offset), math.hypot(*offset) - norm_before,
-                  residual[0], residual[1], distance, age)
+        out[i] = (
+            offset[0],
+            offset[1],
+            math.hypot(*offset),
+            math.hypot(*offset) - norm_before,
+            residual[0],
+            residual[1],
+            distance,
+            age,
+        )
     return out
 
 
 @numba.njit(cache=True)
-def _channel(p: FloatArray, state: FloatArray, c: int, fix: float, predicted: float,
-             residual: float, step: float, dt: float, reported: bool) -> None:
+def _channel(
+    p: FloatArray,
+    state: FloatArray,
+    c: int,
+    fix: float,
+    predicted: float,
+    residual: float,
+    step: float,
+    dt: float,
+    reported: bool,
+) -> None:
     """One channel's offset, velocity estimates and clean track (c = 0 east, 1 north)."""
     o, cv, ce, b = S_OE + c, S_CVE + c, S_CE + c, S_BE + c
     before = state[o]
@@ -234,8 +280,16 @@ def _channel(p: FloatArray, state: FloatArray, c: int, fix: float, predicted: fl
 
 
 @numba.njit(cache=True)
-def offset_step(p: FloatArray, state: FloatArray, dt: float, east: float, north: float,
-                speed: float, heading: float, out: FloatArray) -> None:
+def offset_step(
+    p: FloatArray,
+    state: FloatArray,
+    dt: float,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+    out: FloatArray,
+) -> None:
     """One point of the tracker: advance ``state`` and write the features into ``out``."""
     count = state[S_COUNT]
     if np.isfinite(speed) and np.isfinite(heading):
@@ -296,8 +350,14 @@ def offset_step(p: FloatArray, state: FloatArray, dt: float, east: float, north:
 
 
 @numba.njit(cache=True)
-def _offset_kernel(p: FloatArray, dt: FloatArray, east: FloatArray, north: FloatArray,
-                   speed: FloatArray, heading: FloatArray) -> FloatArray:
+def _offset_kernel(
+    p: FloatArray,
+    dt: FloatArray,
+    east: FloatArray,
+    north: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
     state = np.zeros(N_OFFSET_STATE)
     out = np.empty((east.size, N_OFFSET_FEATURES))
     for i in range(east.size):
@@ -306,15 +366,23 @@ def _offset_kernel(p: FloatArray, dt: FloatArray, east: FloatArray, north: Float
 
 
 def offset_features(
-    dt: ArrayLike, east: ArrayLike, north: ArrayLike, speed: ArrayLike | None = None,
-    heading: ArrayLike | None = None, params: OffsetParams | None = None,
+    dt: ArrayLike,
+    east: ArrayLike,
+    north: ArrayLike,
+    speed: ArrayLike | None = None,
+    heading: ArrayLike | None = None,
+    params: OffsetParams | None = None,
 ) -> FloatArray:
     """The tracker over one segment (numba); ``speed``/``heading`` may be None or contain NaN."""
     e = np.ascontiguousarray(east, dtype=np.float64)
     nan = np.full(e.size, np.nan)
-    return np.asarray(_offset_kernel(
-        (params or OffsetParams()).to_array(), np.ascontiguousarray(dt, dtype=np.float64), e,
-        np.ascontiguousarray(north, dtype=np.float64),
-        nan if speed is None else np.ascontiguousarray(speed, dtype=np.float64),
-        nan if heading is None else np.ascontiguousarray(heading, dtype=np.float64),
-    ))
+    return np.asarray(
+        _offset_kernel(
+            (params or OffsetParams()).to_array(),
+            np.ascontiguousarray(dt, dtype=np.float64),
+            e,
+            np.ascontiguousarray(north, dtype=np.float64),
+            nan if speed is None else np.ascontiguousarray(speed, dtype=np.float64),
+            nan if heading is None else np.ascontiguousarray(heading, dtype=np.float64),
+        )
+    )

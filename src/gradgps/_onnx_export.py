@@ -53,23 +53,32 @@ _TORCH_TO_ONNX_GATES = (1, 0, 2)
 
 def _onnx_gates(array: np.ndarray, hidden: int) -> np.ndarray:
     """Reorder the three stacked gate blocks (first axis) of a GRU weight or bias."""
-    blocks = [array[k * hidden:(k + 1) * hidden] for k in _TORCH_TO_ONNX_GATES]
+    blocks = [array[k * hidden : (k + 1) * hidden] for k in _TORCH_TO_ONNX_GATES]
     return np.ascontiguousarray(np.concatenate(blocks, axis=0), dtype=np.float32)
 
 
-def _gru_initializers(weights: Mapping[str, np.ndarray], layer: str,
-                      hidden: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _gru_initializers(
+    weights: Mapping[str, np.ndarray], layer: str, hidden: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """ONNX ``W`` (1, 3H, in), ``R`` (1, 3H, H), ``B`` (1, 6H) of one PyTorch-named layer."""
     w = _onnx_gates(weights[f"{layer}.weight_ih"], hidden)[None]
     r = _onnx_gates(weights[f"{layer}.weight_hh"], hidden)[None]
-    b = np.concatenate([_onnx_gates(weights[f"{layer}.bias_ih"], hidden),
-                        _onnx_gates(weights[f"{layer}.bias_hh"], hidden)])[None]
+    b = np.concatenate(
+        [
+            _onnx_gates(weights[f"{layer}.bias_ih"], hidden),
+            _onnx_gates(weights[f"{layer}.bias_hh"], hidden),
+        ]
+    )[None]
     return w, r, b
 
 
-def build_onnx(model: GRUModel, *, feature_names: Sequence[str] | None = None,
-               bias_classes: Sequence[str] | None = None,
-               metadata: Mapping[str, str] | None = None) -> Any:
+def build_onnx(
+    model: GRUModel,
+    *,
+    feature_names: Sequence[str] | None = None,
+    bias_classes: Sequence[str] | None = None,
+    metadata: Mapping[str, str] | None = None,
+) -> Any:
     """The network of ``model`` as an ``onnx.ModelProto`` (see the module docstring).
 
     ``feature_names`` and ``bias_classes`` are stored in the model's metadata
@@ -81,7 +90,9 @@ def build_onnx(model: GRUModel, *, feature_names: Sequence[str] | None = None,
 
     n_features, hidden1, hidden2, n_bias = (int(v) for v in model.dims)
     if feature_names is not None and len(feature_names) != n_features:
-        raise ConfigError(f"{len(feature_names)} feature names for a network of {n_features} inputs")
+        raise ConfigError(
+            f"{len(feature_names)} feature names for a network of {n_features} inputs"
+        )
     if bias_classes is not None and len(bias_classes) != n_bias:
         raise ConfigError(f"{len(bias_classes)} bias class names for a head of {n_bias} outputs")
     w = model.weights
@@ -100,7 +111,8 @@ def build_onnx(model: GRUModel, *, feature_names: Sequence[str] | None = None,
     }
     for layer, hidden in (("gru1", hidden1), ("gru2", hidden2)):
         inits[f"{layer}_W"], inits[f"{layer}_R"], inits[f"{layer}_B"] = _gru_initializers(
-            w, layer, hidden)
+            w, layer, hidden
+        )
     node = helper.make_node
     nodes = [
         node("Sub", ["features", "scaler_mean"], ["centred"]),
@@ -110,11 +122,21 @@ def build_onnx(model: GRUModel, *, feature_names: Sequence[str] | None = None,
         node("IsInf", ["scaled_raw"], ["is_inf"]),
         node("Or", ["is_nan", "is_inf"], ["not_finite"]),
         node("Where", ["not_finite", "zero", "scaled_raw"], ["scaled"]),
-        node("GRU", ["scaled", "gru1_W", "gru1_R", "gru1_B", "", "h1_in"], ["y1", "h1_out"],
-             hidden_size=hidden1, linear_before_reset=1),
+        node(
+            "GRU",
+            ["scaled", "gru1_W", "gru1_R", "gru1_B", "", "h1_in"],
+            ["y1", "h1_out"],
+            hidden_size=hidden1,
+            linear_before_reset=1,
+        ),
         node("Squeeze", ["y1", "axis1"], ["x2"]),  # (T, 1, B, H1) -> (T, B, H1)
-        node("GRU", ["x2", "gru2_W", "gru2_R", "gru2_B", "", "h2_in"], ["y2", "h2_out"],
-             hidden_size=hidden2, linear_before_reset=1),
+        node(
+            "GRU",
+            ["x2", "gru2_W", "gru2_R", "gru2_B", "", "h2_in"],
+            ["y2", "h2_out"],
+            hidden_size=hidden2,
+            linear_before_reset=1,
+        ),
         node("Squeeze", ["y2", "axis1"], ["top"]),
         node("MatMul", ["top", "anomaly_head_wt"], ["anomaly_mm"]),
         node("Add", ["anomaly_mm", "anomaly_head_b"], ["anomaly_logits"]),
@@ -138,15 +160,22 @@ def build_onnx(model: GRUModel, *, feature_names: Sequence[str] | None = None,
         helper.make_tensor_value_info("h2_out", f32, [1, "batch", hidden2]),
     ]
     graph = helper.make_graph(
-        nodes, "grad_gru", inputs, outputs,
-        initializer=[numpy_helper.from_array(np.asarray(v), name=k) for k, v in inits.items()])
-    proto = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)],
-                              producer_name="gradgps")
+        nodes,
+        "grad_gru",
+        inputs,
+        outputs,
+        initializer=[numpy_helper.from_array(np.asarray(v), name=k) for k, v in inits.items()],
+    )
+    proto = helper.make_model(
+        graph, opset_imports=[helper.make_opsetid("", OPSET)], producer_name="gradgps"
+    )
     # onnxruntime releases lag the onnx package; the oldest IR version that carries the opset.
     proto.ir_version = 8
-    info = {"inputs": "features (time, batch, F) float32 = the GRAD feature vectors, unscaled; "
-                      "h1_in/h2_in zeros at a segment start",
-            **(metadata or {})}
+    info = {
+        "inputs": "features (time, batch, F) float32 = the GRAD feature vectors, unscaled; "
+        "h1_in/h2_in zeros at a segment start",
+        **(metadata or {}),
+    }
     if feature_names is not None:
         info["feature_names"] = ",".join(feature_names)
     if bias_classes is not None:
@@ -170,9 +199,12 @@ def export_onnx(model_dir: str | os.PathLike[str] | None, output: str | os.PathL
         gru_model(weights, config),
         feature_names=pipeline_feature_names(loaded.params),
         bias_classes=loaded.bias_classes,
-        metadata={"anomaly_threshold": repr(loaded.params.threshold),
-                  "weights_sha256": loaded.checksum, "mode": str(config["mode"]),
-                  "window": str(config["window"])},
+        metadata={
+            "anomaly_threshold": repr(loaded.params.threshold),
+            "weights_sha256": loaded.checksum,
+            "mode": str(config["mode"]),
+            "window": str(config["window"]),
+        },
     )
     path = Path(output)
     path.parent.mkdir(parents=True, exist_ok=True)

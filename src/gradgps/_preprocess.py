@@ -73,10 +73,15 @@ class Prepared:
         """Per-point ``values`` -> per-input-row values (``fill`` for invalid rows)."""
         values = np.asarray(values)
         if values.shape[0] != len(self.points):
-            raise ConfigError(f"expected {len(self.points)} values, one per point, got {values.shape[0]}")
+            raise ConfigError(
+                f"expected {len(self.points)} values, one per point, got {values.shape[0]}"
+            )
         ok = self.row_point >= 0
-        out_dtype = np.result_type(values.dtype, np.min_scalar_type(fill) if np.isscalar(fill) else object) \
-            if not isinstance(fill, str) else object
+        out_dtype = (
+            np.result_type(values.dtype, np.min_scalar_type(fill) if np.isscalar(fill) else object)
+            if not isinstance(fill, str)
+            else object
+        )
         out = np.empty((self.n_rows, *values.shape[1:]), dtype=out_dtype)
         out[...] = fill
         out[ok] = values[self.row_point[ok]]
@@ -154,8 +159,10 @@ def preprocess(
         raise ConfigError(f"fixes frame lacks columns {missing}; build it with gradgps.to_fixes")
     n = len(fixes)
     channels = [
-        c for c in fixes.columns
-        if c not in _CORE and pd.api.types.is_numeric_dtype(fixes[c].dtype)
+        c
+        for c in fixes.columns
+        if c not in _CORE
+        and pd.api.types.is_numeric_dtype(fixes[c].dtype)
         and not pd.api.types.is_bool_dtype(fixes[c].dtype)
     ]
     reason = invalid_reasons(fixes)
@@ -180,7 +187,7 @@ def preprocess(
     sorted_rows = valid_rows[by_track_time]
     bounds = np.searchsorted(codes[by_track_time], np.arange(len(order_of_tracks) + 1))
     for k, track in enumerate(order_of_tracks):
-        rows = sorted_rows[bounds[k]:bounds[k + 1]]
+        rows = sorted_rows[bounds[k] : bounds[k + 1]]
         t_sorted = t_all[rows]
         steps = np.diff(t_sorted)
         new_point = np.r_[True, steps >= min_step_s if min_step_s > 0 else steps > 0]
@@ -255,14 +262,25 @@ def preprocess(
         offset += total
         segment_base += int(seg_u[-1]) + 1
 
-    columns = ["segment", "track", "t", "lat", "lon", "east", "north", *channels,
-               "interpolated", "n_rows"]
+    columns = [
+        "segment",
+        "track",
+        "t",
+        "lat",
+        "lon",
+        "east",
+        "north",
+        *channels,
+        "interpolated",
+        "n_rows",
+    ]
     if pieces:
         points = pd.DataFrame({c: np.concatenate([p[c] for p in pieces]) for c in columns})
     else:
         points = pd.DataFrame({c: pd.Series(dtype=_empty_dtype(c)) for c in columns})
-    return Prepared(points=points, row_point=row_point, row_reason=reason, frames=frames,
-                    nominal_period=periods)
+    return Prepared(
+        points=points, row_point=row_point, row_reason=reason, frames=frames, nominal_period=periods
+    )
 
 
 def _empty_dtype(column: str) -> str:

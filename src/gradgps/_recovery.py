@@ -54,16 +54,28 @@ class RecoveryParams:
 
     def to_array(self) -> FloatArray:
         if self.method not in RECOVERY_METHODS:
-            raise ConfigError(f"recovery method must be one of {RECOVERY_METHODS}, got {self.method!r}")
+            raise ConfigError(
+                f"recovery method must be one of {RECOVERY_METHODS}, got {self.method!r}"
+            )
         if not 0.0 < self.velocity_alpha <= 1.0:
             raise ConfigError(f"velocity_alpha must be in (0, 1], got {self.velocity_alpha}")
         return np.array([float(RECOVERY_METHODS.index(self.method)), self.velocity_alpha])
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def recovery_step(p: FloatArray, state: FloatArray, code: int, period: float,
-                  east: float, north: float, ema_e: float, ema_n: float,
-                  speed: float, heading: float, out: FloatArray) -> None:
+def recovery_step(
+    p: FloatArray,
+    state: FloatArray,
+    code: int,
+    period: float,
+    east: float,
+    north: float,
+    ema_e: float,
+    ema_n: float,
+    speed: float,
+    heading: float,
+    out: FloatArray,
+) -> None:
     """One point: write (east, north, alert) into ``out`` and advance the state."""
     alert = 0.0
     rec_e = east
@@ -97,23 +109,48 @@ def recovery_step(p: FloatArray, state: FloatArray, code: int, period: float,
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _recover_kernel(p: FloatArray, codes: NDArray[np.int8], period: float, east: FloatArray,
-                    north: FloatArray, ema_e: FloatArray, ema_n: FloatArray,
-                    speed: FloatArray, heading: FloatArray) -> FloatArray:
+def _recover_kernel(
+    p: FloatArray,
+    codes: NDArray[np.int8],
+    period: float,
+    east: FloatArray,
+    north: FloatArray,
+    ema_e: FloatArray,
+    ema_n: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
     out = np.empty((east.size, 3))
     state = np.zeros(N_RECOVERY_STATE)
     for i in range(east.size):
-        recovery_step(p, state, codes[i], period, east[i], north[i], ema_e[i], ema_n[i],
-                      speed[i], heading[i], out[i])
+        recovery_step(
+            p,
+            state,
+            codes[i],
+            period,
+            east[i],
+            north[i],
+            ema_e[i],
+            ema_n[i],
+            speed[i],
+            heading[i],
+            out[i],
+        )
     return out
 
 
 def _arrays(size: int, **named: ArrayLike | None) -> list[FloatArray]:
     out = []
     for name, values in named.items():
-        arr = np.full(size, np.nan) if values is None else np.ascontiguousarray(values, dtype=np.float64)
+        arr = (
+            np.full(size, np.nan)
+            if values is None
+            else np.ascontiguousarray(values, dtype=np.float64)
+        )
         if arr.shape != (size,):
-            raise ConfigError(f"{name} must have one value per point ({size}), got shape {arr.shape}")
+            raise ConfigError(
+                f"{name} must have one value per point ({size}), got shape {arr.shape}"
+            )
         out.append(arr)
     return out
 
@@ -132,10 +169,18 @@ def recover(
 ) -> tuple[FloatArray, FloatArray, NDArray[np.int8]]:
     """Recovered ``(east, north, alert)`` for one segment given per-point time-type codes."""
     c = np.ascontiguousarray(codes, dtype=np.int8)
-    e, nn, ee, en, sp, hd = _arrays(c.size, east=east, north=north, ema_east=ema_east,
-                                    ema_north=ema_north, speed=speed, heading=heading)
-    rows = _recover_kernel((params or RecoveryParams()).to_array(), c, float(period), e, nn, ee, en,
-                           sp, hd)
+    e, nn, ee, en, sp, hd = _arrays(
+        c.size,
+        east=east,
+        north=north,
+        ema_east=ema_east,
+        ema_north=ema_north,
+        speed=speed,
+        heading=heading,
+    )
+    rows = _recover_kernel(
+        (params or RecoveryParams()).to_array(), c, float(period), e, nn, ee, en, sp, hd
+    )
     return rows[:, 0].copy(), rows[:, 1].copy(), rows[:, 2].astype(np.int8)
 
 
@@ -155,17 +200,21 @@ def recover_reference(
     prm = params or RecoveryParams()
     prm.to_array()
     c = np.asarray(codes)
-    pos, ema, sp, hd = (np.column_stack(_arrays(c.size, e=east, n=north)),
-                        np.column_stack(_arrays(c.size, e=ema_east, n=ema_north)),
-                        *_arrays(c.size, speed=speed, heading=heading))
+    pos, ema, sp, hd = (
+        np.column_stack(_arrays(c.size, e=east, n=north)),
+        np.column_stack(_arrays(c.size, e=ema_east, n=ema_north)),
+        *_arrays(c.size, speed=speed, heading=heading),
+    )
     rec = pos.copy()
     alert = np.zeros(c.size, dtype=np.int8)
     velocity = np.zeros(2)
     for i in range(c.size):
         if c[i] == NONE:
             if i > 0:
-                velocity = prm.velocity_alpha * (pos[i] - rec[i - 1]) / period \
+                velocity = (
+                    prm.velocity_alpha * (pos[i] - rec[i - 1]) / period
                     + (1 - prm.velocity_alpha) * velocity
+                )
         elif c[i] == PERMANENT:
             alert[i] = 1
         elif prm.method == "ema":
@@ -178,8 +227,13 @@ def recover_reference(
     return rec[:, 0], rec[:, 1], alert
 
 
-def rmse(east: ArrayLike, north: ArrayLike, east_true: ArrayLike, north_true: ArrayLike,
-         mask: ArrayLike | None = None) -> float:
+def rmse(
+    east: ArrayLike,
+    north: ArrayLike,
+    east_true: ArrayLike,
+    north_true: ArrayLike,
+    mask: ArrayLike | None = None,
+) -> float:
     """Root mean square horizontal error (m), over ``mask`` points when given."""
     de = np.asarray(east, dtype=np.float64) - np.asarray(east_true, dtype=np.float64)
     dn = np.asarray(north, dtype=np.float64) - np.asarray(north_true, dtype=np.float64)

@@ -107,8 +107,19 @@ FloatArray = NDArray[np.float64]
 REMA_MODES = ("paper", "trend")
 
 # Layout of the parameter array handed to the kernels.
-(P_ALPHA, P_ALPHA_MIN, P_ALPHA_MAX, P_PUNISH, P_REWARD, P_SS, P_SENS, P_MIN_MARGIN, P_MODE,
- P_RUN_GROWTH, P_REACQUIRE) = range(11)
+(
+    P_ALPHA,
+    P_ALPHA_MIN,
+    P_ALPHA_MAX,
+    P_PUNISH,
+    P_REWARD,
+    P_SS,
+    P_SENS,
+    P_MIN_MARGIN,
+    P_MODE,
+    P_RUN_GROWTH,
+    P_REACQUIRE,
+) = range(11)
 N_PARAMS = 11
 # Layout of the scalar state array: alpha, points seen, last fed value (paper)
 # or level (trend), step EMA, consecutive outliers and accepted steps (trend).
@@ -157,19 +168,33 @@ class RemaParams:
         if not (self.min_margin >= 0 and np.isfinite(self.min_margin)):
             raise ConfigError(f"min_margin must be >= 0 (channel units), got {self.min_margin}")
         if not (self.run_growth >= 0 and np.isfinite(self.run_growth)):
-            raise ConfigError(f"run_growth must be >= 0 (channel units per point), got {self.run_growth}")
+            raise ConfigError(
+                f"run_growth must be >= 0 (channel units per point), got {self.run_growth}"
+            )
         if int(self.reacquire_after) != self.reacquire_after or self.reacquire_after < 0:
-            raise ConfigError(f"reacquire_after must be an integer >= 0 (points; 0 = never), "
-                              f"got {self.reacquire_after}")
+            raise ConfigError(
+                f"reacquire_after must be an integer >= 0 (points; 0 = never), "
+                f"got {self.reacquire_after}"
+            )
         return self
 
     def to_array(self) -> FloatArray:
         """The parameters as the float64 array the kernels take."""
         self.checked()
         return np.array(
-            [self.alpha, self.alpha_min, self.alpha_max, self.punish, self.reward,
-             float(self.slide_size), self.sensitivity, self.min_margin,
-             float(REMA_MODES.index(self.mode)), self.run_growth, float(self.reacquire_after)],
+            [
+                self.alpha,
+                self.alpha_min,
+                self.alpha_max,
+                self.punish,
+                self.reward,
+                float(self.slide_size),
+                self.sensitivity,
+                self.min_margin,
+                float(REMA_MODES.index(self.mode)),
+                self.run_growth,
+                float(self.reacquire_after),
+            ],
             dtype=np.float64,
         )
 
@@ -253,8 +278,9 @@ def rema_new_state(p: FloatArray) -> tuple[FloatArray, FloatArray]:
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def rema_step(p: FloatArray, state: FloatArray, ring: FloatArray, x: float,
-              known_step: float, out: FloatArray) -> None:
+def rema_step(
+    p: FloatArray, state: FloatArray, ring: FloatArray, x: float, known_step: float, out: FloatArray
+) -> None:
     """Advance REMA by one value ``x``; write one output row into ``out`` (see module doc).
 
     ``known_step`` is the step expected from an independent source (reported
@@ -378,12 +404,15 @@ def _known_steps(values: FloatArray, known_step: ArrayLike | None) -> FloatArray
         return np.full(values.size, np.nan)
     steps = np.ascontiguousarray(known_step, dtype=np.float64)
     if steps.shape != values.shape:
-        raise ConfigError(f"known_step must have one value per point ({values.size}), got shape {steps.shape}")
+        raise ConfigError(
+            f"known_step must have one value per point ({values.size}), got shape {steps.shape}"
+        )
     return steps
 
 
-def rema_batch(x: ArrayLike, params: RemaParams | None = None,
-               known_step: ArrayLike | None = None) -> RemaOutput:
+def rema_batch(
+    x: ArrayLike, params: RemaParams | None = None, known_step: ArrayLike | None = None
+) -> RemaOutput:
     """REMA over one channel of one segment (compiled kernel).
 
     ``known_step``: optional expected step per point from speed and heading
@@ -394,8 +423,9 @@ def rema_batch(x: ArrayLike, params: RemaParams | None = None,
     return _split(rema_batch_kernel((params or RemaParams()).to_array(), values, steps))
 
 
-def rema_reference(x: ArrayLike, params: RemaParams | None = None,
-                   known_step: ArrayLike | None = None) -> RemaOutput:
+def rema_reference(
+    x: ArrayLike, params: RemaParams | None = None, known_step: ArrayLike | None = None
+) -> RemaOutput:
     """Readable full-array REMA, written from the algorithm text; tests compare the kernel to it."""
     prm = (params or RemaParams()).checked()
     x = np.asarray(x, dtype=np.float64)
@@ -417,12 +447,12 @@ def rema_reference(x: ArrayLike, params: RemaParams | None = None,
             else:
                 p_value = np.mean([ema[t - ss // i] for i in (1, 2, 3)])
                 ema[t] = a * x[t - 1] + (1 - a) * p_value
-                margin = max(float(np.std(ema[t - ss:t - 1])) * prm.sensitivity, prm.min_margin)
+                margin = max(float(np.std(ema[t - ss : t - 1])) * prm.sensitivity, prm.min_margin)
                 lower[t], upper[t] = ema[t] - margin, ema[t] + margin
                 distance[t] = abs(x[t] - ema[t])
                 if x[t] < lower[t] or x[t] > upper[t]:
                     flag[t] = 1
-                    ema[t] = np.mean(ema[t - ss:t - 1])
+                    ema[t] = np.mean(ema[t - ss : t - 1])
                     a = max(a - prm.punish, prm.alpha_min)
                 else:
                     a = min(a + prm.reward, prm.alpha_max)
@@ -481,16 +511,27 @@ class Rema:
         self._state, self._ring = rema_new_state(self._p)
         self._out = np.zeros(N_OUT)
 
-    def update(self, x: float, known_step: float = np.nan) -> tuple[int, float, float, float, float, float]:
+    def update(
+        self, x: float, known_step: float = np.nan
+    ) -> tuple[int, float, float, float, float, float]:
         """Feed one value (and optionally its expected step); return ``(flag, ema, lower, upper, distance, alpha)``."""
         rema_step(self._p, self._state, self._ring, float(x), float(known_step), self._out)
         o = self._out
-        return (int(o[O_FLAG]), float(o[O_EMA]), float(o[O_LOWER]), float(o[O_UPPER]),
-                float(o[O_DISTANCE]), float(o[O_ALPHA]))
+        return (
+            int(o[O_FLAG]),
+            float(o[O_EMA]),
+            float(o[O_LOWER]),
+            float(o[O_UPPER]),
+            float(o[O_DISTANCE]),
+            float(o[O_ALPHA]),
+        )
 
     def get_state(self) -> dict[str, Any]:
-        return {"params": asdict(self.params), "state": self._state.tolist(),
-                "ring": self._ring.tolist()}
+        return {
+            "params": asdict(self.params),
+            "state": self._state.tolist(),
+            "ring": self._ring.tolist(),
+        }
 
     def set_state(self, state: dict[str, Any]) -> Rema:
         params = RemaParams.from_dict(state["params"])

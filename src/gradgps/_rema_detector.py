@@ -41,11 +41,24 @@ class RemaDetector:
     0.5 m per consecutive outlier; permanent after 6 flagged points.
     """
 
-    rema: RemaParams = field(default_factory=lambda: RemaParams(
-        alpha=0.3, alpha_min=0.2, alpha_max=0.9, punish=0.2, reward=0.02, slide_size=6,
-        sensitivity=5.0, min_margin=8.0, mode="trend", run_growth=0.5, reacquire_after=0))
-    time: TimeParams = field(default_factory=lambda: TimeParams(permanent_run=6, episode_gap=15,
-                                                                intermittent_bursts=2))
+    rema: RemaParams = field(
+        default_factory=lambda: RemaParams(
+            alpha=0.3,
+            alpha_min=0.2,
+            alpha_max=0.9,
+            punish=0.2,
+            reward=0.02,
+            slide_size=6,
+            sensitivity=5.0,
+            min_margin=8.0,
+            mode="trend",
+            run_growth=0.5,
+            reacquire_after=0,
+        )
+    )
+    time: TimeParams = field(
+        default_factory=lambda: TimeParams(permanent_run=6, episode_gap=15, intermittent_bursts=2)
+    )
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
     feed_recovered: bool = True
     max_gap_s: float = 5.0
@@ -53,18 +66,32 @@ class RemaDetector:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-able settings (what ``gradgps tune-rema`` writes)."""
-        return {"rema": asdict(self.rema), "time": asdict(self.time),
-                "recovery": asdict(self.recovery), "feed_recovered": self.feed_recovered,
-                "max_gap_s": self.max_gap_s, "use_speed_heading": self.use_speed_heading}
+        return {
+            "rema": asdict(self.rema),
+            "time": asdict(self.time),
+            "recovery": asdict(self.recovery),
+            "feed_recovered": self.feed_recovered,
+            "max_gap_s": self.max_gap_s,
+            "use_speed_heading": self.use_speed_heading,
+        }
 
     @classmethod
     def from_dict(cls, data: Any) -> RemaDetector:
         """Settings from :meth:`to_dict`; missing sections keep their defaults, unknown keys fail."""
-        known = {"rema", "time", "recovery", "feed_recovered", "max_gap_s", "use_speed_heading",
-                 "scores"}
+        known = {
+            "rema",
+            "time",
+            "recovery",
+            "feed_recovered",
+            "max_gap_s",
+            "use_speed_heading",
+            "scores",
+        }
         if not isinstance(data, dict) or set(data) - known:
             extra = sorted(set(data) - known) if isinstance(data, dict) else type(data).__name__
-            raise ConfigError(f"unknown REMA detector settings {extra}; expected keys {sorted(known)}")
+            raise ConfigError(
+                f"unknown REMA detector settings {extra}; expected keys {sorted(known)}"
+            )
         out = cls()
         try:
             if "rema" in data:
@@ -110,9 +137,13 @@ class RemaDetector:
         score = np.zeros(n)
         lat_clean = np.full(n, np.nan)
         lon_clean = np.full(n, np.nan)
-        base = CoreParams(rema=self.rema, features=FeatureParams(speed_heading=False),
-                          time=self.time, recovery=self.recovery,
-                          feed_recovered=self.feed_recovered)
+        base = CoreParams(
+            rema=self.rema,
+            features=FeatureParams(speed_heading=False),
+            time=self.time,
+            recovery=self.recovery,
+            feed_recovered=self.feed_recovered,
+        )
         columns = {c: pts[c].to_numpy(dtype=np.float64) for c in ("t", "east", "north")}
         for c in ("speed", "heading"):
             if c in pts.columns and self.use_speed_heading:
@@ -121,12 +152,17 @@ class RemaDetector:
         for _, sl in prepared.segment_slices():
             track = str(tracks[sl.start])
             params = replace(base, period=prepared.nominal_period[track])
-            out = core_batch(columns["east"][sl], columns["north"][sl], params,
-                             speed=columns.get("speed", np.full(n, np.nan))[sl],
-                             heading=columns.get("heading", np.full(n, np.nan))[sl])
+            out = core_batch(
+                columns["east"][sl],
+                columns["north"][sl],
+                params,
+                speed=columns.get("speed", np.full(n, np.nan))[sl],
+                heading=columns.get("heading", np.full(n, np.nan))[sl],
+            )
             flag[sl], code[sl], alert[sl], score[sl] = out.flag, out.time_code, out.alert, out.score
             lat_clean[sl], lon_clean[sl] = prepared.frames[track].to_geodetic(
-                out.east_clean, out.north_clean)
+                out.east_clean, out.north_clean
+            )
         names = np.array(TIME_TYPES, dtype=object)
         anomaly = prepared.to_rows(flag, fill=0).astype(np.int8)
         result = pd.DataFrame(
@@ -149,5 +185,6 @@ class RemaDetector:
 
 def paper_detector() -> RemaDetector:
     """Algorithm 1 as printed: ``paper`` mode with the paper's recovery (EMA), no speed/heading."""
-    return RemaDetector(rema=RemaParams(), recovery=RecoveryParams(method="ema"),
-                        use_speed_heading=False)
+    return RemaDetector(
+        rema=RemaParams(), recovery=RecoveryParams(method="ema"), use_speed_heading=False
+    )

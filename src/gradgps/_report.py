@@ -49,8 +49,7 @@ from ._grad_pipeline import PipelineParams, segment_period
 from ._preprocess import Prepared, preprocess
 from ._rema import N_OUT, O_LOWER, O_UPPER
 
-__all__ = ["ChannelBounds", "ReportInputs", "figures", "rema_bounds", "write_plots",
-           "write_report"]
+__all__ = ["ChannelBounds", "ReportInputs", "figures", "rema_bounds", "write_plots", "write_report"]
 
 FloatArray = NDArray[np.float64]
 
@@ -95,8 +94,12 @@ class ReportInputs:
     extra_summary: Mapping[str, str] = field(default_factory=dict)
 
 
-def rema_bounds(prepared: Prepared, params: PipelineParams, point_flag: NDArray[np.bool_],
-                segments: Sequence[int]) -> list[ChannelBounds]:
+def rema_bounds(
+    prepared: Prepared,
+    params: PipelineParams,
+    point_flag: NDArray[np.bool_],
+    segments: Sequence[int],
+) -> list[ChannelBounds]:
     """REMA bounds on east and north for the given segments, as the model's pipeline computes them.
 
     Runs :func:`core_step` point by point from Python (a few microseconds a
@@ -129,10 +132,20 @@ def rema_bounds(prepared: Prepared, params: PipelineParams, point_flag: NDArray[
             bounds[i, 1] = row[N_RESULT + O_UPPER]
             bounds[i, 2] = row[N_RESULT + N_OUT + O_LOWER]
             bounds[i, 3] = row[N_RESULT + N_OUT + O_UPPER]
-        out.append(ChannelBounds(segment=seg, track=str(pts["track"].iloc[sl.start]), t=t,
-                                 east=east, north=north, east_lower=bounds[:, 0],
-                                 east_upper=bounds[:, 1], north_lower=bounds[:, 2],
-                                 north_upper=bounds[:, 3], flagged=point_flag[sl]))
+        out.append(
+            ChannelBounds(
+                segment=seg,
+                track=str(pts["track"].iloc[sl.start]),
+                t=t,
+                east=east,
+                north=north,
+                east_lower=bounds[:, 0],
+                east_upper=bounds[:, 1],
+                north_lower=bounds[:, 2],
+                north_upper=bounds[:, 3],
+                flagged=point_flag[sl],
+            )
+        )
     return out
 
 
@@ -153,8 +166,9 @@ def _track_figure(inputs: ReportInputs) -> Any:
     lat_c = result["lat_clean"].to_numpy(np.float64)
     lon_c = result["lon_clean"].to_numpy(np.float64)
     clean_ok = valid & np.isfinite(lat_c) & np.isfinite(lon_c)
-    east_c, north_c = frame.to_local(np.where(clean_ok, lat_c, lat[first]),
-                                     np.where(clean_ok, lon_c, lon[first]))
+    east_c, north_c = frame.to_local(
+        np.where(clean_ok, lat_c, lat[first]), np.where(clean_ok, lon_c, lon[first])
+    )
     tracks = fixes["track"].to_numpy(object)
     anomaly = valid & (result["anomaly"].to_numpy() == 1)
     bias = result["bias_type"].to_numpy(object)
@@ -163,10 +177,14 @@ def _track_figure(inputs: ReportInputs) -> Any:
     span_e = float(np.ptp(east[valid])) or 1.0
     span_n = float(np.ptp(north[valid])) or 1.0
     height = min(12.0, max(3.5, 6.2 * span_n / span_e + 1.4))
-    fig, axes = plt.subplots(1, 2, figsize=(13, height), sharex=True, sharey=True,
-                             layout="constrained")
-    for ax, (e, nn, ok, name) in zip(axes, ((east, north, valid, "as received"),
-                                            (east_c, north_c, clean_ok, "recovered")), strict=True):
+    fig, axes = plt.subplots(
+        1, 2, figsize=(13, height), sharex=True, sharey=True, layout="constrained"
+    )
+    for ax, (e, nn, ok, name) in zip(
+        axes,
+        ((east, north, valid, "as received"), (east_c, north_c, clean_ok, "recovered")),
+        strict=True,
+    ):
         for track in pd.unique(tracks[ok]):
             idx = np.flatnonzero(ok & (tracks == track))
             keep = idx[_decimate(idx.size, MAX_LINE_POINTS // max(1, len(pd.unique(tracks))))]
@@ -180,14 +198,27 @@ def _track_figure(inputs: ReportInputs) -> Any:
     for b in sorted(set(bias[anomaly])):
         for tt in sorted(set(time_type[anomaly & (bias == b)])):
             sel = anomaly & (bias == b) & (time_type == tt)
-            ax.scatter(east[sel], north[sel], s=14, c=BIAS_COLOURS.get(b, "#555555"),
-                       marker=TIME_MARKERS.get(tt, "D"), linewidths=0.8, zorder=3,
-                       label=f"{b} / {tt} ({int(sel.sum()):,})")
+            ax.scatter(
+                east[sel],
+                north[sel],
+                s=14,
+                c=BIAS_COLOURS.get(b, "#555555"),
+                marker=TIME_MARKERS.get(tt, "D"),
+                linewidths=0.8,
+                zorder=3,
+                label=f"{b} / {tt} ({int(sel.sum()):,})",
+            )
     if anomaly.any():
         ax.legend(title="bias / time type", fontsize=8, loc="best", framealpha=0.85)
     repaired = anomaly & clean_ok
-    axes[1].scatter(east_c[repaired], north_c[repaired], s=6, c="#2ca02c", zorder=3,
-                    label=f"repaired fixes ({int(repaired.sum()):,})")
+    axes[1].scatter(
+        east_c[repaired],
+        north_c[repaired],
+        s=6,
+        c="#2ca02c",
+        zorder=3,
+        label=f"repaired fixes ({int(repaired.sum()):,})",
+    )
     if repaired.any():
         axes[1].legend(fontsize=8, loc="best", framealpha=0.85)
     fig.suptitle(f"track in local metres around {frame.lat0:.5f}, {frame.lon0:.5f}")
@@ -200,19 +231,21 @@ def _channel_figure(bounds: ChannelBounds) -> Any:
     t = bounds.t - bounds.t[0]
     fig, axes = plt.subplots(2, 1, figsize=(13, 5.6), sharex=True, layout="constrained")
     keep = _decimate(t.size)
-    for ax, name, x, lo, hi in ((axes[0], "east", bounds.east, bounds.east_lower,
-                                 bounds.east_upper),
-                                (axes[1], "north", bounds.north, bounds.north_lower,
-                                 bounds.north_upper)):
+    for ax, name, x, lo, hi in (
+        (axes[0], "east", bounds.east, bounds.east_lower, bounds.east_upper),
+        (axes[1], "north", bounds.north, bounds.north_lower, bounds.north_upper),
+    ):
         centre = 0.5 * (lo + hi)
         deviation = x - centre
         half = 0.5 * (hi - lo)
-        ax.fill_between(t[keep], -half[keep], half[keep], color="#1f77b4", alpha=0.25, lw=0,
-                        label="REMA bounds")
+        ax.fill_between(
+            t[keep], -half[keep], half[keep], color="#1f77b4", alpha=0.25, lw=0, label="REMA bounds"
+        )
         ax.plot(t[keep], deviation[keep], color="#333333", lw=0.7, label="observed")
         f = bounds.flagged
-        ax.scatter(t[f], deviation[f], s=10, c="#d62728", zorder=3,
-                   label=f"flagged ({int(f.sum()):,})")
+        ax.scatter(
+            t[f], deviation[f], s=10, c="#d62728", zorder=3, label=f"flagged ({int(f.sum()):,})"
+        )
         ax.set_yscale("symlog", linthresh=10.0)
         ax.set_ylabel(f"{name} − prediction (m)")
         ax.grid(True, lw=0.3, alpha=0.5)
@@ -243,13 +276,23 @@ def figures(inputs: ReportInputs) -> list[tuple[str, str, Any]]:
     chosen = ranked[:MAX_CHANNEL_SEGMENTS]
     out: list[tuple[str, str, Any]] = []
     if len(prepared.points):
-        out.append(("track", "Track as received (anomalies coloured by bias type, marker by "
-                             "time type) and recovered.", _track_figure(inputs)))
+        out.append(
+            (
+                "track",
+                "Track as received (anomalies coloured by bias type, marker by "
+                "time type) and recovered.",
+                _track_figure(inputs),
+            )
+        )
     for bounds in rema_bounds(prepared, inputs.params, flags, chosen):
-        out.append((f"channels_segment{bounds.segment}",
-                    f"Track {bounds.track}, segment {bounds.segment}: distance from the REMA "
-                    "prediction per channel, REMA bounds, flagged fixes (symmetric log scale).",
-                    _channel_figure(bounds)))
+        out.append(
+            (
+                f"channels_segment{bounds.segment}",
+                f"Track {bounds.track}, segment {bounds.segment}: distance from the REMA "
+                "prediction per channel, REMA bounds, flagged fixes (symmetric log scale).",
+                _channel_figure(bounds),
+            )
+        )
     return out
 
 
@@ -280,18 +323,25 @@ def summary_rows(inputs: ReportInputs) -> list[tuple[str, str]]:
     n = len(result)
     invalid = result["invalid_reason"].to_numpy() != ""
     anomaly = (result["anomaly"].to_numpy() == 1) & ~invalid
-    rows = [("input rows", f"{n:,}"),
-            ("tracks", f"{inputs.fixes['track'].nunique():,}"),
-            ("usable fixes", f"{int((~invalid).sum()):,}"),
-            ("invalid fixes", f"{int(invalid.sum()):,}"),
-            ("anomalies", f"{int(anomaly.sum()):,} ({100.0 * anomaly.sum() / max(1, n):.1f} %)")]
+    rows = [
+        ("input rows", f"{n:,}"),
+        ("tracks", f"{inputs.fixes['track'].nunique():,}"),
+        ("usable fixes", f"{int((~invalid).sum()):,}"),
+        ("invalid fixes", f"{int(invalid.sum()):,}"),
+        ("anomalies", f"{int(anomaly.sum()):,} ({100.0 * anomaly.sum() / max(1, n):.1f} %)"),
+    ]
     for column, label in (("bias_type", "by bias type"), ("time_type", "by time type")):
         counts = result.loc[anomaly, column].value_counts()
         rows.append((label, ", ".join(f"{k}: {int(v):,}" for k, v in counts.items()) or "none"))
     rows.append(("alerts (permanent faults)", f"{int(result['alert'].sum()):,}"))
     if math.isfinite(inputs.elapsed_s) and inputs.elapsed_s > 0:
-        rows.append(("throughput", f"{n / inputs.elapsed_s:,.0f} fixes/s "
-                                   f"({1e6 * inputs.elapsed_s / max(1, n):.2f} µs per fix)"))
+        rows.append(
+            (
+                "throughput",
+                f"{n / inputs.elapsed_s:,.0f} fixes/s "
+                f"({1e6 * inputs.elapsed_s / max(1, n):.2f} µs per fix)",
+            )
+        )
     if inputs.model:
         rows.append(("model", inputs.model))
     rows.append(("anomaly threshold", f"{inputs.params.threshold:g}"))
@@ -310,34 +360,62 @@ figcaption{color:#555;font-size:.9em}.muted{color:#777;font-size:.9em}
 
 
 def _table(header: Sequence[str] | None, rows: Sequence[Sequence[str]]) -> str:
-    head = "" if header is None else (
-        "<thead><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr></thead>")
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>"
-                   for row in rows)
+    head = (
+        ""
+        if header is None
+        else (
+            "<thead><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr></thead>"
+        )
+    )
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows
+    )
     return f"<table>{head}<tbody>{body}</tbody></table>"
 
 
 def _anomaly_rows(inputs: ReportInputs) -> tuple[list[str], list[list[str]], int]:
     result, fixes = inputs.result, inputs.fixes
-    sel = np.flatnonzero((result["anomaly"].to_numpy() == 1)
-                         & (result["invalid_reason"].to_numpy() == ""))
+    sel = np.flatnonzero(
+        (result["anomaly"].to_numpy() == 1) & (result["invalid_reason"].to_numpy() == "")
+    )
     rows = []
     for i in sel[:MAX_TABLE_ROWS]:
-        rows.append([str(i), str(fixes["track"].iloc[i]), f"{fixes['t'].iloc[i]:.1f}",
-                     f"{fixes['lat'].iloc[i]:.6f}", f"{fixes['lon'].iloc[i]:.6f}",
-                     f"{result['score'].iloc[i]:.3f}", str(result["bias_type"].iloc[i]),
-                     str(result["time_type"].iloc[i]), f"{result['lat_clean'].iloc[i]:.6f}",
-                     f"{result['lon_clean'].iloc[i]:.6f}"])
-    header = ["row", "track", "t (s)", "lat", "lon", "score", "bias type", "time type",
-              "lat clean", "lon clean"]
+        rows.append(
+            [
+                str(i),
+                str(fixes["track"].iloc[i]),
+                f"{fixes['t'].iloc[i]:.1f}",
+                f"{fixes['lat'].iloc[i]:.6f}",
+                f"{fixes['lon'].iloc[i]:.6f}",
+                f"{result['score'].iloc[i]:.3f}",
+                str(result["bias_type"].iloc[i]),
+                str(result["time_type"].iloc[i]),
+                f"{result['lat_clean'].iloc[i]:.6f}",
+                f"{result['lon_clean'].iloc[i]:.6f}",
+            ]
+        )
+    header = [
+        "row",
+        "track",
+        "t (s)",
+        "lat",
+        "lon",
+        "score",
+        "bias type",
+        "time type",
+        "lat clean",
+        "lon clean",
+    ]
     return header, rows, int(sel.size)
 
 
 def render_html(inputs: ReportInputs) -> str:
     """The whole report as one HTML string (see the module docstring)."""
-    parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-             f"<title>{html.escape(inputs.title)}</title><style>{_CSS}</style></head><body>",
-             f"<h1>{html.escape(inputs.title)}</h1>"]
+    parts = [
+        f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+        f"<title>{html.escape(inputs.title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(inputs.title)}</h1>",
+    ]
     if inputs.source:
         parts.append(f"<p class='muted'>input: {html.escape(inputs.source)}</p>")
     parts.append("<h2 id='summary'>Summary</h2>")
@@ -347,20 +425,26 @@ def render_html(inputs: ReportInputs) -> str:
         if k == 0:
             parts.append("<h2 id='track'>Track</h2>")
         if k == 1:
-            parts.append("<h2 id='channels'>Channels and REMA bounds</h2>"
-                         f"<p class='muted'>The {len(drawn) - 1} segment(s) with the most "
-                         "anomalies. The verdict is the network's; REMA bounds are one of its "
-                         "inputs, so a flagged fix may lie inside the band.</p>")
+            parts.append(
+                "<h2 id='channels'>Channels and REMA bounds</h2>"
+                f"<p class='muted'>The {len(drawn) - 1} segment(s) with the most "
+                "anomalies. The verdict is the network's; REMA bounds are one of its "
+                "inputs, so a flagged fix may lie inside the band.</p>"
+            )
         data = base64.b64encode(_png(fig)).decode("ascii")
-        parts.append(f"<figure><img alt='{html.escape(stem)}' src='data:image/png;base64,{data}'>"
-                     f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+        parts.append(
+            f"<figure><img alt='{html.escape(stem)}' src='data:image/png;base64,{data}'>"
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>"
+        )
     header, rows, total = _anomaly_rows(inputs)
     parts.append("<h2 id='anomalies'>Anomalies</h2>")
     shown = f"the first {len(rows)} of {total:,}" if total > len(rows) else f"all {total:,}"
     parts.append(f"<p class='muted'>{shown} anomalous fixes (row = input row, from 0).</p>")
     parts.append(_table(header, rows))
-    parts.append("<p class='muted'>Made by gradgps; no network access needed to view this "
-                 "file.</p></body></html>")
+    parts.append(
+        "<p class='muted'>Made by gradgps; no network access needed to view this "
+        "file.</p></body></html>"
+    )
     return "".join(parts)
 
 

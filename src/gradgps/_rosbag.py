@@ -57,8 +57,9 @@ def _stamp(message: Any, record_ns: int) -> float:
     return seconds if seconds > 0.0 else record_ns * 1e-9
 
 
-def _speeds(fix_times: np.ndarray, twist_times: list[float], twist_speeds: list[float],
-            max_lag_s: float) -> np.ndarray:
+def _speeds(
+    fix_times: np.ndarray, twist_times: list[float], twist_speeds: list[float], max_lag_s: float
+) -> np.ndarray:
     """Speed of the twist nearest in time to each fix (NaN when none within ``max_lag_s``)."""
     out = np.full(fix_times.size, np.nan)
     if not twist_times:
@@ -68,15 +69,21 @@ def _speeds(fix_times: np.ndarray, twist_times: list[float], twist_speeds: list[
     speeds = np.asarray(twist_speeds, np.float64)[order]
     after = np.clip(np.searchsorted(times, fix_times), 0, times.size - 1)
     before = np.clip(after - 1, 0, times.size - 1)
-    nearest = np.where(np.abs(times[before] - fix_times) <= np.abs(times[after] - fix_times),
-                       before, after)
+    nearest = np.where(
+        np.abs(times[before] - fix_times) <= np.abs(times[after] - fix_times), before, after
+    )
     close = np.abs(times[nearest] - fix_times) <= max_lag_s
     out[close] = speeds[nearest[close]]
     return out
 
 
-def read_rosbag(path: str | os.PathLike[str], *, fix_topic: str | None = None,
-                twist_topic: str | None = None, max_speed_lag_s: float = 0.5) -> Table:
+def read_rosbag(
+    path: str | os.PathLike[str],
+    *,
+    fix_topic: str | None = None,
+    twist_topic: str | None = None,
+    max_speed_lag_s: float = 0.5,
+) -> Table:
     """Read the fixes of a ROS 1 or ROS 2 bag into a Table (see the module docstring).
 
     Columns: ``time`` (unix s), ``lat``, ``lon``, ``alt``, ``status``,
@@ -89,8 +96,11 @@ def read_rosbag(path: str | os.PathLike[str], *, fix_topic: str | None = None,
         from rosbags.serde import SerdeError
         from rosbags.typesys import Stores, get_typestore
     except ImportError:
-        raise InputError("reading ROS bags needs the rosbags package", source=str(path),
-                         hint="pip install 'gradgps[ros]'") from None
+        raise InputError(
+            "reading ROS bags needs the rosbags package",
+            source=str(path),
+            hint="pip install 'gradgps[ros]'",
+        ) from None
     source = str(path)
     bag = Path(path)
     if not bag.exists():
@@ -100,28 +110,42 @@ def read_rosbag(path: str | os.PathLike[str], *, fix_topic: str | None = None,
     try:
         with AnyReader([bag], default_typestore=store) as reader:
             types = {c.topic: c.msgtype for c in reader.connections}
-            fix_topics = [fix_topic] if fix_topic else sorted(t for t, m in types.items()
-                                                              if m == NAVSATFIX)
+            fix_topics = (
+                [fix_topic] if fix_topic else sorted(t for t, m in types.items() if m == NAVSATFIX)
+            )
             for topic in fix_topics:
                 if types.get(topic) != NAVSATFIX:
-                    raise InputError(f"topic {topic!r} is not a {NAVSATFIX} topic", source=source,
-                                     hint=f"topics in the bag: {_listing(types)}")
+                    raise InputError(
+                        f"topic {topic!r} is not a {NAVSATFIX} topic",
+                        source=source,
+                        hint=f"topics in the bag: {_listing(types)}",
+                    )
             if not fix_topics:
-                raise InputError(f"no {NAVSATFIX} topic in the bag", source=source,
-                                 hint=f"topics in the bag: {_listing(types)}")
+                raise InputError(
+                    f"no {NAVSATFIX} topic in the bag",
+                    source=source,
+                    hint=f"topics in the bag: {_listing(types)}",
+                )
             twists = sorted(t for t, m in types.items() if m == TWIST_STAMPED)
             notes: list[str] = []
             if twist_topic is not None and types.get(twist_topic) != TWIST_STAMPED:
-                raise InputError(f"topic {twist_topic!r} is not a {TWIST_STAMPED} topic",
-                                 source=source, hint=f"topics in the bag: {_listing(types)}")
+                raise InputError(
+                    f"topic {twist_topic!r} is not a {TWIST_STAMPED} topic",
+                    source=source,
+                    hint=f"topics in the bag: {_listing(types)}",
+                )
             speed_topic = twist_topic or (twists[0] if len(twists) == 1 else None)
             if speed_topic is None and len(twists) > 1:
-                notes.append(f"several {TWIST_STAMPED} topics ({', '.join(twists)}): no speed "
-                             "read; name one to use it")
-            wanted = [c for c in reader.connections if c.topic in fix_topics
-                      or c.topic == speed_topic]
-            rows: dict[str, list[Any]] = {k: [] for k in
-                                          ("time", "lat", "lon", "alt", "status", "topic")}
+                notes.append(
+                    f"several {TWIST_STAMPED} topics ({', '.join(twists)}): no speed "
+                    "read; name one to use it"
+                )
+            wanted = [
+                c for c in reader.connections if c.topic in fix_topics or c.topic == speed_topic
+            ]
+            rows: dict[str, list[Any]] = {
+                k: [] for k in ("time", "lat", "lon", "alt", "status", "topic")
+            }
             twist_times: list[float] = []
             twist_speeds: list[float] = []
             for connection, record_ns, raw in reader.messages(connections=wanted):
@@ -141,17 +165,26 @@ def read_rosbag(path: str | os.PathLike[str], *, fix_topic: str | None = None,
     except InputError:
         raise
     except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, SerdeError, OSError, KeyError) as exc:
-        raise InputError(f"cannot read the ROS bag: {exc}", source=source,
-                         hint="is this a ROS 1 .bag, or a ROS 2 bag directory / .mcap / .db3?"
-                         ) from None
+        raise InputError(
+            f"cannot read the ROS bag: {exc}",
+            source=source,
+            hint="is this a ROS 1 .bag, or a ROS 2 bag directory / .mcap / .db3?",
+        ) from None
     frame = pd.DataFrame(rows)
     if speed_topic is not None:
-        frame["speed"] = _speeds(frame["time"].to_numpy(np.float64), twist_times, twist_speeds,
-                                 max_speed_lag_s)
-    columns = ColumnMap(time="time", lat="lat", lon="lon",
-                        track="topic" if len(fix_topics) > 1 else "",
-                        speed="speed" if speed_topic is not None else "", heading="",
-                        alt="alt", hdop="")
+        frame["speed"] = _speeds(
+            frame["time"].to_numpy(np.float64), twist_times, twist_speeds, max_speed_lag_s
+        )
+    columns = ColumnMap(
+        time="time",
+        lat="lat",
+        lon="lon",
+        track="topic" if len(fix_topics) > 1 else "",
+        speed="speed" if speed_topic is not None else "",
+        heading="",
+        alt="alt",
+        hdop="",
+    )
     return Table(frame=frame, source=source, columns=columns, notes=notes or None)
 
 

@@ -66,9 +66,12 @@ class TimeParams:
         for name in ("permanent_run", "episode_gap", "intermittent_bursts"):
             value = getattr(self, name)
             if int(value) != value or value < 1:
-                raise ConfigError(f"time classifier {name} must be an integer >= 1 (points), got {value}")
-        return np.array([self.permanent_run, self.episode_gap, self.intermittent_bursts],
-                        dtype=np.float64)
+                raise ConfigError(
+                    f"time classifier {name} must be an integer >= 1 (points), got {value}"
+                )
+        return np.array(
+            [self.permanent_run, self.episode_gap, self.intermittent_bursts], dtype=np.float64
+        )
 
 
 def time_new_state() -> NDArray[np.float64]:
@@ -99,8 +102,9 @@ def time_step(p: NDArray[np.float64], state: NDArray[np.float64], flag: float) -
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _classify_kernel(p: NDArray[np.float64], flags: NDArray[np.float64],
-                     state: NDArray[np.float64]) -> NDArray[np.int8]:
+def _classify_kernel(
+    p: NDArray[np.float64], flags: NDArray[np.float64], state: NDArray[np.float64]
+) -> NDArray[np.int8]:
     out = np.empty(flags.size, dtype=np.int8)
     for i in range(flags.size):
         out[i] = time_step(p, state, flags[i])
@@ -152,14 +156,18 @@ class TimeClassifier:
 
     def get_state(self) -> dict[str, Any]:
         gap = float(self._state[T_GAP])
-        return {"params": asdict(self.params), "run": int(self._state[T_RUN]),
-                "gap": None if not np.isfinite(gap) else int(gap),
-                "bursts": int(self._state[T_BURSTS])}
+        return {
+            "params": asdict(self.params),
+            "run": int(self._state[T_RUN]),
+            "gap": None if not np.isfinite(gap) else int(gap),
+            "bursts": int(self._state[T_BURSTS]),
+        }
 
     def set_state(self, state: dict[str, Any]) -> TimeClassifier:
         self.params = TimeParams(**state["params"])
         self._p = self.params.to_array()
         gap = state["gap"]
-        self._state = np.array([state["run"], np.inf if gap is None else gap, state["bursts"]],
-                               dtype=np.float64)
+        self._state = np.array(
+            [state["run"], np.inf if gap is None else gap, state["bursts"]], dtype=np.float64
+        )
         return self

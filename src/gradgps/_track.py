@@ -52,17 +52,76 @@ CANONICAL_COLUMNS = ("track", "t", "lat", "lon", *OPTIONAL_CHANNELS)
 # Common spellings, compared after lower-casing and dropping everything that is
 # not a letter or digit ("GPS Latitude" -> "gpslatitude"). First match wins.
 _ALIASES: dict[str, tuple[str, ...]] = {
-    "time": ("t", "time", "timestamp", "ts", "datetime", "date_time", "utc", "gpstime",
-             "unixtime", "epoch", "timeutc", "utctime", "trel", "seconds", "sec", "timesec",
-             "times", "timestamps"),
-    "lat": ("lat", "latitude", "gpslat", "gpslatitude", "latdeg", "latitudedeg", "y_lat", "latwgs84"),
-    "lon": ("lon", "lng", "long", "longitude", "gpslon", "gpslng", "gpslong", "gpslongitude",
-            "londeg", "longitudedeg", "lonwgs84"),
-    "track": ("track", "trackid", "track_id", "trip", "tripid", "drive", "driveid", "vehicle",
-              "vehicleid", "trace", "traceid", "segment", "id"),
+    "time": (
+        "t",
+        "time",
+        "timestamp",
+        "ts",
+        "datetime",
+        "date_time",
+        "utc",
+        "gpstime",
+        "unixtime",
+        "epoch",
+        "timeutc",
+        "utctime",
+        "trel",
+        "seconds",
+        "sec",
+        "timesec",
+        "times",
+        "timestamps",
+    ),
+    "lat": (
+        "lat",
+        "latitude",
+        "gpslat",
+        "gpslatitude",
+        "latdeg",
+        "latitudedeg",
+        "y_lat",
+        "latwgs84",
+    ),
+    "lon": (
+        "lon",
+        "lng",
+        "long",
+        "longitude",
+        "gpslon",
+        "gpslng",
+        "gpslong",
+        "gpslongitude",
+        "londeg",
+        "longitudedeg",
+        "lonwgs84",
+    ),
+    "track": (
+        "track",
+        "trackid",
+        "track_id",
+        "trip",
+        "tripid",
+        "drive",
+        "driveid",
+        "vehicle",
+        "vehicleid",
+        "trace",
+        "traceid",
+        "segment",
+        "id",
+    ),
     "speed": ("speed", "speedmps", "speedms", "velocity", "gpsspeed", "spd"),
-    "heading": ("heading", "headingdeg", "course", "coursedeg", "bearing", "cog", "track_angle",
-                "azimuth", "yaw"),
+    "heading": (
+        "heading",
+        "headingdeg",
+        "course",
+        "coursedeg",
+        "bearing",
+        "cog",
+        "track_angle",
+        "azimuth",
+        "yaw",
+    ),
     "alt": ("alt", "altm", "altitude", "elevation", "ele", "height", "altitudem"),
     "hdop": ("hdop",),
 }
@@ -165,9 +224,7 @@ def resolve_columns(
     return ColumnMap(**chosen)
 
 
-def _numeric(
-    frame: pd.DataFrame, col: str, table: Table, *, what: str
-) -> np.ndarray:
+def _numeric(frame: pd.DataFrame, col: str, table: Table, *, what: str) -> np.ndarray:
     """Column as float64; text that is not a number raises naming the first bad row."""
     series = frame[col]
     if pd.api.types.is_bool_dtype(series.dtype):
@@ -186,8 +243,14 @@ def _numeric(
 
 def _row_error(table: Table, pos: int, col: str, reason: str) -> InputError:
     line = None if table.first_line is None else table.first_line + pos
-    return InputError(reason, source=table.source, row=table.row_offset + pos + 1, line=line, column=col,
-                      hint="fix the value or choose another column")
+    return InputError(
+        reason,
+        source=table.source,
+        row=table.row_offset + pos + 1,
+        line=line,
+        column=col,
+        hint="fix the value or choose another column",
+    )
 
 
 def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
@@ -201,7 +264,9 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
         return _scale_epoch(t)
     as_str = series.astype("string").str.strip()
     numeric = pd.to_numeric(as_str, errors="coerce")
-    if bool(numeric.notna().all()) or bool((numeric.notna() | as_str.isna() | (as_str == "")).all()):
+    if bool(numeric.notna().all()) or bool(
+        (numeric.notna() | as_str.isna() | (as_str == "")).all()
+    ):
         return _scale_epoch(np.asarray(numeric.to_numpy(dtype=np.float64, na_value=np.nan)))
     blank = series.isna() | (as_str == "")
     not_number = numeric.isna() & ~blank
@@ -210,7 +275,9 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
         pos = int(np.flatnonzero(not_number.to_numpy())[0])
         raise _row_error(table, pos, col, f"not a time (seconds or ISO-8601): {series.iloc[pos]!r}")
     try:
-        parsed = pd.to_datetime(as_str.where(~blank, None), utc=True, format="ISO8601", errors="coerce")
+        parsed = pd.to_datetime(
+            as_str.where(~blank, None), utc=True, format="ISO8601", errors="coerce"
+        )
     except (ValueError, TypeError):
         parsed = pd.Series(pd.NaT, index=series.index, dtype="datetime64[ns, UTC]")
     bad = parsed.isna() & ~blank
@@ -284,8 +351,11 @@ def to_fixes(
             out[role] = values
     for col in channels:
         if col not in frame.columns:
-            raise InputError(f"no channel column named {col!r}", source=table.source,
-                             hint=f"available columns: {', '.join(map(str, frame.columns))}")
+            raise InputError(
+                f"no channel column named {col!r}",
+                source=table.source,
+                hint=f"available columns: {', '.join(map(str, frame.columns))}",
+            )
         if col not in out:
             out[col] = _numeric(frame, col, table, what=f"channel {col}")
     fixes = pd.DataFrame(out, index=pd.RangeIndex(n))

@@ -102,7 +102,9 @@ def _combinations(grid: Mapping[str, Sequence[object]], base: RemaParams) -> lis
         if cand.alpha_min <= cand.alpha <= cand.alpha_max:
             out.append(cand.checked())
     if not out:
-        raise ConfigError("the REMA grid has no valid combination (need alpha_min <= alpha <= alpha_max)")
+        raise ConfigError(
+            "the REMA grid has no valid combination (need alpha_min <= alpha <= alpha_max)"
+        )
     return out
 
 
@@ -124,13 +126,17 @@ def tune_rema(
     data = []
     for i, channel in enumerate(channels):
         if len(channel) not in (2, 3):
-            raise ConfigError(f"channel {i}: expected (values, labels[, known_step]), got {len(channel)} items")
+            raise ConfigError(
+                f"channel {i}: expected (values, labels[, known_step]), got {len(channel)} items"
+            )
         xa = np.asarray(channel[0], dtype=np.float64)
         ya = np.asarray(channel[1]).astype(bool)
         step = None if len(channel) == 2 else np.asarray(channel[2], dtype=np.float64)
         if xa.ndim != 1 or xa.shape != ya.shape or (step is not None and step.shape != xa.shape):
-            raise ConfigError(f"channel {i}: values, labels (and known steps) must be 1-D of one length, "
-                              f"got {xa.shape}, {ya.shape}" + ("" if step is None else f", {step.shape}"))
+            raise ConfigError(
+                f"channel {i}: values, labels (and known steps) must be 1-D of one length, "
+                f"got {xa.shape}, {ya.shape}" + ("" if step is None else f", {step.shape}")
+            )
         data.append((xa, ya, step))
     truth = np.concatenate([y for _, y, _ in data])
     combos = _combinations(grid if grid is not None else DEFAULT_GRID, base or RemaParams())
@@ -142,8 +148,9 @@ def tune_rema(
         for cand in combos:
             pred = np.concatenate([rema_batch(x, cand, step).flag for x, _, step in data])
             fa, fn = f1_scores(pred, truth)
-            rows.append({**cand.__dict__, "f1_anomaly": fa, "f1_normal": fn,
-                         "score": 0.5 * (fa + fn)})
+            rows.append(
+                {**cand.__dict__, "f1_anomaly": fa, "f1_normal": fn, "score": 0.5 * (fa + fn)}
+            )
             bar.advance(task)
     table = pd.DataFrame(rows)
     order = np.argsort(-table["score"].to_numpy(), kind="stable")
@@ -163,7 +170,9 @@ def tune_time(
     benchmark's ``time_type_accuracy``); the table is sorted best first.
     """
     if len(flags) != len(time_labels) or not flags:
-        raise ConfigError("tune_time needs one true time-type array per flag array, and at least one")
+        raise ConfigError(
+            "tune_time needs one true time-type array per flag array, and at least one"
+        )
     truth = np.concatenate([np.asarray(y, dtype=object) for y in time_labels])
     flagged = np.concatenate([np.asarray(f).astype(bool) for f in flags])
     sel = flagged & (truth != "none")
@@ -171,7 +180,9 @@ def tune_time(
     use = grid if grid is not None else DEFAULT_TIME_GRID
     unknown = sorted(set(use) - {f.name for f in fields(TimeParams)})
     if unknown:
-        raise ConfigError(f"unknown time grid keys {unknown}; choose from {[f.name for f in fields(TimeParams)]}")
+        raise ConfigError(
+            f"unknown time grid keys {unknown}; choose from {[f.name for f in fields(TimeParams)]}"
+        )
     keys = list(use)
     rows = []
     candidates = []
@@ -200,8 +211,9 @@ class SegmentLabels:
     label_time: NDArray[np.object_]
 
 
-def labelled_segments(labelled: pd.DataFrame, fixes: pd.DataFrame,
-                      max_gap_s: float = 5.0) -> list[SegmentLabels]:
+def labelled_segments(
+    labelled: pd.DataFrame, fixes: pd.DataFrame, max_gap_s: float = 5.0
+) -> list[SegmentLabels]:
     """Preprocess injected ``fixes`` and carry the row labels of ``labelled`` over to the points.
 
     A point takes the labels of the input rows that map to it (any faulty row
@@ -220,8 +232,11 @@ def labelled_segments(labelled: pd.DataFrame, fixes: pd.DataFrame,
     np.logical_or.at(lab_lat, target, labelled["label_lat"].to_numpy()[rows] == 1)
     np.logical_or.at(lab_lon, target, labelled["label_lon"].to_numpy()[rows] == 1)
     rank = np.zeros(n, dtype=np.int64)
-    codes = pd.Series(labelled["label_time"].to_numpy(dtype=object)).map(
-        {name: i for i, name in enumerate(TIME_TYPES)}).to_numpy(dtype=np.int64)
+    codes = (
+        pd.Series(labelled["label_time"].to_numpy(dtype=object))
+        .map({name: i for i, name in enumerate(TIME_TYPES)})
+        .to_numpy(dtype=np.int64)
+    )
     np.maximum.at(rank, target, codes[rows])
     time_names = np.array(TIME_TYPES, dtype=object)[rank]
     nan = np.full(n, np.nan)
@@ -231,8 +246,16 @@ def labelled_segments(labelled: pd.DataFrame, fixes: pd.DataFrame,
     north = pts["north"].to_numpy(dtype=np.float64)
     tracks = pts["track"].to_numpy(dtype=object)
     return [
-        SegmentLabels(prepared.nominal_period[str(tracks[sl.start])], east[sl], north[sl],
-                      speed[sl], heading[sl], lab_lon[sl], lab_lat[sl], time_names[sl])
+        SegmentLabels(
+            prepared.nominal_period[str(tracks[sl.start])],
+            east[sl],
+            north[sl],
+            speed[sl],
+            heading[sl],
+            lab_lon[sl],
+            lab_lat[sl],
+            time_names[sl],
+        )
         for _, sl in prepared.segment_slices()
     ]
 
@@ -281,7 +304,9 @@ def tune_on_dataset(
     segments = []
     for seed in seeds:
         labelled = inject_grad(table, seed=seed, columns=cmap)
-        segments += labelled_segments(labelled, to_fixes(labelled, cmap), max_gap_s=detector.max_gap_s)
+        segments += labelled_segments(
+            labelled, to_fixes(labelled, cmap), max_gap_s=detector.max_gap_s
+        )
     channels: list[tuple[ArrayLike, ...]] = []
     for seg in segments:
         if detector.use_speed_heading:
@@ -297,9 +322,14 @@ def tune_on_dataset(
     detector = replace(detector, rema=best)
     flags = []
     for seg in segments:
-        params = CoreParams(period=seg.period, rema=best, features=FeatureParams(speed_heading=False),
-                            time=detector.time, recovery=detector.recovery,
-                            feed_recovered=detector.feed_recovered)
+        params = CoreParams(
+            period=seg.period,
+            rema=best,
+            features=FeatureParams(speed_heading=False),
+            time=detector.time,
+            recovery=detector.recovery,
+            feed_recovered=detector.feed_recovered,
+        )
         speed = seg.speed if detector.use_speed_heading else None
         heading = seg.heading if detector.use_speed_heading else None
         flags.append(core_batch(seg.east, seg.north, params, speed=speed, heading=heading).flag)
@@ -307,8 +337,11 @@ def tune_on_dataset(
     settings = replace(detector, time=best_time).to_dict()
     top = rema_table.iloc[0]
     settings["scores"] = {
-        "dataset": dataset, "split": split, "seeds": list(seeds),
-        "channel_f1_anomaly": float(top["f1_anomaly"]), "channel_f1_normal": float(top["f1_normal"]),
+        "dataset": dataset,
+        "split": split,
+        "seeds": list(seeds),
+        "channel_f1_anomaly": float(top["f1_anomaly"]),
+        "channel_f1_normal": float(top["f1_normal"]),
         "time_type_accuracy": float(time_table.iloc[0]["time_type_accuracy"]),
     }
     return settings, rema_table, time_table

@@ -41,11 +41,19 @@ from ._geo import LocalFrame
 from ._lstm_cnn import LSTM_CNN_WEIGHTS, lstm_cnn_forward
 from ._result import PointResult
 
-__all__ = ["ARCHITECTURES", "WindowClassifier", "WindowModel", "input_rows", "load_window_model",
-           "save_window_model", "windows"]
+__all__ = [
+    "ARCHITECTURES",
+    "WindowClassifier",
+    "WindowModel",
+    "input_rows",
+    "load_window_model",
+    "save_window_model",
+    "windows",
+]
 
-ARCHITECTURES: dict[str, tuple[tuple[str, ...], Callable[[Mapping[str, np.ndarray], np.ndarray],
-                                                         np.ndarray]]] = {
+ARCHITECTURES: dict[
+    str, tuple[tuple[str, ...], Callable[[Mapping[str, np.ndarray], np.ndarray], np.ndarray]]
+] = {
     "cnn": (CNN_WEIGHTS, cnn_forward),
     "lstm-cnn": (LSTM_CNN_WEIGHTS, lstm_cnn_forward),
 }
@@ -101,8 +109,10 @@ class WindowModel:
     def predict(self, scaled_windows: np.ndarray, batch: int = 4096) -> np.ndarray:
         """P(anomaly) for scaled windows (N, W, F), in batches to bound memory."""
         forward = ARCHITECTURES[self.architecture][1]
-        parts = [forward(self.weights, scaled_windows[lo:lo + batch])
-                 for lo in range(0, len(scaled_windows), batch)]
+        parts = [
+            forward(self.weights, scaled_windows[lo : lo + batch])
+            for lo in range(0, len(scaled_windows), batch)
+        ]
         return np.concatenate(parts) if parts else np.zeros(0, np.float32)
 
     def segment_probability(self, segment: Segment) -> np.ndarray:
@@ -114,10 +124,20 @@ def save_window_model(directory: str | os.PathLike[str], model: WindowModel) -> 
     """Write ``weights.npz`` and ``config.json`` (the config carries scaler and threshold)."""
     path = Path(directory)
     path.mkdir(parents=True, exist_ok=True)
-    np.savez(path / "weights.npz", allow_pickle=False, **{k: np.asarray(v, np.float32) for k, v in model.weights.items()})
-    config = {**model.config, "architecture": model.architecture, "inputs": model.inputs,
-              "window": model.window, "threshold": model.threshold, "max_gap_s": model.max_gap_s,
-              "scaler": {"mean": model.mean.tolist(), "std": model.std.tolist()}}
+    np.savez(
+        path / "weights.npz",
+        allow_pickle=False,
+        **{k: np.asarray(v, np.float32) for k, v in model.weights.items()},
+    )
+    config = {
+        **model.config,
+        "architecture": model.architecture,
+        "inputs": model.inputs,
+        "window": model.window,
+        "threshold": model.threshold,
+        "max_gap_s": model.max_gap_s,
+        "scaler": {"mean": model.mean.tolist(), "std": model.std.tolist()},
+    }
     tmp = path / "config.json.tmp"
     tmp.write_text(json.dumps(config, indent=1) + "\n")
     tmp.replace(path / "config.json")
@@ -135,10 +155,17 @@ def load_window_model(directory: str | os.PathLike[str]) -> WindowModel:
         if missing:
             raise ModelError(f"{path}: weights lack {missing}; retrain the model")
         input_names(config["inputs"])
-        return WindowModel(config["architecture"], config["inputs"], int(config["window"]),
-                           np.asarray(config["scaler"]["mean"], np.float32),
-                           np.asarray(config["scaler"]["std"], np.float32),
-                           float(config["threshold"]), weights, config, float(config["max_gap_s"]))
+        return WindowModel(
+            config["architecture"],
+            config["inputs"],
+            int(config["window"]),
+            np.asarray(config["scaler"]["mean"], np.float32),
+            np.asarray(config["scaler"]["std"], np.float32),
+            float(config["threshold"]),
+            weights,
+            config,
+            float(config["max_gap_s"]),
+        )
     except (OSError, KeyError, ValueError, json.JSONDecodeError) as exc:
         raise ModelError(f"{path}: not a window-classifier model ({exc}); retrain it") from exc
 
@@ -154,8 +181,9 @@ class WindowClassifier:
         self.model = model
         self._reset_stream()
 
-    def segment_flags(self, fixes: pd.DataFrame) -> tuple[list[Segment], np.ndarray,
-                                                          list[np.ndarray]]:
+    def segment_flags(
+        self, fixes: pd.DataFrame
+    ) -> tuple[list[Segment], np.ndarray, list[np.ndarray]]:
         """Segments, invalid reasons and P(anomaly) per segment (``cnn-kf`` reuses this)."""
         segs, reason = segments(fixes, self.model.inputs, self.model.max_gap_s)
         return segs, reason, [self.model.segment_probability(s) for s in segs]
@@ -168,8 +196,14 @@ class WindowClassifier:
         for seg, p in zip(segs, probs, strict=True):
             score[seg.rows] = p
         anomaly = np.nan_to_num(score) >= self.model.threshold
-        return result_frame(fixes, reason, anomaly, score, fixes["lat"].to_numpy(np.float64),
-                            fixes["lon"].to_numpy(np.float64))
+        return result_frame(
+            fixes,
+            reason,
+            anomaly,
+            score,
+            fixes["lat"].to_numpy(np.float64),
+            fixes["lon"].to_numpy(np.float64),
+        )
 
     # -- streaming (one track) ---------------------------------------------
 
@@ -179,14 +213,34 @@ class WindowClassifier:
         self._recent: list[tuple[float, list[float]]] = []  # (t, values) of the last two readings
         self._rows = np.zeros((self.model.window, len(self.model.mean)), np.float32)
 
-    def update(self, t: float, lat: float, lon: float, speed: float | None = None,
-               heading: float | None = None, **channels: float) -> PointResult:
+    def update(
+        self,
+        t: float,
+        lat: float,
+        lon: float,
+        speed: float | None = None,
+        heading: float | None = None,
+        **channels: float,
+    ) -> PointResult:
         """Judge one reading of this detector's track (time order), as :meth:`detect` would."""
         m = self.model
-        if not (math.isfinite(t) and math.isfinite(lat) and math.isfinite(lon)
-                and abs(lat) <= 90.0 and abs(lon) <= 180.0):
-            return PointResult(0, math.nan, None, None, math.nan, math.nan, 0,
-                               invalid_reason="time, latitude or longitude unusable")
+        if not (
+            math.isfinite(t)
+            and math.isfinite(lat)
+            and math.isfinite(lon)
+            and abs(lat) <= 90.0
+            and abs(lon) <= 180.0
+        ):
+            return PointResult(
+                0,
+                math.nan,
+                None,
+                None,
+                math.nan,
+                math.nan,
+                0,
+                invalid_reason="time, latitude or longitude unusable",
+            )
         if self._frame is None:
             self._frame = LocalFrame(float(lat), float(lon))
         if self._last_t is not None and t - self._last_t > m.max_gap_s:
@@ -201,8 +255,13 @@ class WindowClassifier:
             readings = {"speed": math.nan if speed is None else float(speed), **channels}
             values = [float(readings.get(c, math.nan)) for c in input_names("sensor")]
         self._recent = ([*self._recent, (float(t), values)])[-3:]
-        recent = Segment("", np.zeros(0, np.int64), np.array([r[0] for r in self._recent]),
-                         np.array([r[1] for r in self._recent]), self._frame)
+        recent = Segment(
+            "",
+            np.zeros(0, np.int64),
+            np.array([r[0] for r in self._recent]),
+            np.array([r[1] for r in self._recent]),
+            self._frame,
+        )
         row = scale_rows(input_rows(recent, m.inputs)[-1:], m.mean, m.std)
         self._rows = np.vstack([self._rows[1:], row])
         p = float(m.predict(self._rows[None])[0])
@@ -210,10 +269,12 @@ class WindowClassifier:
 
     def get_state(self) -> dict[str, Any]:
         """The stream's memory as plain JSON-able data."""
-        return {"frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
-                "last_t": self._last_t,
-                "recent": [[t, list(v)] for t, v in self._recent],
-                "rows": self._rows.tolist()}
+        return {
+            "frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
+            "last_t": self._last_t,
+            "recent": [[t, list(v)] for t, v in self._recent],
+            "rows": self._rows.tolist(),
+        }
 
     def set_state(self, state: Mapping[str, Any]) -> WindowClassifier:
         frame = state["frame"]

@@ -153,7 +153,9 @@ def bench(
             cm = res.get(f"{kind}_type_confusion") if protocol == "grad" else None
             if not cm:
                 continue
-            shown = Table(title=f"{name}: {kind} type of detected faults (rows true, columns predicted)")
+            shown = Table(
+                title=f"{name}: {kind} type of detected faults (rows true, columns predicted)"
+            )
             labels = list(next(iter(cm.values())))
             shown.add_column("")
             for label in labels:

@@ -20,15 +20,34 @@ __all__ = ["demo"]
 @click.command()
 @click.option("--tracks", type=int, default=10, show_default=True, help="simulated drives")
 @click.option("--minutes", type=float, default=10.0, show_default=True, help="minutes per drive")
-@click.option("--rate", "rate_hz", type=float, default=1.0, show_default=True, help="fixes per second")
-@click.option("--seed", type=int, default=0, show_default=True,
-              help="seed of the fault injection (the drives use the simulated test split's seed)")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("out/demo"), show_default=True, help="folder for the outputs")
-@click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
-              default=None, help="HTML report to write  [default: OUT/report.html]")
-def demo(tracks: int, minutes: float, rate_hz: float, seed: int, out_dir: Path,
-         report_path: Path | None) -> None:
+@click.option(
+    "--rate", "rate_hz", type=float, default=1.0, show_default=True, help="fixes per second"
+)
+@click.option(
+    "--seed",
+    type=int,
+    default=0,
+    show_default=True,
+    help="seed of the fault injection (the drives use the simulated test split's seed)",
+)
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("out/demo"),
+    show_default=True,
+    help="folder for the outputs",
+)
+@click.option(
+    "--report",
+    "report_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="HTML report to write  [default: OUT/report.html]",
+)
+def demo(
+    tracks: int, minutes: float, rate_hz: float, seed: int, out_dir: Path, report_path: Path | None
+) -> None:
     """Simulate drives, inject faults, detect them with the default model, print the scores."""
     import json
     import time
@@ -50,9 +69,11 @@ def demo(tracks: int, minutes: float, rate_hz: float, seed: int, out_dir: Path,
     clean = simulate_fleet(tracks, minutes, rate_hz, drive_seed)
     labelled = inject_grad(clean, seed=seed)
     fixes = to_fixes(labelled)
-    console.print(f"simulated {tracks} drives x {minutes:g} min at {rate_hz:g} Hz "
-                  f"({len(fixes):,} fixes), injected protocol grad faults (seed {seed}): "
-                  f"{int(labelled['label_anomaly'].sum()):,} faulty fixes")
+    console.print(
+        f"simulated {tracks} drives x {minutes:g} min at {rate_hz:g} Hz "
+        f"({len(fixes):,} fixes), injected protocol grad faults (seed {seed}): "
+        f"{int(labelled['label_anomaly'].sum()):,} faulty fixes"
+    )
     detector = Detector()
     detector.detect(fixes.iloc[:50])  # load the compiled kernels before timing
     started = time.perf_counter()
@@ -68,15 +89,21 @@ def demo(tracks: int, minutes: float, rate_hz: float, seed: int, out_dir: Path,
     for name in ("anomaly", "normal"):
         s = scores[name]
         support = int(truth.sum()) if name == "anomaly" else int((truth == 0).sum())
-        table.add_row(name, f"{s['precision']:.4f}", f"{s['recall']:.4f}", f"{s['f1']:.4f}",
-                      f"{support:,}")
+        table.add_row(
+            name, f"{s['precision']:.4f}", f"{s['recall']:.4f}", f"{s['f1']:.4f}", f"{support:,}"
+        )
     console.print(table)
     both = flagged & (truth == 1)
     confusions = {}
-    for kind, labels in (("bias", ["noise", "jump"]),
-                         ("time", ["transient", "intermittent", "permanent"])):
-        cm = confusion_matrix(labelled[f"label_{kind}"].to_numpy()[both],
-                              result[f"{kind}_type"].to_numpy()[both], labels)
+    for kind, labels in (
+        ("bias", ["noise", "jump"]),
+        ("time", ["transient", "intermittent", "permanent"]),
+    ):
+        cm = confusion_matrix(
+            labelled[f"label_{kind}"].to_numpy()[both],
+            result[f"{kind}_type"].to_numpy()[both],
+            labels,
+        )
         confusions[kind] = cm
         shown = Table(title=f"{kind} type of detected faults (rows: true, columns: predicted)")
         shown.add_column("")
@@ -87,26 +114,40 @@ def demo(tracks: int, minutes: float, rate_hz: float, seed: int, out_dir: Path,
         console.print(shown)
     faulty = truth == 1
     repairable = faulty & (labelled["label_time"].to_numpy() != "permanent")
-    rec = rmse_m(result["lat_clean"], result["lon_clean"], labelled["lat_true"],
-                 labelled["lon_true"], repairable)
+    rec = rmse_m(
+        result["lat_clean"],
+        result["lon_clean"],
+        labelled["lat_true"],
+        labelled["lon_true"],
+        repairable,
+    )
     cor = rmse_m(fixes["lat"], fixes["lon"], labelled["lat_true"], labelled["lon_true"], repairable)
     alerts = int(result["alert"].sum())
-    console.print(f"recovery on transient/intermittent faults: RMSE {rec:.1f} m after repair, "
-                  f"{cor:.1f} m as corrupted; {alerts:,} alerts raised (permanent faults)")
+    console.print(
+        f"recovery on transient/intermittent faults: RMSE {rec:.1f} m after repair, "
+        f"{cor:.1f} m as corrupted; {alerts:,} alerts raised (permanent faults)"
+    )
     console.print(f"speed: {us_per_point:.2f} us per fix (batch, one core)")
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_table(pd.concat([labelled, result.reset_index(drop=True)], axis=1),
-                out_dir / "detections.csv")
+    write_table(
+        pd.concat([labelled, result.reset_index(drop=True)], axis=1), out_dir / "detections.csv"
+    )
     metrics = {
-        "fixes": len(fixes), "scores": scores,
-        "bias_confusion": confusions["bias"].to_dict(), "time_confusion": confusions["time"].to_dict(),
-        "recovery_rmse_m": rec, "corrupted_rmse_m": cor, "alerts": alerts,
+        "fixes": len(fixes),
+        "scores": scores,
+        "bias_confusion": confusions["bias"].to_dict(),
+        "time_confusion": confusions["time"].to_dict(),
+        "recovery_rmse_m": rec,
+        "corrupted_rmse_m": cor,
+        "alerts": alerts,
         "us_per_point": us_per_point,
     }
     (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2, default=float) + "\n")
-    console.print(f"outputs: {out_dir / 'detections.csv'} (every fix with labels and verdicts), "
-                  f"{out_dir / 'metrics.json'} (these scores)")
+    console.print(
+        f"outputs: {out_dir / 'detections.csv'} (every fix with labels and verdicts), "
+        f"{out_dir / 'metrics.json'} (these scores)"
+    )
     try:
         import matplotlib  # noqa: F401
     except ImportError:
@@ -115,8 +156,15 @@ def demo(tracks: int, minutes: float, rate_hz: float, seed: int, out_dir: Path,
     from .report import write_report_outputs
 
     write_report_outputs(
-        report_path or out_dir / "report.html", None, fixes, result, detector,
-        us_per_point * 1e-6 * len(fixes), f"gradgps demo: {tracks} simulated drives, protocol "
-        f"grad faults (seed {seed})",
-        {"anomaly F1 vs injected labels": f"{scores['anomaly']['f1']:.4f}",
-         "recovery RMSE (transient/intermittent)": f"{rec:.1f} m repaired, {cor:.1f} m corrupted"})
+        report_path or out_dir / "report.html",
+        None,
+        fixes,
+        result,
+        detector,
+        us_per_point * 1e-6 * len(fixes),
+        f"gradgps demo: {tracks} simulated drives, protocol grad faults (seed {seed})",
+        {
+            "anomaly F1 vs injected labels": f"{scores['anomaly']['f1']:.4f}",
+            "recovery RMSE (transient/intermittent)": f"{rec:.1f} m repaired, {cor:.1f} m corrupted",
+        },
+    )

@@ -30,30 +30,72 @@ __all__ = ["detect"]
 
 
 @click.command()
-@click.argument("input_path", metavar="INPUT",
-                type=click.Path(exists=True, allow_dash=True, path_type=Path))
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="output file: .csv, .csv.gz or .parquet (with --follow: CSV lines, "
-                   "default standard output)")
-@click.option("--model", "model_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=None, help="model directory from 'gradgps train' (default: the shipped model)")
-@click.option("--threshold", type=float, default=None,
-              help="anomaly threshold on the score, overriding the model's")
-@click.option("--follow", is_flag=True,
-              help="live mode: read INPUT ('-' = standard input) line by line as it arrives "
-                   "(CSV with a header, or NMEA) and print one result line per line at once")
-@click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
-              default=None, help="also write a self-contained HTML report (track, bounds, summary)")
-@click.option("--plots", "plots_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=None, help="also write the report's figures as PNG files into this folder")
-@click.option("--chunk-size", type=click.IntRange(min=0), default=200_000, show_default=True,
-              help="CSV rows per chunk (bounded memory, file order per track); "
-                   "0 = whole file, batch (sorts each track by time); --report/--plots read "
-                   "the whole file")
+@click.argument(
+    "input_path", metavar="INPUT", type=click.Path(exists=True, allow_dash=True, path_type=Path)
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="output file: .csv, .csv.gz or .parquet (with --follow: CSV lines, "
+    "default standard output)",
+)
+@click.option(
+    "--model",
+    "model_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="model directory from 'gradgps train' (default: the shipped model)",
+)
+@click.option(
+    "--threshold",
+    type=float,
+    default=None,
+    help="anomaly threshold on the score, overriding the model's",
+)
+@click.option(
+    "--follow",
+    is_flag=True,
+    help="live mode: read INPUT ('-' = standard input) line by line as it arrives "
+    "(CSV with a header, or NMEA) and print one result line per line at once",
+)
+@click.option(
+    "--report",
+    "report_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="also write a self-contained HTML report (track, bounds, summary)",
+)
+@click.option(
+    "--plots",
+    "plots_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="also write the report's figures as PNG files into this folder",
+)
+@click.option(
+    "--chunk-size",
+    type=click.IntRange(min=0),
+    default=200_000,
+    show_default=True,
+    help="CSV rows per chunk (bounded memory, file order per track); "
+    "0 = whole file, batch (sorts each track by time); --report/--plots read "
+    "the whole file",
+)
 @column_options
-def detect(input_path: Path, output: Path | None, model_dir: Path | None, threshold: float | None,
-           follow: bool, report_path: Path | None, plots_dir: Path | None, chunk_size: int,
-           fmt: str | None, **cols: Any) -> None:
+def detect(
+    input_path: Path,
+    output: Path | None,
+    model_dir: Path | None,
+    threshold: float | None,
+    follow: bool,
+    report_path: Path | None,
+    plots_dir: Path | None,
+    chunk_size: int,
+    fmt: str | None,
+    **cols: Any,
+) -> None:
     """Detect, classify and repair faults in every fix of INPUT; write OUTPUT.
 
     CSV input is processed in chunks of --chunk-size rows with one streaming
@@ -103,15 +145,23 @@ def detect(input_path: Path, output: Path | None, model_dir: Path | None, thresh
     invalid = int((result["invalid_reason"] != "").sum())
     alerts = int(result["alert"].sum())
     rate = n / elapsed if elapsed > 0 else float("inf")
-    click.echo(f"wrote {output}: {n:,} rows, {flagged:,} anomalies ({invalid:,} invalid fixes), "
-               f"{alerts:,} alerts; {rate:,.0f} fixes/s")
+    click.echo(
+        f"wrote {output}: {n:,} rows, {flagged:,} anomalies ({invalid:,} invalid fixes), "
+        f"{alerts:,} alerts; {rate:,.0f} fixes/s"
+    )
     from .report import write_report_outputs
 
     write_report_outputs(report_path, plots_dir, fixes, result, detector, elapsed, str(input_path))
 
 
-def _detect_in_chunks(input_path: Path, output: Path, model_dir: Path | None,
-                      threshold: float | None, chunk_size: int, columns: ColumnMap) -> None:
+def _detect_in_chunks(
+    input_path: Path,
+    output: Path,
+    model_dir: Path | None,
+    threshold: float | None,
+    chunk_size: int,
+    columns: ColumnMap,
+) -> None:
     from rich.console import Console
     from rich.progress import (
         BarColumn,
@@ -124,9 +174,15 @@ def _detect_in_chunks(input_path: Path, output: Path, model_dir: Path | None,
 
     from .._chunked import detect_csv_in_chunks
 
-    progress = Progress(TextColumn("detect"), BarColumn(), MofNCompleteColumn(),
-                        TextColumn("rows, {task.fields[rate]} rows/s"), TimeElapsedColumn(),
-                        TimeRemainingColumn(), console=Console(stderr=True))
+    progress = Progress(
+        TextColumn("detect"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("rows, {task.fields[rate]} rows/s"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+    )
     task = progress.add_task("detect", total=None, rate="-")
 
     def advance(rows: int) -> None:
@@ -137,9 +193,17 @@ def _detect_in_chunks(input_path: Path, output: Path, model_dir: Path | None,
 
     with progress:
         summary = detect_csv_in_chunks(
-            input_path, output, columns=columns, model=model_dir, threshold=threshold,
-            chunk_size=chunk_size, on_start=lambda total: progress.update(task, total=total),
-            on_chunk=advance)
-    click.echo(f"wrote {output}: {summary.rows:,} rows, {summary.anomalies:,} anomalies "
-               f"({summary.invalid:,} invalid fixes), {summary.alerts:,} alerts; "
-               f"{summary.rows_per_second:,.0f} fixes/s")
+            input_path,
+            output,
+            columns=columns,
+            model=model_dir,
+            threshold=threshold,
+            chunk_size=chunk_size,
+            on_start=lambda total: progress.update(task, total=total),
+            on_chunk=advance,
+        )
+    click.echo(
+        f"wrote {output}: {summary.rows:,} rows, {summary.anomalies:,} anomalies "
+        f"({summary.invalid:,} invalid fixes), {summary.alerts:,} alerts; "
+        f"{summary.rows_per_second:,.0f} fixes/s"
+    )

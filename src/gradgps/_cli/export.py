@@ -10,10 +10,19 @@ __all__ = ["export"]
 
 
 @click.command()
-@click.argument("model_dir", required=False, default=None,
-                type=click.Path(exists=True, file_okay=False, path_type=Path))
-@click.option("--onnx", "onnx_path", type=click.Path(dir_okay=False, path_type=Path),
-              required=True, help="ONNX file to write")
+@click.argument(
+    "model_dir",
+    required=False,
+    default=None,
+    type=click.Path(exists=True, file_okay=False, path_type=Path),
+)
+@click.option(
+    "--onnx",
+    "onnx_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="ONNX file to write",
+)
 def export(model_dir: Path | None, onnx_path: Path) -> None:
     """Export the GRU network of MODEL_DIR (default: the shipped model) to ONNX.
 
@@ -33,7 +42,8 @@ def export(model_dir: Path | None, onnx_path: Path) -> None:
         import onnx  # noqa: F401
     except ImportError:
         raise click.ClickException(
-            "ONNX export needs the onnx package: pip install 'gradgps[onnx]'") from None
+            "ONNX export needs the onnx package: pip install 'gradgps[onnx]'"
+        ) from None
     from .._onnx_export import export_onnx
 
     path = export_onnx(model_dir, onnx_path)

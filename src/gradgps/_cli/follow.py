@@ -17,25 +17,44 @@ from .._track import ColumnMap
 __all__ = ["run_follow"]
 
 
-def run_follow(input_path: Path, output: Path | None, model_dir: Path | None,
-               threshold: float | None, fmt: str | None, columns: ColumnMap) -> None:
+def run_follow(
+    input_path: Path,
+    output: Path | None,
+    model_dir: Path | None,
+    threshold: float | None,
+    fmt: str | None,
+    columns: ColumnMap,
+) -> None:
     """Follow INPUT ('-' = standard input) and write one CSV line per input line to OUTPUT/stdout."""
     from .._follow import follow_lines
 
     with click.open_file(str(input_path), "r", encoding="utf-8", errors="replace") as source:
         if output is None:
+
             def write(text: str) -> None:
                 click.echo(text)  # click.echo flushes
-            counts = follow_lines(source, write, model=model_dir, threshold=threshold,
-                                  columns=columns, fmt=fmt)
+
+            counts = follow_lines(
+                source, write, model=model_dir, threshold=threshold, columns=columns, fmt=fmt
+            )
         else:
             with output.open("w", encoding="utf-8", newline="") as sink:
+
                 def write_file(text: str) -> None:
                     sink.write(text + "\n")
                     sink.flush()
-                counts = follow_lines(source, write_file, model=model_dir, threshold=threshold,
-                                      columns=columns, fmt=fmt)
-    click.echo(f"followed {counts.lines:,} lines: {counts.fixes:,} fixes scored, "
-               f"{counts.anomalies:,} anomalies, {counts.invalid:,} unusable lines",
-               err=True)
+
+                counts = follow_lines(
+                    source,
+                    write_file,
+                    model=model_dir,
+                    threshold=threshold,
+                    columns=columns,
+                    fmt=fmt,
+                )
+    click.echo(
+        f"followed {counts.lines:,} lines: {counts.fixes:,} fixes scored, "
+        f"{counts.anomalies:,} anomalies, {counts.invalid:,} unusable lines",
+        err=True,
+    )
     sys.stderr.flush()

@@ -28,10 +28,17 @@ _ROLES = (
 def column_options(func: F) -> F:
     """Add ``--format`` and the ``--*-col`` options to a command."""
     for role, flag, text in reversed(_ROLES):
-        func = click.option(flag, f"{role}_col", default=None, metavar="NAME",
-                            help=f"{text}; auto-detected when omitted ('' = none)")(func)
+        func = click.option(
+            flag,
+            f"{role}_col",
+            default=None,
+            metavar="NAME",
+            help=f"{text}; auto-detected when omitted ('' = none)",
+        )(func)
     func = click.option(
-        "--format", "fmt", default=None,
+        "--format",
+        "fmt",
+        default=None,
         type=click.Choice(["csv", "parquet", "gpx", "nmea", "rosbag"], case_sensitive=False),
         help="input format; by default from the file extension",
     )(func)

@@ -11,9 +11,16 @@ import click
 __all__ = ["write_report_outputs"]
 
 
-def write_report_outputs(report_path: Path | None, plots_dir: Path | None, fixes: Any,
-                         result: Any, detector: Any, elapsed_s: float, source: str,
-                         extra_summary: Mapping[str, str] | None = None) -> None:
+def write_report_outputs(
+    report_path: Path | None,
+    plots_dir: Path | None,
+    fixes: Any,
+    result: Any,
+    detector: Any,
+    elapsed_s: float,
+    source: str,
+    extra_summary: Mapping[str, str] | None = None,
+) -> None:
     """Write the HTML report and/or the PNG figures and say where they went."""
     if report_path is None and plots_dir is None:
         return
@@ -21,13 +28,19 @@ def write_report_outputs(report_path: Path | None, plots_dir: Path | None, fixes
         import matplotlib  # noqa: F401
     except ImportError:
         raise click.ClickException(
-            "--report and --plots need matplotlib: pip install 'gradgps[report]'") from None
+            "--report and --plots need matplotlib: pip install 'gradgps[report]'"
+        ) from None
     from .._report import ReportInputs, write_plots, write_report
 
-    inputs = ReportInputs(fixes=fixes, result=result, params=detector.model_.params,
-                          source=source, model=f"{detector.model_.path} "
-                                               f"(sha256 {detector.model_.checksum[:12]})",
-                          elapsed_s=elapsed_s, extra_summary=dict(extra_summary or {}))
+    inputs = ReportInputs(
+        fixes=fixes,
+        result=result,
+        params=detector.model_.params,
+        source=source,
+        model=f"{detector.model_.path} (sha256 {detector.model_.checksum[:12]})",
+        elapsed_s=elapsed_s,
+        extra_summary=dict(extra_summary or {}),
+    )
     if report_path is not None:
         path = write_report(inputs, report_path)
         click.echo(f"report: {path} ({path.stat().st_size / 1e6:.2f} MB, open it in a browser)")

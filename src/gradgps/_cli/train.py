@@ -22,30 +22,76 @@ __all__ = ["train"]
 
 
 @click.command()
-@click.option("--data", "data_paths", multiple=True,
-              type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="clean track file(s) to train on (repeatable)")
-@click.option("--val-data", "val_paths", multiple=True,
-              type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="clean track file(s) for validation (repeatable)")
-@click.option("--dataset", type=click.Choice(["driveplotr", "tuc", "simulated"]), default=None,
-              help="train on a named data set's train split, validate on its validation split")
-@click.option("--data-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="folder of the real data sets (default $GRADGPS_DATA, then ../shared/data)")
-@click.option("--protocol", type=click.Choice(["grad"]), default="grad", show_default=True,
-              help="fault injection protocol for the labels (position faults)")
-@click.option("-o", "--output", type=click.Path(file_okay=False, path_type=Path), required=True,
-              help="model directory to write")
-@click.option("--time-budget", type=float, default=180.0, show_default=True,
-              help="seconds of training at most")
-@click.option("--max-epochs", type=int, default=400, show_default=True,
-              help="epochs at most (a fixed count, with a large --time-budget, makes the run "
-                   "reproducible byte for byte)")
+@click.option(
+    "--data",
+    "data_paths",
+    multiple=True,
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="clean track file(s) to train on (repeatable)",
+)
+@click.option(
+    "--val-data",
+    "val_paths",
+    multiple=True,
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="clean track file(s) for validation (repeatable)",
+)
+@click.option(
+    "--dataset",
+    type=click.Choice(["driveplotr", "tuc", "simulated"]),
+    default=None,
+    help="train on a named data set's train split, validate on its validation split",
+)
+@click.option(
+    "--data-dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="folder of the real data sets (default $GRADGPS_DATA, then ../shared/data)",
+)
+@click.option(
+    "--protocol",
+    type=click.Choice(["grad"]),
+    default="grad",
+    show_default=True,
+    help="fault injection protocol for the labels (position faults)",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(file_okay=False, path_type=Path),
+    required=True,
+    help="model directory to write",
+)
+@click.option(
+    "--time-budget",
+    type=float,
+    default=180.0,
+    show_default=True,
+    help="seconds of training at most",
+)
+@click.option(
+    "--max-epochs",
+    type=int,
+    default=400,
+    show_default=True,
+    help="epochs at most (a fixed count, with a large --time-budget, makes the run "
+    "reproducible byte for byte)",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="training seed")
 @column_options
-def train(data_paths: tuple[Path, ...], val_paths: tuple[Path, ...], dataset: str | None,
-          data_dir: Path | None, protocol: str, output: Path, time_budget: float,
-          max_epochs: int, seed: int, fmt: str | None, **cols: Any) -> None:
+def train(
+    data_paths: tuple[Path, ...],
+    val_paths: tuple[Path, ...],
+    dataset: str | None,
+    data_dir: Path | None,
+    protocol: str,
+    output: Path,
+    time_budget: float,
+    max_epochs: int,
+    seed: int,
+    fmt: str | None,
+    **cols: Any,
+) -> None:
     """Train the GRU detector on clean drives with injected faults; write a model directory."""
     import pandas as pd
 
@@ -55,7 +101,9 @@ def train(data_paths: tuple[Path, ...], val_paths: tuple[Path, ...], dataset: st
     if dataset is not None and data_paths:
         raise click.UsageError("give either --dataset or --data, not both")
     if dataset is None and not data_paths:
-        raise click.UsageError("nothing to train on: give --data FILE (your clean logs) or --dataset")
+        raise click.UsageError(
+            "nothing to train on: give --data FILE (your clean logs) or --dataset"
+        )
     if dataset is not None:
         from .._datasets import load_dataset
 
@@ -69,11 +117,20 @@ def train(data_paths: tuple[Path, ...], val_paths: tuple[Path, ...], dataset: st
         else:
             train_tables, val_tables = _hold_out(pd.concat(train_tables, ignore_index=True))
         source = ", ".join(str(p) for p in data_paths)
-    report = train_grad(train_tables, val_tables, output, time_budget_s=time_budget, seed=seed,
-                        max_epochs=max_epochs, notes={"source": source, "protocol": protocol})
-    click.echo(f"wrote {output}: {report.n_train_points:,} training points, "
-               f"{report.n_val_points:,} validation points; best epoch {report.best_epoch} "
-               f"({report.stop_reason}); threshold {report.threshold:.2f}")
+    report = train_grad(
+        train_tables,
+        val_tables,
+        output,
+        time_budget_s=time_budget,
+        seed=seed,
+        max_epochs=max_epochs,
+        notes={"source": source, "protocol": protocol},
+    )
+    click.echo(
+        f"wrote {output}: {report.n_train_points:,} training points, "
+        f"{report.n_val_points:,} validation points; best epoch {report.best_epoch} "
+        f"({report.stop_reason}); threshold {report.threshold:.2f}"
+    )
 
 
 def _fixes(path: Path, fmt: str | None, columns: Any) -> Any:
@@ -96,7 +153,7 @@ def _hold_out(fixes: Any) -> tuple[list[Any], list[Any]]:
     else:
         order = np.argsort(fixes["t"].to_numpy(), kind="stable")
         is_val = np.zeros(len(fixes), dtype=bool)
-        is_val[order[int(0.8 * len(order)):]] = True
+        is_val[order[int(0.8 * len(order)) :]] = True
     if is_val.all() or not is_val.any():
         raise click.UsageError("too little data to hold out a validation part; pass --val-data")
     return [fixes[~is_val].reset_index(drop=True)], [fixes[is_val].reset_index(drop=True)]

@@ -11,29 +11,81 @@ __all__ = ["tune_rema"]
 
 
 @click.command("tune-rema")
-@click.option("--protocol", type=click.Choice(["grad"]), default="grad", show_default=True,
-              help="fault protocol (position faults with per-channel labels)")
+@click.option(
+    "--protocol",
+    type=click.Choice(["grad"]),
+    default="grad",
+    show_default=True,
+    help="fault protocol (position faults with per-channel labels)",
+)
 @click.option("--dataset", type=click.Choice(["driveplotr", "tuc", "simulated"]), required=True)
-@click.option("--split", type=click.Choice(["train", "validation", "test"]), default="validation",
-              show_default=True, help="split to tune on (never tune on test)")
-@click.option("--seeds", default="0,1,2", show_default=True, metavar="S[,S...]",
-              help="injection seeds, pooled (several draws make the choice less lucky)")
-@click.option("--mode", type=click.Choice(["trend", "paper"]), default="trend", show_default=True,
-              help="REMA mode to tune")
-@click.option("--speed-heading/--no-speed-heading", default=True, show_default=True,
-              help="trend mode: predict steps from reported speed and heading")
-@click.option("--data-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="folder with the shared drives; default $GRADGPS_DATA, then ../shared/data")
-@click.option("--grid", "grid_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              default=None, help='JSON object of REMA parameter lists, e.g. {"min_margin": [5, 8]} '
-              "(default: the built-in grid, about 15,000 combinations)")
-@click.option("--table", "table_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="also write every REMA combination's scores here (CSV)")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="JSON file for the best settings (gradgps bench --rema-params FILE)")
-def tune_rema(protocol: str, dataset: str, split: str, seeds: str, mode: str, speed_heading: bool,
-              data_dir: Path | None, grid_path: Path | None, table_path: Path | None,
-              output: Path) -> None:
+@click.option(
+    "--split",
+    type=click.Choice(["train", "validation", "test"]),
+    default="validation",
+    show_default=True,
+    help="split to tune on (never tune on test)",
+)
+@click.option(
+    "--seeds",
+    default="0,1,2",
+    show_default=True,
+    metavar="S[,S...]",
+    help="injection seeds, pooled (several draws make the choice less lucky)",
+)
+@click.option(
+    "--mode",
+    type=click.Choice(["trend", "paper"]),
+    default="trend",
+    show_default=True,
+    help="REMA mode to tune",
+)
+@click.option(
+    "--speed-heading/--no-speed-heading",
+    default=True,
+    show_default=True,
+    help="trend mode: predict steps from reported speed and heading",
+)
+@click.option(
+    "--data-dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="folder with the shared drives; default $GRADGPS_DATA, then ../shared/data",
+)
+@click.option(
+    "--grid",
+    "grid_path",
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    default=None,
+    help='JSON object of REMA parameter lists, e.g. {"min_margin": [5, 8]} '
+    "(default: the built-in grid, about 15,000 combinations)",
+)
+@click.option(
+    "--table",
+    "table_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="also write every REMA combination's scores here (CSV)",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="JSON file for the best settings (gradgps bench --rema-params FILE)",
+)
+def tune_rema(
+    protocol: str,
+    dataset: str,
+    split: str,
+    seeds: str,
+    mode: str,
+    speed_heading: bool,
+    data_dir: Path | None,
+    grid_path: Path | None,
+    table_path: Path | None,
+    output: Path,
+) -> None:
     """Inject faults into a split, grid-search REMA (per-channel F1) then the time classifier."""
     from .._exceptions import GradGPSError
     from .._tuning import tune_on_dataset
@@ -41,20 +93,32 @@ def tune_rema(protocol: str, dataset: str, split: str, seeds: str, mode: str, sp
     try:
         seed_list = [int(v) for v in seeds.split(",") if v.strip()]
     except ValueError as exc:
-        raise click.BadParameter(f"expected integers separated by commas, got {seeds!r}",
-                                 param_hint="--seeds") from exc
+        raise click.BadParameter(
+            f"expected integers separated by commas, got {seeds!r}", param_hint="--seeds"
+        ) from exc
     grid = None
     if grid_path is not None:
         try:
             grid = json.loads(grid_path.read_text())
         except json.JSONDecodeError as exc:
-            raise click.BadParameter(f"{grid_path} is not valid JSON: {exc}", param_hint="--grid") from exc
+            raise click.BadParameter(
+                f"{grid_path} is not valid JSON: {exc}", param_hint="--grid"
+            ) from exc
         if not isinstance(grid, dict) or not all(isinstance(v, list) and v for v in grid.values()):
-            raise click.BadParameter(f"{grid_path} must hold an object of non-empty lists",
-                                     param_hint="--grid")
+            raise click.BadParameter(
+                f"{grid_path} must hold an object of non-empty lists", param_hint="--grid"
+            )
     try:
-        settings, rema_table, _ = tune_on_dataset(dataset, split=split, seeds=seed_list, mode=mode,
-                                                  use_speed_heading=speed_heading, grid=grid, data_dir=data_dir, progress=True)
+        settings, rema_table, _ = tune_on_dataset(
+            dataset,
+            split=split,
+            seeds=seed_list,
+            mode=mode,
+            use_speed_heading=speed_heading,
+            grid=grid,
+            data_dir=data_dir,
+            progress=True,
+        )
     except GradGPSError as exc:
         raise click.ClickException(str(exc)) from exc
     output.write_text(json.dumps(settings, indent=2) + "\n")
