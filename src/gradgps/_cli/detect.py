@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .options import column_map, column_options
+from .options import column_map, column_options, model_options
 
 if TYPE_CHECKING:
     from .._track import ColumnMap
@@ -41,19 +41,7 @@ __all__ = ["detect"]
     help="output file: .csv, .csv.gz or .parquet (with --follow: CSV lines, "
     "default standard output)",
 )
-@click.option(
-    "--model",
-    "model_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help="model directory from 'gradgps train' (default: the shipped model)",
-)
-@click.option(
-    "--threshold",
-    type=float,
-    default=None,
-    help="anomaly threshold on the score, overriding the model's",
-)
+@model_options
 @click.option(
     "--follow",
     is_flag=True,

@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from .options import column_map, column_options
+from .options import column_map, column_options, model_options
 
 __all__ = ["detect_fleet"]
 
@@ -42,19 +42,7 @@ __all__ = ["detect_fleet"]
     default=None,
     help="local cluster size in single-thread worker processes (default: one per CPU)",
 )
-@click.option(
-    "--model",
-    "model_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help="model directory from 'gradgps train' (default: the shipped model)",
-)
-@click.option(
-    "--threshold",
-    type=float,
-    default=None,
-    help="anomaly threshold on the score, overriding the model's",
-)
+@model_options
 @column_options
 def detect_fleet(
     input_dir: Path,

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar
 
 import click
 
 from .._track import ColumnMap
 
-__all__ = ["column_map", "column_options"]
+__all__ = ["column_map", "column_options", "model_options"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -48,3 +49,21 @@ def column_options(func: F) -> F:
 def column_map(kwargs: dict[str, Any]) -> ColumnMap:
     """Pop the ``--*-col`` values out of a command's kwargs into a ColumnMap."""
     return ColumnMap(**{role: kwargs.pop(f"{role}_col", None) for role, _, _ in _ROLES})
+
+
+def model_options(func: F) -> F:
+    """Add ``--model`` (as ``model_dir``) and ``--threshold`` to a command that runs the detector."""
+    func = click.option(
+        "--threshold",
+        type=float,
+        default=None,
+        help="anomaly threshold on the score, overriding the model's",
+    )(func)
+    func = click.option(
+        "--model",
+        "model_dir",
+        type=click.Path(file_okay=False, path_type=Path),
+        default=None,
+        help="model directory from 'gradgps train' (default: the shipped model)",
+    )(func)
+    return func

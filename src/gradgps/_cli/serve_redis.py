@@ -18,6 +18,8 @@ from types import FrameType
 
 import click
 
+from .options import model_options
+
 __all__ = ["serve_redis"]
 
 # Seconds between two status lines on stderr.
@@ -45,19 +47,7 @@ _STATUS_EVERY_S = 10.0
     metavar="NAME",
     help="this worker's name, unique among running workers",
 )
-@click.option(
-    "--model",
-    "model_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help="model directory from 'gradgps train' (default: the shipped model)",
-)
-@click.option(
-    "--threshold",
-    type=float,
-    default=None,
-    help="anomaly threshold on the score, overriding the model's",
-)
+@model_options
 @click.option(
     "--batch-size",
     type=click.IntRange(min=1),
