@@ -98,3 +98,12 @@ def test_extra_channels_are_carried() -> None:
     assert to_fixes(frame, channels=["gyro_z_dps"])["gyro_z_dps"].tolist() == [0.5, 0.25]
     with pytest.raises(InputError, match="no channel column"):
         to_fixes(frame, channels=["nope"])
+
+
+def test_iso_year_outside_nanosecond_range_is_an_input_error() -> None:
+    """Found by make fuzz: '-1' next to ISO times parses as year -1, beyond datetime64[ns]."""
+    frame = pd.DataFrame(
+        {"t": ["-1", "", "2024-01-01T00:00:00Z"], "lat": [0.0] * 3, "lon": [0.0] * 3}
+    )
+    with pytest.raises(InputError, match=r"row 1 \(line 2\), column 't': time out of range"):
+        to_fixes(Table(frame, source="x.csv", first_line=2))

@@ -284,6 +284,14 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
     if bool(bad.any()):
         pos = int(np.flatnonzero(bad.to_numpy())[0])
         raise _row_error(table, pos, col, f"not a time (seconds or ISO-8601): {series.iloc[pos]!r}")
+    # ISO-8601 allows years far outside what nanosecond times (1677-2262) can hold.
+    year = parsed.dt.year
+    outside = ((year < 1678) | (year > 2261)).fillna(False).to_numpy(dtype=bool)
+    if outside.any():
+        pos = int(np.flatnonzero(outside)[0])
+        raise _row_error(
+            table, pos, col, f"time out of range (years 1678-2261): {series.iloc[pos]!r}"
+        )
     return _datetime_seconds(parsed)
 
 
