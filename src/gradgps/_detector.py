@@ -321,16 +321,7 @@ class Detector:
         t_f, lat_f, lon_f = _number(t), _number(lat), _number(lon)
         reason = _check_fix(t_f, lat_f, lon_f, self._last_t)
         if reason:
-            return PointResult(
-                anomaly=1,
-                score=math.nan,
-                bias_type="none",
-                time_type="none",
-                lat_clean=math.nan,
-                lon_clean=math.nan,
-                alert=0,
-                invalid_reason=reason,
-            )
+            return PointResult.invalid(reason)
         sp, hd = _reading(speed), _reading(heading)
         if self._frame is None:
             self._frame = LocalFrame(lat_f, lon_f)

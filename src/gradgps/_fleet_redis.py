@@ -234,19 +234,6 @@ def _output(message: _Message, result: PointResult) -> dict[str, str]:
     }
 
 
-def _unusable(reason: str) -> PointResult:
-    return PointResult(
-        anomaly=1,
-        score=math.nan,
-        bias_type="none",
-        time_type="none",
-        lat_clean=math.nan,
-        lon_clean=math.nan,
-        alert=0,
-        invalid_reason=reason,
-    )
-
-
 class RedisStreamWorker:
     """One consumer of a Redis Streams consumer group running GRAD per vehicle.
 
@@ -500,9 +487,11 @@ class RedisStreamWorker:
                 continue  # already in the output stream: processed before a takeover
             f = message.fields
             if not f:
-                result = _unusable("message deleted from the stream before it was processed")
+                result = PointResult.invalid(
+                    "message deleted from the stream before it was processed"
+                )
             elif not message.vehicle:
-                result = _unusable("message has no vehicle_id")
+                result = PointResult.invalid("message has no vehicle_id")
             else:
                 channels = {k: _number(v) for k, v in f.items() if k not in _POSITION_FIELDS}
                 result = track.detector.update(

@@ -95,19 +95,6 @@ def _result_fields(result: PointResult | None, reason: str = "") -> list[str]:
     ]
 
 
-def _invalid(reason: str) -> PointResult:
-    return PointResult(
-        anomaly=1,
-        score=math.nan,
-        bias_type="none",
-        time_type="none",
-        lat_clean=math.nan,
-        lon_clean=math.nan,
-        alert=0,
-        invalid_reason=reason,
-    )
-
-
 def parse_time(text: str) -> float:
     """Seconds from a number (unix s, or ms/us epochs by magnitude) or an ISO-8601 time (UTC if naive).
 
@@ -159,7 +146,9 @@ class _CsvFollower:
     def score(self, fields: list[str]) -> PointResult:
         width = len(self.header)
         if len(fields) != width:
-            return _invalid(f"expected {width} fields as in the header, got {len(fields)}")
+            return PointResult.invalid(
+                f"expected {width} fields as in the header, got {len(fields)}"
+            )
         role = "time"
         try:
             t = parse_time(self._value(fields, "time") or "nan")
@@ -174,7 +163,9 @@ class _CsvFollower:
         except ValueError:
             k = self.index[role] or 0
             what = "a time (seconds or ISO-8601)" if role == "time" else "a number"
-            return _invalid(f"column {self.header[k]!r} ({role}) is not {what}: {fields[k]!r}")
+            return PointResult.invalid(
+                f"column {self.header[k]!r} ({role}) is not {what}: {fields[k]!r}"
+            )
         track = self._value(fields, "track") or ""
         detector = self.detectors.get(track)
         if detector is None:
@@ -217,7 +208,7 @@ class _NmeaFollower:
             kind, values = parsed
             epoch = (_parse_gga if kind == "GGA" else _parse_rmc)(values, n)
         except _Malformed as exc:
-            result = _invalid(f"rejected sentence: {exc}")
+            result = PointResult.invalid(f"rejected sentence: {exc}")
             return [str(n), "", *blank, *_result_fields(result)], result
         tod = epoch.tod
         lat = math.nan if epoch.no_fix else epoch.lat

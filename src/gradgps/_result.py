@@ -8,6 +8,7 @@ not produce a quantity (a speed gate has no bias type) leaves it missing
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 __all__ = ["RESULT_COLUMNS", "PointResult"]
@@ -34,3 +35,17 @@ class PointResult:
     lon_clean: float
     alert: int
     invalid_reason: str = ""
+
+    @classmethod
+    def invalid(cls, reason: str) -> PointResult:
+        """The verdict on a fix that could not be used: flagged, no score, no position."""
+        return cls(
+            anomaly=1,
+            score=math.nan,
+            bias_type="none",
+            time_type="none",
+            lat_clean=math.nan,
+            lon_clean=math.nan,
+            alert=0,
+            invalid_reason=reason,
+        )
