@@ -19,6 +19,7 @@ kept as readings ``dt = 0`` apart, so every input row gets its own verdict.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -28,11 +29,35 @@ import pandas as pd
 from ._exceptions import ConfigError
 from ._geo import LocalFrame
 from ._preprocess import invalid_reasons
+from ._result import PointResult
 
 __all__ = ["INPUTS", "SENSOR_CHANNELS", "Segment", "input_names", "result_frame", "segments"]
 
 INPUTS = ("position", "sensor")
 SENSOR_CHANNELS = ("speed", "accel_x_mps2", "gyro_z_dps")
+
+
+def unusable_fix(t: float, lat: float, lon: float) -> PointResult | None:
+    """The baselines' verdict on a fix they cannot use (not flagged), or None if usable."""
+    usable = (
+        math.isfinite(t)
+        and math.isfinite(lat)
+        and math.isfinite(lon)
+        and abs(lat) <= 90.0
+        and abs(lon) <= 180.0
+    )
+    if usable:
+        return None
+    return PointResult(
+        0,
+        math.nan,
+        None,
+        None,
+        math.nan,
+        math.nan,
+        0,
+        invalid_reason="time, latitude or longitude unusable",
+    )
 
 
 def input_names(inputs: str) -> tuple[str, ...]:

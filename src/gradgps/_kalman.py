@@ -41,7 +41,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from ._baseline_io import Segment, input_names, result_frame, segments
+from ._baseline_io import Segment, input_names, result_frame, segments, unusable_fix
 from ._exceptions import ConfigError
 from ._geo import LocalFrame
 from ._result import PointResult
@@ -501,23 +501,9 @@ class KalmanDetector:
     ) -> PointResult:
         """:meth:`update` with ``forced``: flag the reading and never use it (``cnn-kf``)."""
         params = self._fitted()
-        if not (
-            math.isfinite(t)
-            and math.isfinite(lat)
-            and math.isfinite(lon)
-            and abs(lat) <= 90.0
-            and abs(lon) <= 180.0
-        ):
-            return PointResult(
-                0,
-                math.nan,
-                None,
-                None,
-                math.nan,
-                math.nan,
-                0,
-                invalid_reason="time, latitude or longitude unusable",
-            )
+        unusable = unusable_fix(t, lat, lon)
+        if unusable is not None:
+            return unusable
         if self._frame is None:
             self._frame = LocalFrame(float(lat), float(lon))
         if params.inputs == "position":

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ._baseline_io import Segment, input_names, result_frame, segments
+from ._baseline_io import Segment, input_names, result_frame, segments, unusable_fix
 from ._cnn import CNN_WEIGHTS, cnn_forward
 from ._exceptions import ModelError
 from ._geo import LocalFrame
@@ -224,23 +224,9 @@ class WindowClassifier:
     ) -> PointResult:
         """Judge one reading of this detector's track (time order), as :meth:`detect` would."""
         m = self.model
-        if not (
-            math.isfinite(t)
-            and math.isfinite(lat)
-            and math.isfinite(lon)
-            and abs(lat) <= 90.0
-            and abs(lon) <= 180.0
-        ):
-            return PointResult(
-                0,
-                math.nan,
-                None,
-                None,
-                math.nan,
-                math.nan,
-                0,
-                invalid_reason="time, latitude or longitude unusable",
-            )
+        unusable = unusable_fix(t, lat, lon)
+        if unusable is not None:
+            return unusable
         if self._frame is None:
             self._frame = LocalFrame(float(lat), float(lon))
         if self._last_t is not None and t - self._last_t > m.max_gap_s:
