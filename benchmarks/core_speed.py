@@ -5,7 +5,7 @@ numba loads):
 
 * first-call compile/load time of the batch kernel (from the numba cache when
   it is warm; the first run on a fresh checkout compiles);
-* batch throughput of :func:`gradgps._core_pipeline.core_batch` in points/s on
+* batch throughput of :func:`gradgps._grad.core.core_batch` in points/s on
   a synthetic 1 Hz drive (best of ``--repeat`` runs, 30 s / 5 s windows) and
   on a 5 Hz one (windows are in seconds, so 5 Hz means 5x longer windows),
   twice: as one ``--points`` array, and cut into segments of
@@ -39,8 +39,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-from gradgps._core_pipeline import CoreParams, CorePipeline, core_batch
-from gradgps._rema_detector import RemaDetector
+from gradgps._baselines.rema_detector import RemaDetector
+from gradgps._grad.core import CoreParams, CorePipeline, core_batch
 
 
 def synthetic_drive(n: int, period: float, seed: int = 0) -> tuple[np.ndarray, ...]:

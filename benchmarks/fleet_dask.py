@@ -4,7 +4,7 @@ Simulates ``--vehicles`` drives of ``--minutes`` at 1 Hz, writes them as one
 Parquet file per vehicle, then for each worker count starts a local cluster
 (single-thread worker processes, numba at one thread each), loads the model
 and the compiled kernels in every worker (so first-call costs are not
-timed), and times :func:`gradgps._fleet_dask.detect_fleet` end to end: each
+timed), and times :func:`gradgps._run.fleet_dask.detect_fleet` end to end: each
 task reads its file, detects and writes its output file. Points/s = input
 rows / wall seconds of that call. The 1-minute load average before and after
 is recorded: on a shared machine other jobs show up directly in the numbers.
@@ -36,16 +36,16 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-from gradgps._fleet_dask import dask_client, detect_fleet
-from gradgps._simulator import simulate_fleet
+from gradgps._data.simulator import simulate_fleet
+from gradgps._run.fleet_dask import dask_client, detect_fleet
 
 START, END = "<!-- fleet:start -->", "<!-- fleet:end -->"
 
 
 def _warm_up() -> None:
     """Runs in each worker: load the model and the numba kernels from their caches."""
-    from gradgps._detector import Detector
-    from gradgps._simulator import simulate_drive
+    from gradgps._data.simulator import simulate_drive
+    from gradgps._grad.detector import Detector
 
     Detector().detect(simulate_drive(1.0, 1.0, 0))
 

@@ -26,16 +26,16 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from gradgps._datasets import load_dataset  # noqa: E402
-from gradgps._grad_pipeline import PipelineParams  # noqa: E402
-from gradgps._grad_training import (  # noqa: E402
+from gradgps._data.datasets import load_dataset  # noqa: E402
+from gradgps._eval.metrics import class_scores  # noqa: E402
+from gradgps._grad.gru import GRUModel  # noqa: E402
+from gradgps._grad.model_io import export_torch  # noqa: E402
+from gradgps._grad.pipeline import PipelineParams  # noqa: E402
+from gradgps._train.grad import (  # noqa: E402
     GRAD_BIAS_CLASSES,
     GradTrainingSet,
     _sequences,
 )
-from gradgps._gru import GRUModel  # noqa: E402
-from gradgps._metrics import class_scores  # noqa: E402
-from gradgps._model_io import export_torch  # noqa: E402
 
 
 def main() -> None:
@@ -45,7 +45,7 @@ def main() -> None:
     parser.add_argument("--budget", type=float, default=180.0, help="training seconds per model")
     args = parser.parse_args()
 
-    from gradgps._training import TrainConfig, train_model
+    from gradgps._train.torch_gru import TrainConfig, train_model
 
     params = PipelineParams()
     spec = GradTrainingSet()

@@ -24,7 +24,7 @@ from pathlib import Path  # noqa: E402
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gradgps._gru import GRUModel, stream_step_kernel, weight_shapes  # noqa: E402
+from gradgps._grad.gru import GRUModel, stream_step_kernel, weight_shapes  # noqa: E402
 
 
 def _model(n_features: int, n_bias: int, mode: str, window: int) -> GRUModel:

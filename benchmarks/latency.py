@@ -33,7 +33,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gradgps import simulate_fleet, to_fixes  # noqa: E402
-from gradgps._detector import Detector  # noqa: E402
+from gradgps._grad.detector import Detector  # noqa: E402
 
 
 def _streaming(model: str | None, minutes: float) -> dict[str, float]:

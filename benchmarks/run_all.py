@@ -84,7 +84,7 @@ PAPER_GRID = {  # comparison table, overall F1 percent, columns PAPER_COLUMNS
 
 
 def _recipe(quick: bool) -> Any:
-    from gradgps._baseline_training import BaselineRecipe
+    from gradgps._train.baselines import BaselineRecipe
 
     if not quick:
         return BaselineRecipe()
@@ -97,7 +97,7 @@ def _grad_model(quick: bool) -> Path | None:
     """``grad`` under protocol grad: trained on the data set (cached); quick: the shipped model."""
     if not quick:
         return None
-    from gradgps._detector import _default_model_dir
+    from gradgps._grad.detector import _default_model_dir
 
     return _default_model_dir()
 
@@ -105,7 +105,7 @@ def _grad_model(quick: bool) -> Path | None:
 def _bench(
     protocol: str, dataset: str, methods: list[str], args: argparse.Namespace, scale: float = 1.0
 ) -> dict[str, Any]:
-    from gradgps._bench import run_bench
+    from gradgps._eval.bench import run_bench
 
     return run_bench(
         protocol,
@@ -121,10 +121,10 @@ def _bench(
 
 def _speed(args: argparse.Namespace) -> dict[str, Any]:
     """µs per point on the DrivePlotR test split (protocol grad, seed 0): batch and streaming."""
-    from gradgps._bench import make_detector
-    from gradgps._datasets import load_dataset
-    from gradgps._inject import inject_grad
-    from gradgps._track import to_fixes
+    from gradgps._data.datasets import load_dataset
+    from gradgps._data.inject import inject_grad
+    from gradgps._eval.bench import make_detector
+    from gradgps._tracks.track import to_fixes
 
     table = load_dataset("driveplotr", "test", data_dir=args.data_dir)
     cmap = to_fixes(table).attrs["columns"]
@@ -364,11 +364,11 @@ def write_markdown(
         "injection seeds, validation split for early stopping and the threshold, 3-minute "
         "budget): `grad` = GRAD trained on the data set (under `sensor-grid`: the "
         "channel-wise GRAD, REMA + MS-SW features per sensor channel into the same GRU, "
-        "`src/gradgps/_channel_grad.py`); `grad-default` = the shipped model (simulated "
+        "`src/gradgps/_baselines/channel_grad.py`); `grad-default` = the shipped model (simulated "
         "drives only); `rema`, `speed-gate`: statistical, no training; `kf`: "
-        "constant-velocity Kalman filter + χ² test (`_kalman.py`); `cnn`: 1-D CNN "
-        "(`_cnn.py`); `cnn-kf`: CNN then KF + χ² (van Wyk et al., `_cnn_kf.py`); "
-        "`lstm-cnn`: convolutions + LSTM + attention (Javed et al.'s ML-C, `_lstm_cnn.py`). "
+        "constant-velocity Kalman filter + χ² test (`_baselines/kalman.py`); `cnn`: 1-D CNN "
+        "(`_baselines/cnn.py`); `cnn-kf`: CNN then KF + χ² (van Wyk et al., `_baselines/cnn_kf.py`); "
+        "`lstm-cnn`: convolutions + LSTM + attention (Javed et al.'s ML-C, `_baselines/lstm_cnn.py`). "
         "No WAVED ensemble was built.",
         "",
         "Columns marked **paper** are the numbers printed in the paper, measured on its "

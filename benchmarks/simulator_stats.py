@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from gradgps._drive_stats import DISTRIBUTIONS, drive_statistics, summarize
-from gradgps._simulator import simulate_fleet
-from gradgps._track import to_fixes
+from gradgps._data.drive_stats import DISTRIBUTIONS, drive_statistics, summarize
+from gradgps._data.simulator import simulate_fleet
+from gradgps._tracks.track import to_fixes
 
 REPO = Path(__file__).resolve().parents[1]
 

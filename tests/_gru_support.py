@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from gradgps._gru import weight_shapes
+from gradgps._grad.gru import weight_shapes
 
 
 def random_weights(

@@ -10,11 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps import LocalFrame
-from gradgps._baseline_io import segments
-from gradgps._baseline_training import NETS, BaselineRecipe, train_window_model
-from gradgps._cnn_kf import CnnKalmanDetector
-from gradgps._kalman import KalmanDetector, KalmanParams, kf_reference, kf_segment_kernel
-from gradgps._window_detector import ARCHITECTURES, WindowClassifier, WindowModel
+from gradgps._baselines.base import segments
+from gradgps._baselines.cnn_kf import CnnKalmanDetector
+from gradgps._baselines.kalman import KalmanDetector, KalmanParams, kf_reference, kf_segment_kernel
+from gradgps._baselines.window import ARCHITECTURES, WindowClassifier, WindowModel
+from gradgps._train.baselines import NETS, BaselineRecipe, train_window_model
 
 FRAME = LocalFrame(41.25, -95.98)
 
@@ -173,9 +173,9 @@ def test_window_training_learns_an_obvious_fault() -> None:
 
 
 def test_channel_grad_features_are_the_position_features_of_each_channel() -> None:
-    from gradgps._channel_grad import channel_features
-    from gradgps._features import N_CHANNEL, FeatureParams, features_reference
-    from gradgps._rema import RemaParams
+    from gradgps._baselines.channel_grad import channel_features
+    from gradgps._grad.features import N_CHANNEL, FeatureParams, features_reference
+    from gradgps._grad.rema import RemaParams
 
     fixes = drive(50)
     seg = segments(fixes, "sensor")[0][0]

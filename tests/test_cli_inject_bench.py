@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from gradgps._cli import main
-from gradgps._datasets import load_dataset
+from gradgps._data.datasets import load_dataset
 
 BLOCK_KEYS = {
     "anomaly",

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from gradgps import simulate_fleet
 from gradgps._cli import main
-from gradgps._detector import Detector
+from gradgps._grad.detector import Detector
 
 
 def test_train_on_own_logs_then_detect_with_that_model(tmp_path: Path) -> None:

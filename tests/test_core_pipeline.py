@@ -8,12 +8,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from gradgps._core_pipeline import CoreParams, CorePipeline, core_batch
-from gradgps._features import FeatureParams, segment_features
-from gradgps._rema import RemaParams, rema_batch
-from gradgps._rema_detector import RemaDetector
-from gradgps._time_classifier import classify_time
-from gradgps._tuning import f1_scores, tune_rema
+from gradgps._baselines.rema_detector import RemaDetector
+from gradgps._grad.core import CoreParams, CorePipeline, core_batch
+from gradgps._grad.features import FeatureParams, segment_features
+from gradgps._grad.rema import RemaParams, rema_batch
+from gradgps._grad.time_classifier import classify_time
+from gradgps._train.tune_rema import f1_scores, tune_rema
 
 
 def _signal(n: int = 300, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from gradgps import ConfigError, DataNotFoundError
-from gradgps._datasets import find_data_dir, load_dataset
+from gradgps._data.datasets import find_data_dir, load_dataset
 
 
 @pytest.mark.shared

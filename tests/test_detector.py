@@ -19,10 +19,10 @@ from hypothesis import strategies as st
 
 from _gru_support import random_weights
 from gradgps import ConfigError, ModelError, simulate_fleet, to_fixes
-from gradgps._detector import Detector
-from gradgps._grad_pipeline import PipelineParams, pipeline_feature_names
-from gradgps._inject import inject_grad
-from gradgps._model_io import save_model
+from gradgps._data.inject import inject_grad
+from gradgps._grad.detector import Detector
+from gradgps._grad.model_io import save_model
+from gradgps._grad.pipeline import PipelineParams, pipeline_feature_names
 
 RESULT = [
     "anomaly",

@@ -8,8 +8,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps._exceptions import ConfigError
-from gradgps._features import FeatureParams, feature_names, features_reference, segment_features
-from gradgps._rema import RemaParams
+from gradgps._grad.features import (
+    FeatureParams,
+    feature_names,
+    features_reference,
+    segment_features,
+)
+from gradgps._grad.rema import RemaParams
 
 
 def _track(n: int, period: float, seed: int = 0) -> tuple[np.ndarray, ...]:

@@ -12,8 +12,8 @@ from click.testing import CliRunner
 
 from gradgps import ConfigError, InputError
 from gradgps._cli import main
-from gradgps._fleet_dask import dask_client, detect_fleet, find_partitions
-from gradgps._simulator import simulate_fleet
+from gradgps._data.simulator import simulate_fleet
+from gradgps._run.fleet_dask import dask_client, detect_fleet, find_partitions
 
 pytest.importorskip("distributed")
 

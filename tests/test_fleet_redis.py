@@ -16,9 +16,9 @@ import pandas as pd
 import pytest
 
 from gradgps import ConfigError
-from gradgps._detector import Detector
-from gradgps._fleet_redis import OUTPUT_FIELDS, RedisStreamWorker, parse_output
-from gradgps._simulator import simulate_fleet
+from gradgps._data.simulator import simulate_fleet
+from gradgps._grad.detector import Detector
+from gradgps._run.fleet_redis import OUTPUT_FIELDS, RedisStreamWorker, parse_output
 
 fakeredis = pytest.importorskip("fakeredis")
 pytest.importorskip("lupa", reason="fakeredis runs the routing Lua script with lupa")

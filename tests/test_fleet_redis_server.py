@@ -22,9 +22,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from gradgps._detector import Detector
-from gradgps._fleet_redis import parse_output
-from gradgps._simulator import simulate_fleet
+from gradgps._data.simulator import simulate_fleet
+from gradgps._grad.detector import Detector
+from gradgps._run.fleet_redis import parse_output
 from redis_server import redis_server
 
 redis = pytest.importorskip("redis")

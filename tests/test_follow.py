@@ -14,10 +14,10 @@ import pytest
 from click.testing import CliRunner
 
 from gradgps._cli import main
-from gradgps._detector import Detector
-from gradgps._follow import RESULT_FIELDS, follow_lines, parse_time
-from gradgps._nmea import nmea_checksum
-from gradgps._simulator import simulate_drive
+from gradgps._data.simulator import simulate_drive
+from gradgps._grad.detector import Detector
+from gradgps._io.nmea import nmea_checksum
+from gradgps._run.follow import RESULT_FIELDS, follow_lines, parse_time
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -25,9 +25,9 @@ from hypothesis import strategies as st
 
 from _track_strategies import expected_reasons, messy_tracks
 from gradgps import GradGPSError, iter_csv_tables, read_table, to_fixes
-from gradgps._chunked import TrackStreams, detect_csv_in_chunks
-from gradgps._detector import Detector
-from gradgps._nmea import nmea_checksum
+from gradgps._grad.detector import Detector
+from gradgps._io.nmea import nmea_checksum
+from gradgps._run.chunked import TrackStreams, detect_csv_in_chunks
 
 T = TypeVar("T")
 EXAMPLES = int(os.environ.get("GRADGPS_FUZZ_EXAMPLES", "30"))
@@ -382,7 +382,7 @@ def _paths(node: object, prefix: tuple[object, ...] = ()) -> list[tuple[object, 
 def shipped_model() -> tuple[dict[str, object], bytes]:
     import json
 
-    from gradgps._detector import _default_model_dir
+    from gradgps._grad.detector import _default_model_dir
 
     folder = _default_model_dir()
     return json.loads((folder / "config.json").read_text()), (folder / "weights.npz").read_bytes()

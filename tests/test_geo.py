@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps import ConfigError, LocalFrame
-from gradgps._geo import haversine_m
+from gradgps._tracks.geo import haversine_m
 
 lat0s = st.floats(min_value=-84.0, max_value=84.0, allow_nan=False)
 lon0s = st.floats(min_value=-180.0, max_value=180.0, allow_nan=False)
@@ -63,7 +63,7 @@ def test_bad_origin_is_a_config_error(lat0: float, lon0: float) -> None:
 def test_scalar_kernels_match_the_vectorised_frame(
     lat0: float, lon0: float, de: float, dn: float
 ) -> None:
-    from gradgps._geo import to_geodetic_scalar, to_local_scalar
+    from gradgps._tracks.geo import to_geodetic_scalar, to_local_scalar
 
     frame = LocalFrame(lat0, lon0)
     c = frame.constants()

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from gradgps import InputError, to_fixes
-from gradgps._gpx import read_gpx
-from gradgps._io import read_fixes, read_table
+from gradgps._io.gpx import read_gpx
+from gradgps._io.read import read_fixes, read_table
 
 GPX11 = """<?xml version="1.0" encoding="UTF-8"?>
 <gpx version="1.1" creator="test" xmlns="http://www.topografix.com/GPX/1/1"

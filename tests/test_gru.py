@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from _gru_support import random_weights
 from gradgps import ConfigError, ModelError
-from gradgps._gru import GRUModel, reference_stream, reference_windows
+from gradgps._grad.gru import GRUModel, reference_stream, reference_windows
 
 F, K = 7, 4
 SRC = Path(__file__).resolve().parents[1] / "src"
@@ -97,7 +97,7 @@ def test_window_longer_than_segment_is_streaming(weights, scaler, features):
 
 def _torch_net(weights, scaler):
     torch = pytest.importorskip("torch")
-    from gradgps._training import GRADNet
+    from gradgps._train.torch_gru import GRADNet
 
     net = GRADNet(F, K)
     names = {
@@ -216,7 +216,7 @@ def test_inference_never_imports_torch(tmp_path):
         import sys
         import numpy as np
         import gradgps
-        from gradgps._model_io import gru_model, load_model, save_model
+        from gradgps._grad.model_io import gru_model, load_model, save_model
         sys.path.insert(0, sys.argv[2])
         from _gru_support import model_config, random_weights
         save_model(sys.argv[1], random_weights(4, 3), model_config(4, 3, mode="stream"))

@@ -14,9 +14,9 @@ from click.testing import CliRunner
 from gradgps import ConfigError, InputError, ModelError, to_fixes
 from gradgps._cli import main
 from gradgps._cli.errors import ErrorReportingGroup
-from gradgps._geo import LocalFrame
-from gradgps._nmea import nmea_checksum
-from gradgps._summary import summarize
+from gradgps._io.nmea import nmea_checksum
+from gradgps._tracks.geo import LocalFrame
+from gradgps._tracks.summary import summarize
 
 
 def run(*args: str) -> click.testing.Result:

@@ -12,8 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps import ConfigError, InputError, LocalFrame
-from gradgps._datasets import load_dataset
-from gradgps._inject import (
+from gradgps._data.datasets import load_dataset
+from gradgps._data.inject import (
     GRAD_RATES,
     GRAVITY,
     SENSOR_CHANNELS,

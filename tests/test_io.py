@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gradgps import ColumnMap, ConfigError, InputError, to_fixes
-from gradgps._io import iter_csv_tables, read_fixes, read_table, resolve_format, write_table
+from gradgps._io.read import iter_csv_tables, read_fixes, read_table, resolve_format, write_table
 
 
 def drive(n: int = 100) -> pd.DataFrame:

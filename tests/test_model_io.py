@@ -13,7 +13,7 @@ import pytest
 
 from _gru_support import model_config, random_weights
 from gradgps import ModelError
-from gradgps._model_io import (
+from gradgps._grad.model_io import (
     CONFIG_FILE,
     FORMAT_VERSION,
     WEIGHTS_FILE,
@@ -161,9 +161,9 @@ def test_pickled_object_array_is_refused_not_loaded(model_dir: Path):
 
 def test_export_torch_names_and_shapes():
     pytest.importorskip("torch")
-    from gradgps._gru import weight_shapes
-    from gradgps._model_io import export_torch
-    from gradgps._training import GRADNet
+    from gradgps._grad.gru import weight_shapes
+    from gradgps._grad.model_io import export_torch
+    from gradgps._train.torch_gru import GRADNet
 
     exported = export_torch(GRADNet(F, K))
     assert {k: v.shape for k, v in exported.items()} == weight_shapes(F, 32, 16, K)

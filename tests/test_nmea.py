@@ -14,8 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps import InputError, to_fixes
-from gradgps._io import read_table
-from gradgps._nmea import KNOT_MS, MAX_NOTES, epoch_times, nmea_checksum, read_nmea
+from gradgps._io.nmea import KNOT_MS, MAX_NOTES, epoch_times, nmea_checksum, read_nmea
+from gradgps._io.read import read_table
 
 # The textbook examples (NMEA reference / gpsinformation.org), checksums as published.
 GGA_REF = "$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47"

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps import ConfigError
-from gradgps._offset import OffsetParams, offset_features, offset_features_reference
+from gradgps._grad.offset import OffsetParams, offset_features, offset_features_reference
 
 
 def _drive(n: int = 300, seed: int = 0) -> tuple[np.ndarray, ...]:

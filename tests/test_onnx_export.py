@@ -8,9 +8,9 @@ from click.testing import CliRunner
 
 from _gru_support import random_weights
 from gradgps._cli import main
-from gradgps._detector import load_grad_model
-from gradgps._gru import GRUModel
-from gradgps._onnx_export import build_onnx
+from gradgps._grad.detector import load_grad_model
+from gradgps._grad.gru import GRUModel
+from gradgps._train.onnx_export import build_onnx
 
 onnx = pytest.importorskip("onnx")
 ort = pytest.importorskip("onnxruntime")
@@ -74,10 +74,10 @@ def test_onnx_batch_axis_runs_tracks_independently(random_model):
 
 
 def test_cli_exports_the_shipped_model_and_it_runs_on_real_features(tmp_path):
-    from gradgps._geo import LocalFrame
-    from gradgps._grad_pipeline import grad_features
-    from gradgps._model_io import gru_model, load_model
-    from gradgps._simulator import simulate_drive
+    from gradgps._data.simulator import simulate_drive
+    from gradgps._grad.model_io import gru_model, load_model
+    from gradgps._grad.pipeline import grad_features
+    from gradgps._tracks.geo import LocalFrame
 
     out = tmp_path / "grad.onnx"
     result = CliRunner().invoke(main, ["export", "--onnx", str(out)])

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gradgps._core_pipeline import CoreParams, core_batch
 from gradgps._exceptions import ConfigError
-from gradgps._recovery import RecoveryParams, recover, recover_reference, rmse
-from gradgps._rema import RemaParams
-from gradgps._time_classifier import classify_time
+from gradgps._grad.core import CoreParams, core_batch
+from gradgps._grad.recovery import RecoveryParams, recover, recover_reference, rmse
+from gradgps._grad.rema import RemaParams
+from gradgps._grad.time_classifier import classify_time
 
 
 def _injected(seed: int = 0) -> tuple[np.ndarray, ...]:

@@ -21,9 +21,9 @@ from hypothesis import strategies as st
 
 from _track_strategies import expected_reasons, messy_tracks
 from gradgps import InputError, simulate_fleet, to_fixes
-from gradgps._chunked import TrackStreams, detect_csv_in_chunks
 from gradgps._cli import main
-from gradgps._detector import RESULT_DTYPES, Detector
+from gradgps._grad.detector import RESULT_DTYPES, Detector
+from gradgps._run.chunked import TrackStreams, detect_csv_in_chunks
 
 REPO = Path(__file__).resolve().parents[1]
 MIXED = REPO / "tests" / "data" / "mixed_bad_fixes.csv"
@@ -146,7 +146,7 @@ def test_checkpoint_as_strict_json_at_any_row_continues_identically(
 _CONTINUE = """
 import json, sys
 import pandas as pd
-from gradgps._detector import Detector
+from gradgps._grad.detector import Detector
 payload = json.loads(sys.stdin.buffer.read())
 det = Detector().set_state(payload["state"])
 rows = [list(det.update(*fix).__dict__.values()) for fix in payload["fixes"]]
@@ -305,7 +305,7 @@ def test_hand_edited_model_settings_fail_at_load_naming_the_file(
     # Found by fuzzing: these loaded, then crashed the first update (TypeError,
     # a numba typing error, a float32 overflow warning).
     from gradgps import ModelError
-    from gradgps._detector import _default_model_dir
+    from gradgps._grad.detector import _default_model_dir
 
     shipped = _default_model_dir()
     config = json.loads((shipped / "config.json").read_text())

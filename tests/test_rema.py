@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps._exceptions import ConfigError
-from gradgps._rema import REMA_MODES, Rema, RemaParams, rema_batch, rema_reference
+from gradgps._grad.rema import REMA_MODES, Rema, RemaParams, rema_batch, rema_reference
 
 
 def _assert_same(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> None:

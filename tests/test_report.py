@@ -9,11 +9,11 @@ import pytest
 from click.testing import CliRunner
 
 from gradgps._cli import main
-from gradgps._detector import Detector
-from gradgps._inject import inject_grad
-from gradgps._preprocess import preprocess
-from gradgps._report import rema_bounds
-from gradgps._simulator import simulate_drive, simulate_fleet
+from gradgps._data.inject import inject_grad
+from gradgps._data.simulator import simulate_drive, simulate_fleet
+from gradgps._grad.detector import Detector
+from gradgps._run.report import rema_bounds
+from gradgps._tracks.preprocess import preprocess
 
 pytest.importorskip("matplotlib")
 

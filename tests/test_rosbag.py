@@ -10,9 +10,9 @@ from click.testing import CliRunner
 
 from gradgps._cli import main
 from gradgps._exceptions import InputError
-from gradgps._io import read_table
-from gradgps._rosbag import NAVSATFIX, TWIST_STAMPED, read_rosbag
-from gradgps._track import to_fixes
+from gradgps._io.read import read_table
+from gradgps._io.rosbag import NAVSATFIX, TWIST_STAMPED, read_rosbag
+from gradgps._tracks.track import to_fixes
 
 pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer as Writer1
@@ -144,7 +144,7 @@ def test_bag_without_fixes_says_what_it_has(tmp_path):
 
 
 def test_speed_is_the_nearest_twist_within_the_lag():
-    from gradgps._rosbag import _speeds
+    from gradgps._io.rosbag import _speeds
 
     got = _speeds(np.array([0.0, 1.0, 2.0, 5.0]), [3.0, 0.9, 0.1], [3.0, 2.0, 1.0], 0.5)
     np.testing.assert_array_equal(got[:3], [1.0, 2.0, np.nan])

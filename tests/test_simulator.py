@@ -12,8 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps import ConfigError, SimulatorParams, simulate_drive, simulate_fleet
-from gradgps._drive_stats import DISTRIBUTIONS, drive_statistics, summarize
-from gradgps._simulator import (
+from gradgps._data.drive_stats import DISTRIBUTIONS, drive_statistics, summarize
+from gradgps._data.simulator import (
     EPOCH,
     _ar1,
     _ar1_reference,
@@ -24,7 +24,7 @@ from gradgps._simulator import (
     _speed_profile,
     _speed_profile_reference,
 )
-from gradgps._track import to_fixes
+from gradgps._tracks.track import to_fixes
 
 PARAMS = SimulatorParams()
 
@@ -174,7 +174,7 @@ def test_measured_heading_tracks_truth_when_moving_and_is_noisy_when_still() -> 
 
 def test_gnss_error_is_metre_scale_and_slowly_varying() -> None:
     _, truth = _simulate_truth(60, 1.0, 6, 0, PARAMS)
-    from gradgps._geo import LocalFrame
+    from gradgps._tracks.geo import LocalFrame
 
     drive = simulate_drive(60, 1.0, seed=6)
     east, north = LocalFrame(41.2565, -95.9345).to_local(

@@ -12,8 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps import ConfigError, LocalFrame
-from gradgps._geo import haversine_m
-from gradgps._speed_gate import SpeedGate, _distance_m
+from gradgps._baselines.speed_gate import SpeedGate, _distance_m
+from gradgps._tracks.geo import haversine_m
 
 FRAME = LocalFrame(41.25, -95.98)
 

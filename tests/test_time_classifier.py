@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gradgps._time_classifier import (
+from gradgps._grad.time_classifier import (
     INTERMITTENT,
     NONE,
     PERMANENT,

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from gradgps import ColumnMap, InputError, Table, to_fixes
-from gradgps._track import resolve_columns
+from gradgps._tracks.track import resolve_columns
 
 
 @pytest.mark.parametrize(

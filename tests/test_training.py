@@ -14,8 +14,8 @@ torch = pytest.importorskip("torch")
 from rich.console import Console  # noqa: E402
 
 from gradgps import ConfigError  # noqa: E402
-from gradgps._model_io import gru_model, load_model, save_model  # noqa: E402
-from gradgps._training import (  # noqa: E402
+from gradgps._grad.model_io import gru_model, load_model, save_model  # noqa: E402
+from gradgps._train.torch_gru import (  # noqa: E402
     _IGNORE,
     TrainConfig,
     _class_weights,

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from gradgps._bench import make_detector, run_bench
+from gradgps._baselines.rema_detector import RemaDetector
 from gradgps._cli import main
+from gradgps._eval.bench import make_detector, run_bench
 from gradgps._exceptions import ConfigError
-from gradgps._rema import RemaParams, rema_batch, rema_reference
-from gradgps._rema_detector import RemaDetector
-from gradgps._tuning import tune_time
+from gradgps._grad.rema import RemaParams, rema_batch, rema_reference
+from gradgps._train.tune_rema import tune_time
 
 
 @pytest.mark.shared

@@ -8,20 +8,20 @@ everything in underscore modules is private and may change.
 from __future__ import annotations
 
 from . import metrics
-from ._chunked import TrackStreams
-from ._datasets import load_dataset
-from ._detector import Detector
+from ._baselines.rema_detector import RemaDetector
+from ._baselines.speed_gate import SpeedGate
+from ._data.datasets import load_dataset
+from ._data.inject import inject_grad, inject_sensor_grid
+from ._data.simulator import SimulatorParams, simulate_drive, simulate_fleet
 from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
-from ._geo import LocalFrame
-from ._inject import inject_grad, inject_sensor_grid
-from ._io import iter_csv_tables, read_fixes, read_table, write_table
-from ._preprocess import Prepared, preprocess
-from ._rema import RemaParams
-from ._rema_detector import RemaDetector
+from ._grad.detector import Detector
+from ._grad.rema import RemaParams
+from ._io.read import iter_csv_tables, read_fixes, read_table, write_table
 from ._result import PointResult
-from ._simulator import SimulatorParams, simulate_drive, simulate_fleet
-from ._speed_gate import SpeedGate
-from ._track import ColumnMap, Table, to_fixes
+from ._run.chunked import TrackStreams
+from ._tracks.geo import LocalFrame
+from ._tracks.preprocess import Prepared, preprocess
+from ._tracks.track import ColumnMap, Table, to_fixes
 
 __version__ = "0.1.0"
 

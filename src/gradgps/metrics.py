@@ -1,9 +1,9 @@
 """Benchmark metrics (public): pointwise scores, confusion matrices, events, false alarms, RMSE.
 
-``from gradgps import metrics``; see :mod:`gradgps._metrics` for the definitions.
+``from gradgps import metrics``; see :mod:`gradgps._eval.metrics` for the definitions.
 """
 
-from ._metrics import (
+from ._eval.metrics import (
     class_scores,
     confusion_matrix,
     detection_delays,

@@ -79,7 +79,7 @@ def bench(
     from rich.progress import Progress
     from rich.table import Table
 
-    from .._bench import bench_units, run_bench
+    from .._eval.bench import bench_units, run_bench
     from .._exceptions import GradGPSError
 
     names = [d.strip() for d in detectors.split(",") if d.strip()]

@@ -56,13 +56,13 @@ def demo(
     from rich.console import Console
     from rich.table import Table
 
-    from .._datasets import SIMULATED_SPLITS
-    from .._detector import Detector
-    from .._inject import inject_grad
-    from .._io import write_table
-    from .._metrics import class_scores, confusion_matrix, rmse_m
-    from .._simulator import simulate_fleet
-    from .._track import to_fixes
+    from .._data.datasets import SIMULATED_SPLITS
+    from .._data.inject import inject_grad
+    from .._data.simulator import simulate_fleet
+    from .._eval.metrics import class_scores, confusion_matrix, rmse_m
+    from .._grad.detector import Detector
+    from .._io.read import write_table
+    from .._tracks.track import to_fixes
 
     console = Console(highlight=False)
     drive_seed = SIMULATED_SPLITS["test"][3]

@@ -6,7 +6,7 @@ column kept, plus the detector's columns: ``anomaly`` (0/1), ``score``
 ``alert`` (0/1) and ``invalid_reason`` (empty for a usable fix).
 
 CSV input is processed ``--chunk-size`` rows at a time in bounded memory
-(:mod:`gradgps._chunked`), with streaming semantics: rows in file order, one
+(:mod:`gradgps._run.chunked`), with streaming semantics: rows in file order, one
 streaming detector per track, so a fix whose time is not after the previous
 fix of its track is flagged invalid. ``--chunk-size 0`` and the other
 formats read the whole file and run batch detection, which sorts each track
@@ -24,7 +24,7 @@ import click
 from .options import column_map, column_options, model_options
 
 if TYPE_CHECKING:
-    from .._track import ColumnMap
+    from .._tracks.track import ColumnMap
 
 __all__ = ["detect"]
 
@@ -108,9 +108,9 @@ def detect(
 
     import pandas as pd
 
-    from .._detector import Detector
-    from .._io import read_table, resolve_format, write_table
-    from .._track import to_fixes
+    from .._grad.detector import Detector
+    from .._io.read import read_table, resolve_format, write_table
+    from .._tracks.track import to_fixes
 
     whole_file = report_path is not None or plots_dir is not None
     if chunk_size > 0 and not whole_file and resolve_format(input_path, fmt) == "csv":
@@ -160,7 +160,7 @@ def _detect_in_chunks(
         TimeRemainingColumn,
     )
 
-    from .._chunked import detect_csv_in_chunks
+    from .._run.chunked import detect_csv_in_chunks
 
     progress = Progress(
         TextColumn("detect"),

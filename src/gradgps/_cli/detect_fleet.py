@@ -4,7 +4,7 @@ INPUT_DIR holds one file per vehicle (``<id>.parquet``/``.csv``) or a
 hive-partitioned dataset (``vehicle=<id>/part-*.parquet``); OUTPUT_DIR gets
 the same layout, each file with its input rows plus the detector's columns
 (what ``gradgps detect`` writes for it). One Dask task per vehicle, no
-shuffle; see :mod:`gradgps._fleet_dask` and docs/fleet.md.
+shuffle; see :mod:`gradgps._run.fleet_dask` and docs/fleet.md.
 """
 
 from __future__ import annotations
@@ -63,9 +63,9 @@ def detect_fleet(
         TimeRemainingColumn,
     )
 
-    from .._detector import load_grad_model
-    from .._fleet_dask import dask_client
-    from .._fleet_dask import detect_fleet as run_on_cluster
+    from .._grad.detector import load_grad_model
+    from .._run.fleet_dask import dask_client
+    from .._run.fleet_dask import detect_fleet as run_on_cluster
 
     columns = column_map(cols)
     load_grad_model(model_dir)  # a bad model fails here, not in a thousand tasks

@@ -44,7 +44,7 @@ def export(model_dir: Path | None, onnx_path: Path) -> None:
         raise click.ClickException(
             "ONNX export needs the onnx package: pip install 'gradgps[onnx]'"
         ) from None
-    from .._onnx_export import export_onnx
+    from .._train.onnx_export import export_onnx
 
     path = export_onnx(model_dir, onnx_path)
     click.echo(f"wrote {path} ({path.stat().st_size / 1024:.0f} KiB)")

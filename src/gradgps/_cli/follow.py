@@ -1,4 +1,4 @@
-"""``gradgps detect --follow``: the I/O around :func:`gradgps._follow.follow_lines`.
+"""``gradgps detect --follow``: the I/O around :func:`gradgps._run.follow.follow_lines`.
 
 Kept apart from ``detect.py`` because it shares nothing with the batch path
 but the options: it reads line by line, writes line by line and flushes after
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import click
 
-from .._track import ColumnMap
+from .._tracks.track import ColumnMap
 
 __all__ = ["run_follow"]
 
@@ -26,7 +26,7 @@ def run_follow(
     columns: ColumnMap,
 ) -> None:
     """Follow INPUT ('-' = standard input) and write one CSV line per input line to OUTPUT/stdout."""
-    from .._follow import follow_lines
+    from .._run.follow import follow_lines
 
     with click.open_file(str(input_path), "r", encoding="utf-8", errors="replace") as source:
         if output is None:

@@ -4,7 +4,7 @@ Prints the number of tracks and points on one line a script can match
 (``tracks: 28  points: 23,187``), then a table per track and a total: rate,
 duration, gaps, bounding box, speed, invalid rows; and for NMEA logs the
 rejected sentences. ``--json`` prints the same facts as JSON instead. The
-definitions are those of :mod:`gradgps._summary`.
+definitions are those of :mod:`gradgps._tracks.summary`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from .options import column_map, column_options
 if TYPE_CHECKING:
     from rich.console import Console
 
-    from .._summary import Summary, TrackSummary
+    from .._tracks.summary import Summary, TrackSummary
 
 __all__ = ["info"]
 
@@ -32,9 +32,9 @@ def info(path: Path, fmt: str | None, as_json: bool, **kwargs: Any) -> None:
     """Summarise FILE: tracks, points, rate, gaps, extent, speeds, unusable rows."""
     import json
 
-    from .._io import read_table
-    from .._summary import summarize
-    from .._track import to_fixes
+    from .._io.read import read_table
+    from .._tracks.summary import summarize
+    from .._tracks.track import to_fixes
 
     table = read_table(path, fmt, column_map(kwargs))
     fixes = to_fixes(table)

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from .._track import ColumnMap, Table
+from .._tracks.track import ColumnMap, Table
 from .options import column_map, column_options
 
 __all__ = ["inject"]
@@ -15,7 +15,7 @@ __all__ = ["inject"]
 
 def _read_input(path: Path, fmt: str | None) -> Table:
     """Read the input table in any format the readers accept (CSV, Parquet, GPX, NMEA)."""
-    from .._io import read_table
+    from .._io.read import read_table
 
     return read_table(path, fmt)
 
@@ -67,8 +67,8 @@ def inject(
     from rich.console import Console
     from rich.table import Table as RichTable
 
+    from .._data.inject import grad_rates, inject_grad, inject_sensor_grid, sensor_grid_rates
     from .._exceptions import GradGPSError
-    from .._inject import grad_rates, inject_grad, inject_sensor_grid, sensor_grid_rates
 
     columns: ColumnMap = column_map(cols)
     if protocol == "grad" and row is not None:
@@ -86,7 +86,7 @@ def inject(
             rates = sensor_grid_rates(labelled)
     except GradGPSError as exc:
         raise click.ClickException(str(exc)) from exc
-    from .._io import write_table
+    from .._io.read import write_table
 
     write_table(labelled, output)
     shown = RichTable(title=f"achieved fault rates, % of {len(labelled)} rows ({protocol})")

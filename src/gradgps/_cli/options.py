@@ -8,7 +8,7 @@ from typing import Any, TypeVar
 
 import click
 
-from .._track import ColumnMap
+from .._tracks.track import ColumnMap
 
 __all__ = ["column_map", "column_options", "model_options"]
 

@@ -30,7 +30,7 @@ def write_report_outputs(
         raise click.ClickException(
             "--report and --plots need matplotlib: pip install 'gradgps[report]'"
         ) from None
-    from .._report import ReportInputs, write_plots, write_report
+    from .._run.report import ReportInputs, write_plots, write_report
 
     inputs = ReportInputs(
         fixes=fixes,

@@ -5,7 +5,7 @@ optional ``speed``, ``heading`` and numeric channels), appends one result per
 message to the output stream and only then acknowledges it. Start as many as
 needed with distinct ``--consumer`` names; a killed one restarted under its
 name (or replaced by the others after ``--lease-ms``) continues with no lost
-and no duplicated result. See :mod:`gradgps._fleet_redis` and docs/fleet.md.
+and no duplicated result. See :mod:`gradgps._run.fleet_redis` and docs/fleet.md.
 Stops cleanly on SIGTERM or Ctrl-C (finishing the transaction in flight).
 """
 
@@ -93,7 +93,7 @@ def serve_redis(
     """Detect faults in live vehicle fixes from a Redis stream, one result per message."""
     import redis
 
-    from .._fleet_redis import RedisStreamWorker, StepReport
+    from .._run.fleet_redis import RedisStreamWorker, StepReport
 
     client = redis.Redis.from_url(url, decode_responses=True)
     try:

@@ -54,7 +54,7 @@ def simulate(
 
     from rich.progress import Progress
 
-    from .._simulator import simulate_drive, simulate_fleet
+    from .._data.simulator import simulate_drive, simulate_fleet
 
     if tracks == 1:
         frame = simulate_drive(minutes, rate_hz, seed, imu=not no_imu)
@@ -71,7 +71,7 @@ def simulate(
                 imu=not no_imu,
                 on_track=lambda _: progress.advance(task),
             )
-    from .._io import write_table
+    from .._io.read import write_table
 
     write_table(frame, output)
     stopped = float((frame["speed"] < 0.5).mean())

@@ -95,7 +95,7 @@ def train(
     """Train the GRU detector on clean drives with injected faults; write a model directory."""
     import pandas as pd
 
-    from .._grad_training import train_grad
+    from .._train.grad import train_grad
 
     columns = column_map(cols)
     if dataset is not None and data_paths:
@@ -105,7 +105,7 @@ def train(
             "nothing to train on: give --data FILE (your clean logs) or --dataset"
         )
     if dataset is not None:
-        from .._datasets import load_dataset
+        from .._data.datasets import load_dataset
 
         train_tables = [load_dataset(dataset, "train", data_dir=data_dir)]
         val_tables = [load_dataset(dataset, "validation", data_dir=data_dir)]
@@ -134,8 +134,8 @@ def train(
 
 
 def _fixes(path: Path, fmt: str | None, columns: Any) -> Any:
-    from .._io import read_table
-    from .._track import to_fixes
+    from .._io.read import read_table
+    from .._tracks.track import to_fixes
 
     fixes = to_fixes(read_table(path, fmt, columns))
     fixes["track"] = [f"{path.name}:{t}" for t in fixes["track"]]  # ids unique across files

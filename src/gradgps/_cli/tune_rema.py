@@ -88,7 +88,7 @@ def tune_rema(
 ) -> None:
     """Inject faults into a split, grid-search REMA (per-channel F1) then the time classifier."""
     from .._exceptions import GradGPSError
-    from .._tuning import tune_on_dataset
+    from .._train.tune_rema import tune_on_dataset
 
     try:
         seed_list = [int(v) for v in seeds.split(",") if v.strip()]

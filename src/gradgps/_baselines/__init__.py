@@ -1,0 +1,1 @@
+"""Baseline detectors compared with GRAD in the benchmarks."""

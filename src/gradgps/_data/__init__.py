@@ -1,0 +1,1 @@
+"""Evaluation data: the drive simulator, fault injection, datasets."""

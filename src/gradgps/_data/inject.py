@@ -1,0 +1,516 @@
+"""Seeded fault injection: the two benchmark protocols (see ``docs/protocols.md``).
+
+The real drives carry no labels, so benchmarks corrupt them on purpose and
+record exactly what was done. Two protocols:
+
+``grad``
+    Position faults after the paper's Table 1. Latitude and longitude are
+    corrupted independently, in metres (north and east of the track's own
+    tangent plane), by *transient*, *intermittent* and *permanent* episodes
+    whose bias is *noise* or a *jump*. Rates are steered to their targets by
+    a point budget (below), so a benchmark split gets the paper's mix, not
+    just its expectation.
+``sensor-grid``
+    Faults in speed, longitudinal acceleration and yaw rate after van Wyk et
+    al. (2020) / Javed et al. (2021): *instant*, *constant*, *bias* and
+    *drift* faults, one table row (magnitude, duration) at a time: the rows
+    of the paper's comparison table.
+
+Both take a table (any columns; track/time/lat/lon found as in
+:func:`gradgps.to_fixes`), keep every input column, overwrite the corrupted
+ones and append label columns. Same input and seed give the same bytes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from .._exceptions import ConfigError, InputError
+from .._tracks.geo import LocalFrame
+from .._tracks.preprocess import invalid_reasons
+from .._tracks.track import ColumnMap, to_fixes
+
+__all__ = [
+    "BIAS_TYPES",
+    "GRAD_RATES",
+    "GRAVITY",
+    "SENSOR_CHANNELS",
+    "SENSOR_GRID_ROWS",
+    "SENSOR_TYPES",
+    "TIME_TYPES",
+    "SensorFaultRow",
+    "grad_rates",
+    "inject_grad",
+    "inject_sensor_grid",
+    "sensor_grid_rates",
+    "sensor_grid_row",
+    "with_accel_mps2",
+]
+
+TIME_TYPES = ("transient", "intermittent", "permanent")
+BIAS_TYPES = ("noise", "jump")
+SENSOR_TYPES = ("instant", "constant", "bias", "drift")
+SENSOR_CHANNELS = ("speed_mps", "accel_x_mps2", "gyro_z_dps")
+GRAVITY = 9.80665
+
+# ---------------------------------------------------------------- protocol grad
+
+#: Target share of points per channel for each time type (paper Table 1, rounded).
+GRAD_RATES = {"transient": 0.035, "intermittent": 0.033, "permanent": 0.033}
+SEGMENT_POINTS = 400
+MIN_GAP_POINTS = 10
+TRANSIENT_POINTS = (1, 5)
+INTERMITTENT_SPAN = (20, 60)
+INTERMITTENT_BURSTS = (3, 6)
+INTERMITTENT_BURST_POINTS = (1, 3)
+INTERMITTENT_PAUSE = (3, 15)
+PERMANENT_POINTS = (20, 100)
+NOISE_PROBABILITY = 0.6
+NOISE_M = (10.0, 50.0)
+JUMP_M = (20.0, 200.0)
+
+_TIME_RANK = {"none": 0, "transient": 1, "intermittent": 2, "permanent": 3}
+_BIAS_RANK = {"none": 0, "noise": 1, "jump": 2}
+
+
+@dataclass
+class _Channel:
+    """One channel of one track while episodes are being placed on it."""
+
+    offset_m: np.ndarray
+    time_type: np.ndarray
+    bias_type: np.ndarray
+    episode: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int) -> _Channel:
+        return cls(
+            np.zeros(n),
+            np.full(n, "none", dtype=object),
+            np.full(n, "none", dtype=object),
+            np.full(n, -1, dtype=np.int64),
+        )
+
+    def free_starts(self, lo: int, hi: int, span: int) -> np.ndarray:
+        """Starts ``s`` in ``[lo, hi - span]`` whose ``[s, s+span)`` keeps the gap to every episode."""
+        n = self.episode.size
+        busy = np.r_[0, np.cumsum(self.episode >= 0)]
+        starts = np.arange(lo, hi - span + 1)
+        left = np.maximum(starts - MIN_GAP_POINTS, 0)
+        right = np.minimum(starts + span + MIN_GAP_POINTS, n)
+        free: np.ndarray = starts[busy[right] - busy[left] == 0]
+        return free
+
+
+def _intermittent_pattern(rng: np.random.Generator) -> np.ndarray:
+    """Offsets (from the episode start) of the burst points of one intermittent episode.
+
+    Bursts, burst lengths and pauses are drawn from their ranges; a draw whose
+    span falls outside ``INTERMITTENT_SPAN`` is drawn again (about half are
+    kept), so every bound in the protocol holds exactly.
+    """
+    while True:
+        n_bursts = int(rng.integers(INTERMITTENT_BURSTS[0], INTERMITTENT_BURSTS[1] + 1))
+        lengths = rng.integers(
+            INTERMITTENT_BURST_POINTS[0], INTERMITTENT_BURST_POINTS[1] + 1, size=n_bursts
+        )
+        pauses = rng.integers(INTERMITTENT_PAUSE[0], INTERMITTENT_PAUSE[1] + 1, size=n_bursts - 1)
+        starts = np.r_[0, np.cumsum(lengths[:-1] + pauses)]
+        span = int(starts[-1] + lengths[-1])
+        if INTERMITTENT_SPAN[0] <= span <= INTERMITTENT_SPAN[1]:
+            points: np.ndarray = np.concatenate(
+                [np.arange(s, s + k) for s, k in zip(starts, lengths, strict=True)]
+            )
+            return points
+
+
+def _bias_offsets(rng: np.random.Generator, k: int, scale: float) -> tuple[str, np.ndarray]:
+    """Bias type and the ``k`` offsets in metres of one episode."""
+    if rng.random() < NOISE_PROBABILITY:
+        sign = rng.choice(np.array([-1.0, 1.0]), size=k)
+        return "noise", sign * rng.uniform(*NOISE_M, size=k) * scale
+    sign1 = -1.0 if rng.random() < 0.5 else 1.0
+    return "jump", np.full(k, sign1 * rng.uniform(*JUMP_M) * scale)
+
+
+class _GradScheduler:
+    """Places episodes on channels, steering each time type's share to its target.
+
+    Each time type has a *budget* of anomalous points: every segment adds
+    ``rate * segment length``; an episode drawn with ``k`` points is placed
+    when the budget is at least ``k / 2`` (rounding, so the long-run share is
+    unbiased) and then costs ``k``. An episode that does not fit keeps its
+    budget for the next segment, and budgets carry from one track to the next
+    (short drives cannot hold a permanent fault; the longer ones make up for
+    it). The share over a data set is then within about half an episode of
+    the target, where independent draws would miss it by several points of a
+    percent on a few thousand fixes.
+    """
+
+    def __init__(self, rng: np.random.Generator, scale: float) -> None:
+        self.rng = rng
+        self.scale = scale
+        self.budget = {"lat": dict.fromkeys(TIME_TYPES, 0.0), "lon": dict.fromkeys(TIME_TYPES, 0.0)}
+        self.next_episode = 0
+
+    def channel(self, name: str, n: int) -> _Channel:
+        ch = _Channel.empty(n)
+        budget = self.budget[name]
+        for lo in range(0, n, SEGMENT_POINTS):
+            hi = min(lo + SEGMENT_POINTS, n)
+            for kind in TIME_TYPES:
+                budget[kind] += GRAD_RATES[kind] * (hi - lo)
+            self._permanent(ch, budget, lo, hi)
+            self._movable(ch, budget, lo, hi, "intermittent")
+            self._movable(ch, budget, lo, hi, "transient")
+        return ch
+
+    def _permanent(self, ch: _Channel, budget: dict[str, float], lo: int, hi: int) -> None:
+        if hi - lo < PERMANENT_POINTS[1]:
+            return
+        k = int(self.rng.integers(PERMANENT_POINTS[0], PERMANENT_POINTS[1] + 1))
+        if budget["permanent"] >= k / 2 and ch.free_starts(hi - k, hi, k).size:
+            self._place(ch, np.arange(hi - k, hi), "permanent")
+            budget["permanent"] -= k
+
+    def _movable(self, ch: _Channel, budget: dict[str, float], lo: int, hi: int, kind: str) -> None:
+        while True:
+            if kind == "intermittent":
+                pattern = _intermittent_pattern(self.rng)
+            else:
+                pattern = np.arange(
+                    int(self.rng.integers(TRANSIENT_POINTS[0], TRANSIENT_POINTS[1] + 1))
+                )
+            if budget[kind] < pattern.size / 2:
+                return
+            starts = ch.free_starts(lo, hi, int(pattern[-1]) + 1)
+            if starts.size == 0:
+                return
+            start = int(starts[self.rng.integers(starts.size)])
+            self._place(ch, start + pattern, kind)
+            budget[kind] -= pattern.size
+
+    def _place(self, ch: _Channel, points: np.ndarray, kind: str) -> None:
+        bias, offsets = _bias_offsets(self.rng, points.size, self.scale)
+        ch.offset_m[points] = offsets
+        ch.time_type[points] = kind
+        ch.bias_type[points] = bias
+        ch.episode[points] = self.next_episode
+        self.next_episode += 1
+
+
+def _check_scale(scale: float) -> None:
+    if not (np.isfinite(scale) and scale > 0):
+        raise ConfigError(f"scale must be a positive finite number, got {scale}")
+
+
+def _track_order(fixes: pd.DataFrame, usable: np.ndarray) -> list[np.ndarray]:
+    """Row numbers of each track's usable fixes in time order, tracks in order of appearance."""
+    tracks = fixes["track"].to_numpy(dtype=object)
+    t = fixes["t"].to_numpy(dtype=np.float64)
+    out = []
+    for track in pd.unique(pd.Series(tracks[usable], dtype=object)):
+        rows = np.flatnonzero(usable & (tracks == track))
+        out.append(rows[np.argsort(t[rows], kind="stable")])
+    return out
+
+
+def inject_grad(
+    table: pd.DataFrame, *, seed: int, scale: float = 1.0, columns: ColumnMap | None = None
+) -> pd.DataFrame:
+    """Corrupt positions with protocol ``grad``; return the table with labels appended.
+
+    The latitude and longitude columns are overwritten where a channel is
+    faulty (other values stay bit-identical); appended columns:
+    ``label_anomaly``, ``label_lat``, ``label_lon`` (0/1), ``label_bias``,
+    ``label_time`` (the point's combined labels, see below), the per-channel
+    ``label_bias_lat/lon``, ``label_time_lat/lon``, ``label_episode_lat/lon``
+    (episode id, -1 for none) and the truth ``lat_true``, ``lon_true``.
+
+    Where both channels are faulty with different labels, the combined labels
+    come from the episode with the longer-lived time type (permanent >
+    intermittent > transient), then jump over noise, then latitude: the fault
+    that decides what a recovery module can still do. Rows that are not usable
+    fixes (time/lat/lon missing) are never corrupted.
+    """
+    _check_scale(scale)
+    fixes = to_fixes(table, columns)
+    cmap: ColumnMap = fixes.attrs["columns"]
+    assert cmap.lat is not None
+    assert cmap.lon is not None
+    n = len(fixes)
+    lat_true = fixes["lat"].to_numpy(dtype=np.float64)
+    lon_true = fixes["lon"].to_numpy(dtype=np.float64)
+    lat = lat_true.copy()
+    lon = lon_true.copy()
+    labels = {name: _Channel.empty(n) for name in ("lat", "lon")}
+    scheduler = _GradScheduler(np.random.default_rng(seed), scale)
+    for rows in _track_order(fixes, invalid_reasons(fixes) == ""):
+        frame = LocalFrame(float(lat_true[rows[0]]), float(lon_true[rows[0]]))
+        east, north = frame.to_local(lat_true[rows], lon_true[rows])
+        for name in ("lat", "lon"):
+            ch = scheduler.channel(name, rows.size)
+            hit = ch.episode >= 0
+            if name == "lat":
+                lat[rows[hit]] = frame.to_geodetic(east[hit], north[hit] + ch.offset_m[hit])[0]
+            else:
+                lon[rows[hit]] = frame.to_geodetic(east[hit] + ch.offset_m[hit], north[hit])[1]
+            out = labels[name]
+            out.offset_m[rows] = ch.offset_m
+            out.time_type[rows] = ch.time_type
+            out.bias_type[rows] = ch.bias_type
+            out.episode[rows] = ch.episode
+
+    la, lo = labels["lat"], labels["lon"]
+    rank_lat = _rank(la.time_type, la.bias_type)
+    rank_lon = _rank(lo.time_type, lo.bias_type)
+    use_lon = rank_lon > rank_lat
+    result = table.reset_index(drop=True).copy()
+    result[cmap.lat] = lat
+    result[cmap.lon] = lon
+    result["label_anomaly"] = ((la.episode >= 0) | (lo.episode >= 0)).astype(np.int8)
+    result["label_lat"] = (la.episode >= 0).astype(np.int8)
+    result["label_lon"] = (lo.episode >= 0).astype(np.int8)
+    result["label_bias"] = np.where(use_lon, lo.bias_type, la.bias_type)
+    result["label_time"] = np.where(use_lon, lo.time_type, la.time_type)
+    for name, ch in labels.items():
+        result[f"label_bias_{name}"] = ch.bias_type
+        result[f"label_time_{name}"] = ch.time_type
+        result[f"label_episode_{name}"] = ch.episode
+    result["lat_true"] = lat_true
+    result["lon_true"] = lon_true
+    return result
+
+
+def _rank(time_type: np.ndarray, bias_type: np.ndarray) -> np.ndarray:
+    t = np.array([_TIME_RANK[v] for v in time_type], dtype=np.int64)
+    b = np.array([_BIAS_RANK[v] for v in bias_type], dtype=np.int64)
+    return t * 10 + b
+
+
+def grad_rates(labelled: pd.DataFrame) -> pd.DataFrame:
+    """Achieved shares (percent of all rows) laid out like the paper's Table 1.
+
+    Rows: the time types and ``total``; columns: ``lat``, ``lon`` (points
+    faulty on that channel) and ``noise``, ``jump`` (faulty channel-points of
+    that bias, both channels together, so noise + jump = lat + lon).
+    """
+    n = max(len(labelled), 1)
+    table: dict[str, dict[str, float]] = {}
+    for kind in (*TIME_TYPES, "total"):
+        row: dict[str, float] = {}
+        for ch in ("lat", "lon"):
+            tt = labelled[f"label_time_{ch}"].to_numpy(dtype=object)
+            row[ch] = 100.0 * float(np.sum(tt != "none" if kind == "total" else tt == kind)) / n
+        for bias in BIAS_TYPES:
+            count = 0
+            for ch in ("lat", "lon"):
+                tt = labelled[f"label_time_{ch}"].to_numpy(dtype=object)
+                bt = labelled[f"label_bias_{ch}"].to_numpy(dtype=object)
+                sel = (tt != "none") if kind == "total" else (tt == kind)
+                count += int(np.sum(sel & (bt == bias)))
+            row[bias] = 100.0 * count / n
+        table[kind] = row
+    return pd.DataFrame.from_dict(table, orient="index")
+
+
+# --------------------------------------------------------- protocol sensor-grid
+
+SENSOR_START_PROBABILITY = 0.05
+INSTANT_SIGMA = 0.1  # N(0, 0.01) read as variance 0.01
+
+
+@dataclass(frozen=True)
+class SensorFaultRow:
+    """One row of the comparison table: a fault type with its magnitude and duration.
+
+    ``magnitude`` is M for *instant* (offset M·e, e ~ N(0, 0.1²)) and the
+    upper bound ``a`` of U(0, a) or of the drift ramp otherwise; ``duration``
+    is in time steps.
+    """
+
+    name: str
+    kind: str
+    magnitude: float
+    duration: int
+
+
+def _rows() -> tuple[SensorFaultRow, ...]:
+    rows = [
+        SensorFaultRow(f"instant-{m}", "instant", float(m), 1) for m in (25, 100, 500, 1000, 10000)
+    ]
+    for kind in ("constant", "bias"):
+        rows += [
+            SensorFaultRow(f"{kind}-{a}-{d}", kind, float(a), d)
+            for a, d in ((5, 3), (5, 5), (5, 10), (3, 10), (1, 10))
+        ]
+    rows += [
+        SensorFaultRow(f"drift-{a}-{d}", "drift", float(a), d)
+        for a, d in ((4, 10), (4, 20), (2, 10), (2, 20))
+    ]
+    return tuple(rows)
+
+
+#: The 19 rows of the paper's comparison table, in its order.
+SENSOR_GRID_ROWS = _rows()
+
+
+def sensor_grid_row(name: str) -> SensorFaultRow | None:
+    """The row called ``name``; ``None`` for ``"mixed"``; ConfigError for anything else."""
+    if name == "mixed":
+        return None
+    for row in SENSOR_GRID_ROWS:
+        if row.name == name:
+            return row
+    known = ", ".join([r.name for r in SENSOR_GRID_ROWS] + ["mixed"])
+    raise ConfigError(f"unknown sensor-grid row {name!r}; known rows: {known}")
+
+
+def with_accel_mps2(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` with longitudinal acceleration in m/s² as ``accel_x_mps2`` (from ``accel_x_g``).
+
+    Returned unchanged when it already has ``accel_x_mps2`` or lacks ``accel_x_g``.
+    """
+    if "accel_x_mps2" in table.columns or "accel_x_g" not in table.columns:
+        return table
+    out = table.copy()
+    out["accel_x_mps2"] = pd.to_numeric(out["accel_x_g"], errors="coerce") * GRAVITY
+    return out
+
+
+def _check_sensor_columns(table: pd.DataFrame, speed_col: str | None, source: str) -> None:
+    if speed_col is None:
+        raise InputError(
+            "protocol sensor-grid needs a speed column (m/s)",
+            source=source,
+            hint="name it with --speed-col",
+        )
+    for col in ("accel_x_mps2", "gyro_z_dps"):
+        if col not in table.columns:
+            raise InputError(
+                f"protocol sensor-grid needs column {col!r}",
+                source=source,
+                hint="it corrupts speed, longitudinal acceleration (accel_x_g in g or accel_x_mps2) "
+                "and yaw rate (gyro_z_dps), as in the DrivePlotR drives",
+            )
+
+
+def _sensor_fault(
+    truth: np.ndarray, row: SensorFaultRow, rng: np.random.Generator, scale: float
+) -> np.ndarray:
+    """The corrupted values of one episode of ``row`` over the true readings ``truth``."""
+    if row.kind == "instant":
+        return truth + row.magnitude * scale * rng.normal(0.0, INSTANT_SIGMA, size=truth.size)
+    if row.kind == "constant":
+        return np.full(truth.size, truth[0] + rng.uniform(0.0, row.magnitude * scale))
+    if row.kind == "bias":
+        return truth + rng.uniform(0.0, row.magnitude * scale)
+    ramp = np.linspace(0.0, row.magnitude * scale, row.duration)
+    return truth + ramp[: truth.size]
+
+
+def inject_sensor_grid(
+    table: pd.DataFrame,
+    *,
+    row: str,
+    seed: int,
+    scale: float = 1.0,
+    columns: ColumnMap | None = None,
+) -> pd.DataFrame:
+    """Corrupt speed, acceleration and yaw rate with one sensor-grid row (or ``"mixed"``).
+
+    Per track, in time order, each step outside an episode starts one with
+    probability 0.05 on a channel chosen uniformly (one faulty channel at a
+    time); ``"mixed"`` draws the type uniformly, then a row of that type, per
+    episode. Episodes are cut at the end of a track. The corrupted values
+    overwrite the speed column and ``gyro_z_dps``; acceleration is written to
+    ``accel_x_mps2`` (added when the input has ``accel_x_g``, which is then
+    overwritten with the corrupted value in g so no column leaks the truth).
+
+    Appended: ``label_anomaly``, ``label_<channel>``, ``label_type``,
+    ``label_episode`` and ``<channel>_true`` for channels ``speed_mps``,
+    ``accel_x_mps2``, ``gyro_z_dps``. Every step of an episode is labelled,
+    including draws that happen to change nothing (a drift's first step, a
+    constant fault equal to the reading).
+    """
+    _check_scale(scale)
+    fault = sensor_grid_row(row)
+    source = str(table.attrs.get("source", "<data>"))
+    in_g = "accel_x_mps2" not in table.columns and "accel_x_g" in table.columns
+    table = with_accel_mps2(table)
+    fixes = to_fixes(
+        table, columns, channels=[c for c in SENSOR_CHANNELS[1:] if c in table.columns]
+    )
+    cmap: ColumnMap = fixes.attrs["columns"]
+    _check_sensor_columns(table, cmap.speed, source)
+    assert cmap.speed is not None
+    truth = {
+        "speed_mps": fixes["speed"].to_numpy(dtype=np.float64),
+        "accel_x_mps2": fixes["accel_x_mps2"].to_numpy(dtype=np.float64),
+        "gyro_z_dps": fixes["gyro_z_dps"].to_numpy(dtype=np.float64),
+    }
+    values = {k: v.copy() for k, v in truth.items()}
+    n = len(fixes)
+    channel_of = np.full(n, -1, dtype=np.int64)
+    kind = np.full(n, "none", dtype=object)
+    episode = np.full(n, -1, dtype=np.int64)
+    rng = np.random.default_rng(seed)
+    usable = np.isfinite(fixes["t"].to_numpy(dtype=np.float64))
+    next_id = 0
+    for rows in _track_order(fixes, usable):
+        step = 0
+        while True:
+            step += int(rng.geometric(SENSOR_START_PROBABILITY)) - 1
+            if step >= rows.size:
+                break
+            channel = int(rng.integers(len(SENSOR_CHANNELS)))
+            this = fault if fault is not None else _mixed_row(rng)
+            end = min(step + this.duration, rows.size)
+            name = SENSOR_CHANNELS[channel]
+            span = rows[step:end]
+            values[name][span] = _sensor_fault(truth[name][span], this, rng, scale)
+            channel_of[span] = channel
+            kind[span] = this.kind
+            episode[span] = next_id
+            next_id += 1
+            step = end
+
+    result = table.reset_index(drop=True).copy()
+    result[cmap.speed] = values["speed_mps"]
+    result["gyro_z_dps"] = values["gyro_z_dps"]
+    result["accel_x_mps2"] = values["accel_x_mps2"]
+    if in_g:
+        result["accel_x_g"] = values["accel_x_mps2"] / GRAVITY
+    result["label_anomaly"] = (episode >= 0).astype(np.int8)
+    for i, name in enumerate(SENSOR_CHANNELS):
+        result[f"label_{name}"] = (channel_of == i).astype(np.int8)
+    result["label_type"] = kind
+    result["label_episode"] = episode
+    for name in SENSOR_CHANNELS:
+        result[f"{name}_true"] = truth[name]
+    return result
+
+
+def _mixed_row(rng: np.random.Generator) -> SensorFaultRow:
+    kind = SENSOR_TYPES[int(rng.integers(len(SENSOR_TYPES)))]
+    rows = [r for r in SENSOR_GRID_ROWS if r.kind == kind]
+    return rows[int(rng.integers(len(rows)))]
+
+
+def sensor_grid_rates(labelled: pd.DataFrame) -> pd.DataFrame:
+    """Achieved shares (percent of all rows): rows fault types and ``total``, columns channels and ``all``."""
+    n = max(len(labelled), 1)
+    kinds = labelled["label_type"].to_numpy(dtype=object)
+    table: dict[str, dict[str, float]] = {}
+    for kind in (*SENSOR_TYPES, "total"):
+        sel = (kinds != "none") if kind == "total" else (kinds == kind)
+        row = {
+            ch: 100.0 * float(np.sum(sel & (labelled[f"label_{ch}"].to_numpy() == 1))) / n
+            for ch in SENSOR_CHANNELS
+        }
+        row["all"] = 100.0 * float(np.sum(sel)) / n
+        table[kind] = row
+    return pd.DataFrame.from_dict(table, orient="index")

@@ -1,0 +1,495 @@
+"""``gradgps.Detector``: GRAD for one vehicle's live stream, or for whole tables of tracks.
+
+Two faces, one computation (:mod:`gradgps._grad.pipeline`):
+
+* streaming, river style: ``update(t, lat, lon, speed=None, heading=None)``
+  per fix of *one* track returns a :class:`~gradgps._result.PointResult`;
+  ``get_state()`` / ``set_state()`` move the whole state as plain JSON-able
+  data (checkpoint, restore in another process, continue);
+* batch: ``detect(frame)`` for any number of tracks returns one result row
+  per input row, in input order.
+
+For time-ordered input whose time steps are all at least :data:`MIN_STEP_S`
+(1 ms), both give the same numbers bit for bit (tested): batch runs the same
+compiled per-fix step. Where they cannot agree, by nature: batch sorts each
+track by time and merges fixes less than 1 ms apart (repeated timestamps)
+first, while a stream cannot reorder the past, so a fix whose time is not at
+least 1 ms after the previous one is *invalid* there (flagged with a reason,
+never used).
+
+Invalid fixes (time, latitude or longitude missing, not finite or out of
+range; in a stream also not after the previous fix) come back with
+``anomaly=1``, ``invalid_reason`` saying why, NaN score and clean position,
+and never touch the detector's state. Speed and heading are optional: a
+missing, non-numeric or infinite reading is treated as absent (NaN), and the
+fix is still used. A gap longer than the model's
+``max_gap_s`` starts a new segment: every state is reset, because nothing
+learnt before a long dropout says anything about the fixes after it.
+
+A segment's first fix is scored before its sampling period is known; when
+the second fix arrives the segment is rebuilt with the period (its first time
+step) and the first fix replayed. The first fix's own verdict cannot change
+by this: with one point, no feature depends on the period.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from .._exceptions import ConfigError, GradGPSError, ModelError
+from .._result import PointResult
+from .._tracks.geo import LocalFrame
+from .._tracks.preprocess import preprocess
+from .._tracks.track import CANONICAL_COLUMNS, to_fixes
+from .model_io import gru_model, load_model
+from .pipeline import (
+    N_POINT_OUT,
+    O_ALERT,
+    O_BIAS,
+    O_FLAG,
+    O_LAT,
+    O_LON,
+    O_SCORE,
+    O_TIME,
+    PipelineParams,
+    grad_segments,
+    grad_step,
+    new_state,
+    pipeline_feature_names,
+)
+from .time_classifier import TIME_TYPES
+
+__all__ = ["DEFAULT_MODEL", "MIN_STEP_S", "Detector", "GradModel", "load_grad_model"]
+
+#: Shortest time step between two fixes of a track. A segment's sampling
+#: period is its first step and its windows hold ``window_s / period`` fixes,
+#: so a step of a nanosecond (clock jitter, a corrupted timestamp) would ask
+#: for billions of slots. No receiver reports faster than 1 kHz: closer fixes
+#: are one instant (merged in batch, invalid in a stream).
+MIN_STEP_S = 1e-3
+
+#: Name of the model shipped inside the package, used by ``Detector()``.
+DEFAULT_MODEL = "default"
+RESULT_DTYPES = {
+    "anomaly": "int8",
+    "score": "float64",
+    "bias_type": "object",
+    "time_type": "object",
+    "lat_clean": "float64",
+    "lon_clean": "float64",
+    "alert": "int8",
+    "invalid_reason": "object",
+}
+
+
+@dataclass(frozen=True)
+class GradModel:
+    """A loaded GRAD model: packed GRU parameters plus the pipeline settings it was trained with."""
+
+    path: str
+    params: PipelineParams
+    gru_params: NDArray[np.float32]
+    dims: NDArray[np.int64]
+    bias_classes: tuple[str, ...]
+    checksum: str
+    config: Mapping[str, Any]
+
+
+def _default_model_dir() -> Path:
+    return Path(str(resources.files("gradgps") / "models" / DEFAULT_MODEL))
+
+
+@lru_cache(maxsize=16)
+def _load_cached(path: str, mtime_ns: int) -> GradModel:
+    weights, config = load_model(path)
+    if config.get("mode") != "stream":
+        raise ModelError(
+            f"{path}: the Detector runs stream-mode models (one GRU step per fix); "
+            f"this one is {config.get('mode')!r}. Train it with --mode stream"
+        )
+    try:
+        params = PipelineParams.from_dict(config["features"]["params"]["pipeline"])
+        _check_buffers(params)
+    except (GradGPSError, KeyError, TypeError, ValueError, OverflowError) as exc:
+        raise ModelError(
+            f"{path}/config.json: no usable pipeline settings ({exc}); "
+            "the model was not trained by gradgps train"
+        ) from exc
+    names = pipeline_feature_names(params)
+    if list(config["features"]["names"]) != names:
+        raise ModelError(
+            f"{path}/config.json: its features {config['features']['names']} are not "
+            f"the ones this version computes ({names}); retrain the model"
+        )
+    threshold = float(config["thresholds"]["anomaly"])
+    params = PipelineParams(**{**params.__dict__, "threshold": threshold})
+    try:
+        net = gru_model(weights, config)
+    except GradGPSError as exc:
+        raise ModelError(f"{path}/config.json: {exc}; retrain the model") from exc
+    return GradModel(
+        path=path,
+        params=params,
+        gru_params=net.params,
+        dims=net.dims,
+        bias_classes=tuple(config["class_names"]["bias"]),
+        checksum=str(config["weights_sha256"]),
+        config=config,
+    )
+
+
+#: Most fixes a feature window may hold (at the fastest rate, 1 kHz): 1,000 s.
+_MAX_WINDOW_POINTS = 1_000_000
+
+
+def _check_buffers(params: PipelineParams) -> None:
+    """Refuse settings whose per-segment parameters are not finite numbers or whose buffers
+    would not fit in memory, before a stream meets them (a hand-edited config)."""
+    long_n, _ = params.features.points(MIN_STEP_S)
+    if long_n > _MAX_WINDOW_POINTS:
+        raise ValueError(
+            f"a {params.features.long_window_s} s window needs {long_n:,} slots "
+            f"at 1 kHz, more than {_MAX_WINDOW_POINTS:,}"
+        )
+    P = params.array(MIN_STEP_S, LocalFrame(0.0, 0.0), np.ones(4, np.int64))
+    if P.dtype != np.float64 or not np.isfinite(P).all():
+        raise ValueError("a setting is not a finite number")
+    new_state(P)
+
+
+def load_grad_model(model: str | os.PathLike[str] | None = None) -> GradModel:
+    """Load (and cache) a model directory; ``None`` means the default model shipped with gradgps."""
+    path = _default_model_dir() if model is None else Path(model)
+    if not path.is_dir():
+        raise ModelError(
+            f"{path}: no such model directory; pass a directory written by "
+            "'gradgps train' (or nothing, for the default model)"
+        )
+    resolved = str(path.resolve())
+    stamp = max((p.stat().st_mtime_ns for p in path.iterdir()), default=0)
+    return _load_cached(resolved, stamp)
+
+
+def _check_fix(t: float, lat: float, lon: float, last_t: float | None) -> str:
+    if not math.isfinite(t):
+        return "time missing or not finite"
+    if not math.isfinite(lat):
+        return "latitude missing or not finite"
+    if abs(lat) > 90.0:
+        return "latitude outside +-90"
+    if not math.isfinite(lon):
+        return "longitude missing or not finite"
+    if abs(lon) > 180.0:
+        return "longitude outside +-180"
+    if last_t is not None and t <= last_t:
+        return "time not after the previous fix"
+    if last_t is not None and t - last_t < MIN_STEP_S:
+        return "time less than 1 ms after the previous fix"
+    return ""
+
+
+_STATE_FORMAT = 2
+_NON_FINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
+
+
+def _encode_float(value: float) -> float | str:
+    if math.isfinite(value):
+        return value
+    return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+
+
+def _decode_float(value: float | str) -> float:
+    if isinstance(value, str):
+        if value not in _NON_FINITE:
+            raise ValueError(f"{value!r} is not a number")
+        return _NON_FINITE[value]
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError(f"{value!r} is not a number")
+    return float(value)
+
+
+def _number(value: float | None) -> float:
+    if value is None:
+        return math.nan
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _reading(value: float | None) -> float:
+    """An optional reading (speed, heading): a finite number, or NaN for missing/unusable."""
+    number = _number(value)
+    return number if math.isfinite(number) else math.nan
+
+
+def _readings(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`_reading` for a whole column."""
+    return np.where(np.isfinite(values), values, np.nan)
+
+
+class Detector:
+    """GRAD anomaly detector, classifier and repairer (see the module docstring).
+
+    ``model``: a model directory written by ``gradgps train``; ``None`` uses
+    the default model shipped with gradgps (trained on simulated drives).
+    ``threshold`` overrides the model's anomaly threshold (P(anomaly) at or
+    above it is an anomaly; lower finds more faults and raises more false
+    alarms).
+    """
+
+    def __init__(
+        self, model: str | os.PathLike[str] | None = None, *, threshold: float | None = None
+    ) -> None:
+        self.model = model
+        self.threshold = threshold
+        loaded = load_grad_model(model)
+        if threshold is not None:
+            if not (0.0 < threshold < 1.0):
+                raise ConfigError(f"threshold must be in (0, 1), got {threshold}")
+            loaded = GradModel(
+                **{
+                    **loaded.__dict__,
+                    "params": PipelineParams(
+                        **{**loaded.params.__dict__, "threshold": float(threshold)}
+                    ),
+                }
+            )
+        self.model_ = loaded
+        self._out = np.zeros(N_POINT_OUT)
+        self._reset()
+
+    # -- streaming ---------------------------------------------------------
+
+    def _reset(self) -> None:
+        self._frame: LocalFrame | None = None
+        self._last_t: float | None = None
+        self._P: NDArray[np.float64] | None = None
+        self._S: NDArray[np.float64] | None = None
+        self._H: NDArray[np.float32] | None = None
+        self._seg_count = 0
+        self._first: tuple[float, float, float, float, float] | None = None
+
+    def _new_segment(self, period: float) -> None:
+        assert self._frame is not None
+        m = self.model_
+        self._P = m.params.array(period, self._frame, m.dims)
+        self._S = new_state(self._P)
+        self._H = np.zeros(int(m.dims[1] + m.dims[2]), np.float32)
+
+    def _step(self, dt: float, lat: float, lon: float, speed: float, heading: float) -> None:
+        assert self._P is not None
+        assert self._S is not None
+        grad_step(
+            self._P,
+            self._S,
+            self._H,
+            self.model_.gru_params,
+            dt,
+            lat,
+            lon,
+            speed,
+            heading,
+            self._out,
+        )
+
+    def update(
+        self,
+        t: float,
+        lat: float,
+        lon: float,
+        speed: float | None = None,
+        heading: float | None = None,
+        **channels: float,
+    ) -> PointResult:
+        """Score one fix of this detector's track; returns at once, never raises on bad values.
+
+        ``channels`` (other sensor readings) are accepted for interface
+        compatibility and ignored by the position model.
+        """
+        t_f, lat_f, lon_f = _number(t), _number(lat), _number(lon)
+        reason = _check_fix(t_f, lat_f, lon_f, self._last_t)
+        if reason:
+            return PointResult.invalid(reason)
+        sp, hd = _reading(speed), _reading(heading)
+        if self._frame is None:
+            self._frame = LocalFrame(lat_f, lon_f)
+        dt = 0.0 if self._last_t is None else t_f - self._last_t
+        if self._last_t is None or dt > self.model_.params.max_gap_s:
+            self._seg_count = 0
+        if self._seg_count == 0:
+            self._new_segment(1.0)
+            self._first = (t_f, lat_f, lon_f, sp, hd)
+            self._step(0.0, lat_f, lon_f, sp, hd)
+        elif self._seg_count == 1:
+            assert self._first is not None
+            _, lat0, lon0, sp0, hd0 = self._first
+            self._new_segment(dt)
+            self._step(0.0, lat0, lon0, sp0, hd0)
+            self._step(dt, lat_f, lon_f, sp, hd)
+        else:
+            self._step(dt, lat_f, lon_f, sp, hd)
+        self._seg_count += 1
+        self._last_t = t_f
+        o = self._out
+        flag = int(o[O_FLAG])
+        return PointResult(
+            anomaly=flag,
+            score=float(o[O_SCORE]),
+            bias_type=self.model_.bias_classes[int(o[O_BIAS])],
+            time_type=TIME_TYPES[int(o[O_TIME])],
+            lat_clean=float(o[O_LAT]),
+            lon_clean=float(o[O_LON]),
+            alert=int(o[O_ALERT]),
+        )
+
+    def get_state(self) -> dict[str, Any]:
+        """Everything needed to continue this stream elsewhere, as plain JSON-able data.
+
+        Strict JSON: non-finite numbers (a missing speed, the time
+        classifier's "no earlier run" gap) are written as the strings
+        ``"nan"``, ``"inf"``, ``"-inf"``, so ``json.dumps(state,
+        allow_nan=False)`` works and any JSON parser reads it back. For bytes,
+        ``json.dumps(det.get_state()).encode()``; restoring gives the same
+        outputs as an uninterrupted run, bit for bit (floats round-trip
+        exactly through JSON).
+        """
+
+        def floats(values: Any) -> list[float | str] | None:
+            return None if values is None else [_encode_float(float(v)) for v in values]
+
+        return {
+            "format": _STATE_FORMAT,
+            "model_checksum": self.model_.checksum,
+            "threshold": self.model_.params.threshold,
+            "frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
+            "last_t": self._last_t,
+            "segment_count": self._seg_count,
+            "first": floats(self._first),
+            "P": floats(self._P),
+            "S": floats(self._S),
+            "H": floats(self._H),
+        }
+
+    def set_state(self, state: Mapping[str, Any]) -> Detector:
+        """Restore a state from :meth:`get_state` (same model); returns self."""
+        try:
+            if state["format"] != _STATE_FORMAT:
+                raise ConfigError(
+                    f"detector state format {state['format']!r} is not supported "
+                    f"(this gradgps writes format {_STATE_FORMAT})"
+                )
+            if state["model_checksum"] != self.model_.checksum:
+                raise ConfigError(
+                    "detector state was saved with another model; "
+                    "restore it into a Detector of the same model"
+                )
+            if float(state["threshold"]) != self.model_.params.threshold:
+                raise ConfigError("detector state was saved with another threshold")
+
+            def arr(values: Any, dtype: Any) -> Any:
+                if values is None:
+                    return None
+                return np.array([_decode_float(v) for v in values], dtype=dtype)
+
+            frame = state["frame"]
+            new_frame = None if frame is None else LocalFrame(float(frame[0]), float(frame[1]))
+            last_t = None if state["last_t"] is None else float(state["last_t"])
+            seg_count = int(state["segment_count"])
+            first = state["first"]
+            new_first = None if first is None else tuple(_decode_float(v) for v in first)
+            if new_first is not None and len(new_first) != 5:
+                raise ValueError(f"'first' holds {len(new_first)} values, expected 5")
+            P, S, H = (
+                arr(state["P"], np.float64),
+                arr(state["S"], np.float64),
+                arr(state["H"], np.float32),
+            )
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise ConfigError(f"not a detector state: {exc}") from exc
+        # Assigned only once everything parsed: a bad state leaves this detector as it was.
+        self._frame, self._last_t, self._seg_count = new_frame, last_t, seg_count
+        self._first = new_first
+        self._P, self._S, self._H = P, S, H
+        return self
+
+    # -- batch -------------------------------------------------------------
+
+    def detect(self, frame: pd.DataFrame, *, threads: int = 1) -> pd.DataFrame:
+        """One result row per input row (same index order) for a table of one or many tracks.
+
+        ``frame``: canonical fixes (see :func:`gradgps.to_fixes`) or any table
+        whose columns can be auto-detected. Result columns: ``anomaly``,
+        ``score``, ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
+        ``alert``, ``invalid_reason``. ``threads`` > 1 spreads segments over
+        that many numba threads (same numbers; see ``grad_segments`` for the
+        threading-layer caveat when calling from several threads at once).
+        """
+        fixes = frame if set(CANONICAL_COLUMNS[:4]) <= set(frame.columns) else to_fixes(frame)
+        if not set(CANONICAL_COLUMNS[:4]) <= set(fixes.columns):
+            fixes = to_fixes(fixes)
+        m = self.model_
+        prepared = preprocess(
+            fixes, max_gap_s=m.params.max_gap_s, interpolate=False, min_step_s=MIN_STEP_S
+        )
+        pts = prepared.points
+        n = len(pts)
+        out = np.zeros((n, N_POINT_OUT))
+        t = pts["t"].to_numpy(np.float64)
+        lat = pts["lat"].to_numpy(np.float64)
+        lon = pts["lon"].to_numpy(np.float64)
+        nan = np.full(n, np.nan)
+        speed = _readings(pts["speed"].to_numpy(np.float64)) if "speed" in pts else nan
+        heading = _readings(pts["heading"].to_numpy(np.float64)) if "heading" in pts else nan
+        tracks = pts["track"].to_numpy(object)
+        slices = [sl for _, sl in prepared.segment_slices()]
+        if slices:
+            starts = np.array([sl.start for sl in slices] + [slices[-1].stop], np.int64)
+            frames = [prepared.frames[str(tracks[sl.start])] for sl in slices]
+            out = grad_segments(
+                m.params,
+                frames,
+                m.gru_params,
+                m.dims,
+                starts,
+                t,
+                lat,
+                lon,
+                speed,
+                heading,
+                threads=threads,
+            )
+        return self._rows(prepared.to_rows(out), prepared.row_reason, fixes.index)
+
+    def _rows(
+        self, out: NDArray[np.float64], reason: NDArray[Any], index: pd.Index
+    ) -> pd.DataFrame:
+        invalid = reason != ""
+        bias_names = np.array(self.model_.bias_classes, dtype=object)
+        time_names = np.array(TIME_TYPES, dtype=object)
+        codes_b = np.where(invalid, 0, np.nan_to_num(out[:, O_BIAS])).astype(np.int64)
+        codes_t = np.where(invalid, 0, np.nan_to_num(out[:, O_TIME])).astype(np.int64)
+        return pd.DataFrame(
+            {
+                "anomaly": np.where(invalid, 1, np.nan_to_num(out[:, O_FLAG])).astype(np.int8),
+                "score": out[:, O_SCORE],
+                "bias_type": bias_names[codes_b],
+                "time_type": time_names[codes_t],
+                "lat_clean": out[:, O_LAT],
+                "lon_clean": out[:, O_LON],
+                "alert": np.where(invalid, 0, np.nan_to_num(out[:, O_ALERT])).astype(np.int8),
+                "invalid_reason": reason.astype(object),
+            },
+            index=index,
+        )

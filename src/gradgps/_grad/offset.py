@@ -1,0 +1,388 @@
+"""Offset tracker: how far the current fix sits from an unbroken continuation of the track.
+
+Why it exists: a *jump* fault (one offset shared by many points) shows as one
+big step where it starts and one where it ends; in between, the corrupted
+track moves exactly like the real one. Window features and REMA see the two
+steps and then re-acquire the shifted track within seconds, yet protocol
+``grad`` keeps such a fault up for 20-100 points (permanent) or across
+several bursts (intermittent). A detector with a short memory misses most of
+it. The tracker gives the model that memory explicitly.
+
+Per channel (east, north: the two are tracked separately, because faults
+hit them separately and a prediction error in one must not leak into the
+other) and per point:
+
+* the *predicted step* is what the vehicle should have moved since the last
+  point: from the reported speed and heading when both ends have them
+  (trapezoid rule) plus a learnt velocity bias (an EMA, weight
+  ``bias_alpha``, of the explained steps' disagreement with the reported
+  velocity: real receivers report speed and heading that disagree with their
+  own position steps by a steady few m/s over whole stretches, through
+  latency, scale errors or filtering, and unexplained steps there would pile
+  up into a phantom offset), else from a constant-velocity estimate (an EMA of the
+  *explained* steps' velocities);
+* the *residual* is the observed step minus the predicted one;
+* a residual larger than ``threshold_m`` is *unexplained* (a fault starts,
+  changes or ends). There are then two estimates of the offset, the old
+  offset plus the residual and the fix's distance to the clean-track
+  estimate (below), and the smaller one is taken: the first goes wrong when
+  one step of a noise run is misread, the second when dead reckoning drifts
+  during a long fault, and a fault that has ended is near zero by whichever
+  is right. A smaller residual is explained: the offset leaks towards zero,
+  slowly (``leak_per_s``) inside a suspected fault (offset beyond
+  ``threshold_m``), so a 100 s jump fault stays visible, and fast
+  (``fast_leak_per_s``) otherwise; the constant-velocity estimate learns
+  from the step (a jump's points move like the real track), the velocity
+  bias only outside a suspected fault;
+* the *clean-track estimate* is dead-reckoned with the predicted steps and
+  re-anchored on the fix after every explained step outside a suspected
+  fault (not on the unexplained step that seems to end one: that fix may be
+  one more noise point that happens to look right). A suspected fault ends
+  when the offset falls back within ``threshold_m`` *or* when the fix comes
+  back within a gate of the clean-track estimate; the gate grows with the
+  fault's age (``drift_per_s``, dead reckoning drifts) but stays below half
+  the offset, so a real jump cannot end by drift. ``max_fault_s`` bounds how
+  long any suspicion lives, so a stretch where the reported velocity
+  disagrees with the fixes (real drives have them), or a segment that
+  starts inside a fault, cannot leave an offset behind for ever.
+
+So ``offset`` is approximately the current fault offset: it jumps to ``d``
+when a jump of ``d`` starts and back to zero when it ends. Outputs per point:
+offset east/north (m), its norm (m), the change of the norm at this point
+(m; negative when the step took the track back towards where it should be,
+which is what tells the *end* of a fault from the start of one, both being
+big unexplained steps), the residual east/north (m), the distance from the
+fix to the clean-track estimate (m) and the
+age of the suspected fault (s, 0 while none is).
+
+Everything is causal and translation-invariant (only differences enter).
+:func:`offset_features_reference` is the readable version; the numba kernel
+:func:`offset_step` (state in a small array) is what pipelines use, and a test
+keeps them equal.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._exceptions import ConfigError
+
+__all__ = [
+    "OFFSET_FEATURES",
+    "OffsetParams",
+    "offset_features",
+    "offset_features_reference",
+    "offset_step",
+]
+
+FloatArray = NDArray[np.float64]
+
+OFFSET_FEATURES = (
+    "offset_east",
+    "offset_north",
+    "offset_norm",
+    "offset_change",
+    "residual_east",
+    "residual_north",
+    "clean_distance",
+    "fault_age_s",
+)
+N_OFFSET_FEATURES = len(OFFSET_FEATURES)
+N_OFFSET_PARAMS = 8
+P_THRESHOLD, P_LEAK, P_ALPHA, P_FAST_LEAK, P_DRIFT, P_MAX_FAULT, P_BIAS_ALPHA, P_TRUST = range(
+    N_OFFSET_PARAMS
+)
+# State: count, last east, last north, last ve, last vn (reported, NaN if none),
+# cv ve, cv vn, offset east, offset north, clean-track east, north, fault age (s),
+# velocity bias east, north (m/s).
+S_COUNT, S_E, S_N, S_VE, S_VN, S_CVE, S_CVN, S_OE, S_ON, S_CE, S_CN, S_AGE, S_BE, S_BN = range(14)
+N_OFFSET_STATE = 14
+
+
+@dataclass(frozen=True)
+class OffsetParams:
+    """``threshold_m``: residual norm above which a step is unexplained; ``leak_per_s``:
+    fraction of the offset forgotten per second of explained motion while a fault is
+    suspected (``fast_leak_per_s`` otherwise); ``cv_alpha``: EMA weight of the
+    constant-velocity estimate; ``drift_per_s``: growth of the gate around the
+    dead-reckoned clean track; ``max_fault_s``: longest a suspected fault is held;
+    ``bias_alpha``: EMA weight of the reported velocity's bias; ``trust_clean_s``: fault
+    age up to which the dead-reckoned clean track alone measures the offset."""
+
+    threshold_m: float = 8.0
+    leak_per_s: float = 0.002
+    cv_alpha: float = 0.5
+    fast_leak_per_s: float = 0.1
+    drift_per_s: float = 0.2
+    max_fault_s: float = 100.0
+    bias_alpha: float = 0.1
+    trust_clean_s: float = 10.0
+
+    def to_array(self) -> FloatArray:
+        if not (
+            self.threshold_m > 0
+            and 0 <= self.leak_per_s < 1
+            and 0 < self.cv_alpha <= 1
+            and 0 <= self.fast_leak_per_s < 1
+            and self.drift_per_s >= 0
+            and self.max_fault_s > 0
+            and 0 <= self.bias_alpha <= 1
+            and self.trust_clean_s >= 0
+        ):
+            raise ConfigError(
+                "offset tracker needs threshold_m > 0, 0 <= leak_per_s < 1, 0 < cv_alpha <= 1, "
+                "0 <= fast_leak_per_s < 1, drift_per_s >= 0, max_fault_s > 0, "
+                f"0 <= bias_alpha <= 1, trust_clean_s >= 0; got {self.threshold_m}, {self.leak_per_s}, "
+                f"{self.cv_alpha}, {self.fast_leak_per_s}, {self.drift_per_s}, {self.max_fault_s}, "
+                f"{self.bias_alpha}, {self.trust_clean_s}"
+            )
+        return np.array(
+            [
+                self.threshold_m,
+                self.leak_per_s,
+                self.cv_alpha,
+                self.fast_leak_per_s,
+                self.drift_per_s,
+                self.max_fault_s,
+                self.bias_alpha,
+                self.trust_clean_s,
+            ]
+        )
+
+
+def _velocity(speed: float, heading: float) -> tuple[float, float]:
+    if math.isfinite(speed) and math.isfinite(heading):
+        h = math.radians(heading)
+        return speed * math.sin(h), speed * math.cos(h)
+    return math.nan, math.nan
+
+
+def offset_features_reference(
+    dt: ArrayLike,
+    east: ArrayLike,
+    north: ArrayLike,
+    speed: ArrayLike,
+    heading: ArrayLike,
+    params: OffsetParams | None = None,
+) -> FloatArray:
+    """Readable version of the tracker over one segment; ``dt[i]`` = t[i] - t[i-1] (dt[0] unused)."""
+    prm = params or OffsetParams()
+    d = np.asarray(dt, dtype=np.float64)
+    fix = np.stack([np.asarray(east, dtype=np.float64), np.asarray(north, dtype=np.float64)], 1)
+    sp = np.asarray(speed, dtype=np.float64)
+    hd = np.asarray(heading, dtype=np.float64)
+    out = np.zeros((len(fix), N_OFFSET_FEATURES))
+    offset = [0.0, 0.0]
+    cv = [0.0, 0.0]
+    clean = [0.0, 0.0]
+    bias = [0.0, 0.0]
+    age = 0.0
+    for i in range(len(fix)):
+        if i == 0:
+            clean = [fix[0, 0], fix[0, 1]]
+            continue
+        step = fix[i] - fix[i - 1]
+        v_prev = _velocity(float(sp[i - 1]), float(hd[i - 1]))
+        v_now = _velocity(float(sp[i]), float(hd[i]))
+        reported = all(math.isfinite(v) for v in (*v_prev, *v_now))
+        if reported:
+            predicted = [(0.5 * (v_prev[c] + v_now[c]) + bias[c]) * d[i] for c in range(2)]
+        elif i == 1:
+            predicted = [step[0], step[1]]  # no history yet: the first step explains itself
+        else:
+            predicted = [cv[c] * d[i] for c in range(2)]
+        residual = [step[c] - predicted[c] for c in range(2)]
+        if i == 1:
+            cv = [step[0] / d[i], step[1] / d[i]]  # the velocity estimate starts from it too
+            clean = [fix[1, 0], fix[1, 1]]
+            out[i, 4:6] = residual
+            continue
+        norm_before = math.hypot(*offset)
+        for c in range(2):
+            before = offset[c]
+            in_fault = abs(before) > prm.threshold_m
+            clean[c] += predicted[c]
+            explained = abs(residual[c]) <= prm.threshold_m
+            if not explained:  # a fault starts, changes or ends: two estimates of the
+                # offset; the smaller one is right when either is
+                offset[c] = min(before + residual[c], fix[i, c] - clean[c], key=abs)
+                if in_fault and age < prm.trust_clean_s:  # dead reckoning is still exact
+                    offset[c] = fix[i, c] - clean[c]
+            else:  # explained: a jump's points move like the real track
+                rate = prm.leak_per_s if in_fault else prm.fast_leak_per_s
+                offset[c] = before * max(0.0, 1.0 - rate * d[i])
+                cv[c] = prm.cv_alpha * step[c] / d[i] + (1 - prm.cv_alpha) * cv[c]
+                if reported and not in_fault:  # bias + residual / dt: the step's disagreement
+                    bias[c] += prm.bias_alpha * residual[c] / d[i]
+            gate = min(
+                prm.threshold_m + prm.drift_per_s * age, 0.5 * max(abs(offset[c]), abs(before))
+            )
+            if in_fault and (abs(offset[c]) <= prm.threshold_m or abs(fix[i, c] - clean[c]) < gate):
+                offset[c] = 0.0  # it ended: what is left is prediction error
+            if explained and abs(offset[c]) <= prm.threshold_m:
+                clean[c] = fix[i, c]  # a clean step from a clean fix: re-anchor
+        suspected = max(abs(offset[0]), abs(offset[1])) > prm.threshold_m
+        age = age + d[i] if suspected else 0.0
+        if age > prm.max_fault_s:  # held too long to be a fault: start afresh here
+            offset, clean, age = [0.0, 0.0], [fix[i, 0], fix[i, 1]], 0.0
+        distance = math.hypot(fix[i, 0] - clean[0], fix[i, 1] - clean[1])
+        out[i] = (
+            offset[0],
+            offset[1],
+            math.hypot(*offset),
+            math.hypot(*offset) - norm_before,
+            residual[0],
+            residual[1],
+            distance,
+            age,
+        )
+    return out
+
+
+@numba.njit(cache=True)
+def _channel(
+    p: FloatArray,
+    state: FloatArray,
+    c: int,
+    fix: float,
+    predicted: float,
+    residual: float,
+    step: float,
+    dt: float,
+    reported: bool,
+) -> None:
+    """One channel's offset, velocity estimates and clean track (c = 0 east, 1 north)."""
+    o, cv, ce, b = S_OE + c, S_CVE + c, S_CE + c, S_BE + c
+    before = state[o]
+    in_fault = abs(before) > p[P_THRESHOLD]
+    state[ce] += predicted
+    explained = abs(residual) <= p[P_THRESHOLD]
+    if not explained:
+        summed = before + residual
+        state[o] = summed if abs(summed) <= abs(fix - state[ce]) else fix - state[ce]
+        if in_fault and state[S_AGE] < p[P_TRUST]:
+            state[o] = fix - state[ce]
+    else:
+        state[o] = before * max(0.0, 1.0 - (p[P_LEAK] if in_fault else p[P_FAST_LEAK]) * dt)
+        state[cv] = p[P_ALPHA] * step / dt + (1.0 - p[P_ALPHA]) * state[cv]
+        if reported and not in_fault:
+            state[b] += p[P_BIAS_ALPHA] * residual / dt
+    gate = min(p[P_THRESHOLD] + p[P_DRIFT] * state[S_AGE], 0.5 * max(abs(state[o]), abs(before)))
+    if in_fault and (abs(state[o]) <= p[P_THRESHOLD] or abs(fix - state[ce]) < gate):
+        state[o] = 0.0
+    if explained and abs(state[o]) <= p[P_THRESHOLD]:
+        state[ce] = fix
+
+
+@numba.njit(cache=True)
+def offset_step(
+    p: FloatArray,
+    state: FloatArray,
+    dt: float,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+    out: FloatArray,
+) -> None:
+    """One point of the tracker: advance ``state`` and write the features into ``out``."""
+    count = state[S_COUNT]
+    if np.isfinite(speed) and np.isfinite(heading):
+        h = np.radians(heading)
+        ve = speed * np.sin(h)
+        vn = speed * np.cos(h)
+    else:
+        ve = np.nan
+        vn = np.nan
+    for k in range(N_OFFSET_FEATURES):
+        out[k] = 0.0
+    if count > 0.0:
+        step_e = east - state[S_E]
+        step_n = north - state[S_N]
+        reported = np.isfinite(ve) and np.isfinite(state[S_VE])
+        if reported:
+            pred_e = (0.5 * (state[S_VE] + ve) + state[S_BE]) * dt
+            pred_n = (0.5 * (state[S_VN] + vn) + state[S_BN]) * dt
+        elif count == 1.0:
+            pred_e = step_e
+            pred_n = step_n
+        else:
+            pred_e = state[S_CVE] * dt
+            pred_n = state[S_CVN] * dt
+        out[4] = step_e - pred_e
+        out[5] = step_n - pred_n
+        if count == 1.0:
+            state[S_CVE] = step_e / dt
+            state[S_CVN] = step_n / dt
+        else:
+            norm_before = np.hypot(state[S_OE], state[S_ON])
+            _channel(p, state, 0, east, pred_e, out[4], step_e, dt, reported)
+            _channel(p, state, 1, north, pred_n, out[5], step_n, dt, reported)
+            if max(abs(state[S_OE]), abs(state[S_ON])) > p[P_THRESHOLD]:
+                state[S_AGE] += dt
+            else:
+                state[S_AGE] = 0.0
+            if state[S_AGE] > p[P_MAX_FAULT]:
+                state[S_OE] = 0.0
+                state[S_ON] = 0.0
+                state[S_AGE] = 0.0
+                state[S_CE] = east
+                state[S_CN] = north
+            out[0] = state[S_OE]
+            out[1] = state[S_ON]
+            out[2] = np.hypot(state[S_OE], state[S_ON])
+            out[3] = out[2] - norm_before
+            out[6] = np.hypot(east - state[S_CE], north - state[S_CN])
+            out[7] = state[S_AGE]
+    if count <= 1.0:
+        state[S_CE] = east
+        state[S_CN] = north
+    state[S_COUNT] = count + 1.0
+    state[S_E] = east
+    state[S_N] = north
+    state[S_VE] = ve
+    state[S_VN] = vn
+
+
+@numba.njit(cache=True)
+def _offset_kernel(
+    p: FloatArray,
+    dt: FloatArray,
+    east: FloatArray,
+    north: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
+    state = np.zeros(N_OFFSET_STATE)
+    out = np.empty((east.size, N_OFFSET_FEATURES))
+    for i in range(east.size):
+        offset_step(p, state, dt[i], east[i], north[i], speed[i], heading[i], out[i])
+    return out
+
+
+def offset_features(
+    dt: ArrayLike,
+    east: ArrayLike,
+    north: ArrayLike,
+    speed: ArrayLike | None = None,
+    heading: ArrayLike | None = None,
+    params: OffsetParams | None = None,
+) -> FloatArray:
+    """The tracker over one segment (numba); ``speed``/``heading`` may be None or contain NaN."""
+    e = np.ascontiguousarray(east, dtype=np.float64)
+    nan = np.full(e.size, np.nan)
+    return np.asarray(
+        _offset_kernel(
+            (params or OffsetParams()).to_array(),
+            np.ascontiguousarray(dt, dtype=np.float64),
+            e,
+            np.ascontiguousarray(north, dtype=np.float64),
+            nan if speed is None else np.ascontiguousarray(speed, dtype=np.float64),
+            nan if heading is None else np.ascontiguousarray(heading, dtype=np.float64),
+        )
+    )

@@ -1,0 +1,557 @@
+"""The whole GRAD pipeline for one fix, as one compiled step.
+
+Per fix: project to the track's metric frame -> MS-SW + REMA features
+(:mod:`gradgps._grad.core`) and the offset tracker
+(:mod:`gradgps._grad.offset`) -> the GRU (:mod:`gradgps._grad.gru`) -> anomaly if
+P(anomaly) >= threshold -> time type (:mod:`gradgps._grad.time_classifier`) ->
+recovery (:mod:`gradgps._grad.recovery`) -> clean position back to degrees.
+
+Why one step: a car needs a verdict per fix in microseconds, and every
+Python-level call costs about a microsecond of dispatch. So parameters live
+in one float64 vector ``P``, state in one float64 vector ``S`` plus the GRU's
+float32 hidden state ``H``, and :func:`grad_step` does everything. The batch
+path (:func:`grad_segment`) loops the *same* per-point function over a
+segment, so batch and streaming give identical numbers, bit for bit.
+
+The features (the GRU's input) depend only on the fixes, never on the GRU's
+decisions: the core pipeline's REMA runs on its own flags. That keeps
+training simple (features are computed once, then the network is fitted) and
+makes the verdict of one fix unable to corrupt the features of the next. The
+GRU's decisions drive the time classifier and the recovery.
+
+A segment's sampling period (which turns window lengths in seconds into
+points) is its first time step: known after the second fix, so streaming can
+use it; see :class:`gradgps.Detector` for how the first fix is handled.
+
+Features are compressed with a signed ``log1p`` before the network's scaler
+(see :func:`_compress`).
+
+Layout of ``P``: core parameters (``N_CORE_PARAMS``), then the rest block
+(offset N_OFFSET_PARAMS, time 3, recovery 2, threshold, period, GRU dims 4, frame 12).
+Layout of ``S``: core state, offset state, time state, recovery state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from .._tracks.geo import N_FRAME_CONSTANTS, LocalFrame, to_geodetic_scalar, to_local_scalar
+from .core import (
+    _P_CROSS,
+    N_CORE_PARAMS,
+    N_RESULT,
+    CoreParams,
+    _new_state,
+    core_step,
+)
+from .features import N_CHANNEL, FeatureParams, feature_names
+from .gru import _heads, _recurrent_step, _scratch_size
+from .offset import (
+    N_OFFSET_FEATURES,
+    N_OFFSET_PARAMS,
+    N_OFFSET_STATE,
+    OFFSET_FEATURES,
+    OffsetParams,
+    offset_step,
+)
+from .recovery import N_RECOVERY_STATE, RecoveryParams, recovery_step
+from .rema import N_OUT, O_EMA, RemaParams
+from .time_classifier import N_TIME_STATE, T_GAP, TimeParams, time_step
+
+__all__ = [
+    "N_POINT_OUT",
+    "PipelineParams",
+    "grad_features",
+    "grad_segment",
+    "grad_segments",
+    "grad_step",
+    "new_state",
+    "pipeline_feature_names",
+]
+
+FloatArray = NDArray[np.float64]
+
+# The rest block of P, after the core parameters.
+_OFF = 0
+_TIME = _OFF + N_OFFSET_PARAMS
+_REC = _TIME + 3
+_THR = _REC + 2
+_PERIOD, _DIMS = _THR + 1, _THR + 2
+_FRAME = _DIMS + 4
+N_REST_PARAMS = _FRAME + N_FRAME_CONSTANTS
+# Per-point outputs.
+O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT = range(7)
+N_POINT_OUT = 7
+
+
+def _tuned() -> Any:
+    """REMA and time-classifier settings tuned by ``gradgps tune-rema`` (see RemaDetector):
+    with untuned ones REMA loses a moving car after its first long fault, and its
+    features would tell the network nothing from then on."""
+    from .._baselines.rema_detector import RemaDetector
+
+    return RemaDetector()
+
+
+@dataclass(frozen=True)
+class PipelineParams:
+    """Everything but the network weights; saved in a model's ``config.json``."""
+
+    rema: RemaParams = field(default_factory=lambda: _tuned().rema)
+    features: FeatureParams = field(default_factory=FeatureParams)
+    offset: OffsetParams = field(default_factory=OffsetParams)
+    time: TimeParams = field(default_factory=lambda: _tuned().time)
+    recovery: RecoveryParams = field(default_factory=RecoveryParams)
+    threshold: float = 0.5
+    max_gap_s: float = 5.0
+
+    def core(self, period: float) -> CoreParams:
+        return CoreParams(
+            period=period,
+            rema=self.rema,
+            features=self.features,
+            time=self.time,
+            recovery=self.recovery,
+            feed_recovered=True,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        from dataclasses import asdict
+
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> PipelineParams:
+        return cls(
+            rema=RemaParams.from_dict(data["rema"]),
+            features=FeatureParams(**data["features"]),
+            offset=OffsetParams(**data["offset"]),
+            time=TimeParams(**data["time"]),
+            recovery=RecoveryParams(**data["recovery"]),
+            threshold=float(data["threshold"]),
+            max_gap_s=float(data["max_gap_s"]),
+        )
+
+    def array(self, period: float, frame: LocalFrame, dims: NDArray[np.int64]) -> FloatArray:
+        """``P`` for one segment sampled every ``period`` s in ``frame``, GRU of ``dims``."""
+        core = self.core(period).to_array()
+        rest = np.concatenate(
+            [
+                self.offset.to_array(),
+                self.time.to_array(),
+                self.recovery.to_array(),
+                [self.threshold, period],
+                np.asarray(dims, dtype=np.float64),
+                frame.constants(),
+            ]
+        )
+        return np.concatenate([core, rest])
+
+
+def pipeline_feature_names(params: PipelineParams) -> list[str]:
+    """Names of the GRU's input features, in order."""
+    return feature_names(params.features) + list(OFFSET_FEATURES)
+
+
+def new_state(P: FloatArray) -> FloatArray:
+    """Fresh ``S`` for a segment with parameters ``P``."""
+    core = _new_state(P[:N_CORE_PARAMS])
+    rest = np.zeros(N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE)
+    rest[N_OFFSET_STATE + T_GAP] = np.inf
+    return np.concatenate([core, rest])
+
+
+@numba.njit(cache=True)
+def _n_core_features(Pc: FloatArray) -> int:
+    # Two position channels, plus the 2 speed/heading cues when enabled (see CoreParams).
+    return 2 * N_CHANNEL + (2 if Pc[_P_CROSS] != 0.0 else 0)
+
+
+@numba.njit(cache=True)
+def _features_point(
+    P: FloatArray,
+    S: FloatArray,
+    core_out: FloatArray,
+    off_out: FloatArray,
+    dt: float,
+    lat: float,
+    lon: float,
+    speed: float,
+    heading: float,
+    x: Any,
+) -> tuple[float, float]:
+    """Project, run core + offset tracker, write the feature vector into ``x``; return (east, north)."""
+    Pc = P[:N_CORE_PARAMS]
+    rest = P[N_CORE_PARAMS:]
+    core_size = S.size - (N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE)
+    east, north = to_local_scalar(rest[_FRAME : _FRAME + N_FRAME_CONSTANTS], lat, lon)
+    core_step(Pc, S[:core_size], east, north, speed, heading, core_out)
+    offset_step(
+        rest[_OFF : _OFF + N_OFFSET_PARAMS],
+        S[core_size : core_size + N_OFFSET_STATE],
+        dt,
+        east,
+        north,
+        speed,
+        heading,
+        off_out,
+    )
+    f0 = N_RESULT + 2 * N_OUT
+    nc = _n_core_features(Pc)
+    for k in range(nc):
+        x[k] = _compress(core_out[f0 + k])
+    for k in range(N_OFFSET_FEATURES):
+        x[nc + k] = _compress(off_out[k])
+    return east, north
+
+
+@numba.njit(cache=True)
+def _compress(v: float) -> float:
+    """Signed log1p: metre-scale features span 0.1 m (noise) to 200 m (jumps), and a
+    standard scaler alone would squash the normal range into a sliver near zero."""
+    if v >= 0.0:
+        return math.log1p(v)
+    if v < 0.0:
+        return -math.log1p(-v)
+    return v  # NaN stays NaN (the GRU reads it as the training mean)
+
+
+@numba.njit(cache=True)
+def _decide_point(
+    P: FloatArray,
+    S: FloatArray,
+    H: Any,
+    gp: Any,
+    dims: Any,
+    x: Any,
+    scratch: Any,
+    gru_out: Any,
+    core_out: FloatArray,
+    rec_out: FloatArray,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+    out: FloatArray,
+) -> None:
+    """GRU on ``x`` -> threshold -> time type -> recovery -> clean position in degrees."""
+    rest = P[N_CORE_PARAMS:]
+    core_size = S.size - (N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE)
+    ts = core_size + N_OFFSET_STATE
+    rs = ts + N_TIME_STATE
+    _recurrent_step(gp, dims, x, H, scratch)
+    _heads(gp, dims, H, scratch, gru_out)
+    score = float(gru_out[0])
+    flag = 1.0 if score >= rest[_THR] else 0.0
+    best = 0
+    if flag != 0.0:
+        best = 1
+        for k in range(2, dims[3]):
+            if gru_out[1 + k] > gru_out[1 + best]:
+                best = k
+    code = time_step(rest[_TIME : _TIME + 3], S[ts : ts + N_TIME_STATE], flag)
+    recovery_step(
+        rest[_REC : _REC + 2],
+        S[rs : rs + N_RECOVERY_STATE],
+        code,
+        rest[_PERIOD],
+        east,
+        north,
+        core_out[N_RESULT + O_EMA],
+        core_out[N_RESULT + N_OUT + O_EMA],
+        speed,
+        heading,
+        rec_out,
+    )
+    lat_c, lon_c = to_geodetic_scalar(
+        rest[_FRAME : _FRAME + N_FRAME_CONSTANTS], rec_out[0], rec_out[1]
+    )
+    out[O_FLAG] = flag
+    out[O_SCORE] = score
+    out[O_BIAS] = best
+    out[O_TIME] = code
+    out[O_LAT] = lat_c
+    out[O_LON] = lon_c
+    out[O_ALERT] = rec_out[2]
+
+
+@numba.njit(cache=True)
+def _dims(P: FloatArray) -> NDArray[np.int64]:
+    rest = P[N_CORE_PARAMS:]
+    dims = np.empty(4, np.int64)
+    for k in range(4):
+        dims[k] = int(rest[_DIMS + k])
+    return dims
+
+
+@numba.njit(cache=True)
+def _core_width(P: FloatArray) -> int:
+    return N_RESULT + 2 * N_OUT + _n_core_features(P[:N_CORE_PARAMS])
+
+
+@numba.njit(cache=True)
+def grad_step(
+    P: FloatArray,
+    S: FloatArray,
+    H: Any,
+    gp: Any,
+    dt: float,
+    lat: float,
+    lon: float,
+    speed: float,
+    heading: float,
+    out: FloatArray,
+) -> None:
+    """One fix of one segment: advance ``S`` and ``H`` and write the 7 outputs into ``out``."""
+    dims = _dims(P)
+    core_out = np.empty(_core_width(P))
+    off_out = np.empty(N_OFFSET_FEATURES)
+    rec_out = np.empty(3)
+    x = np.empty(dims[0], np.float32)
+    scratch = np.empty(_scratch_size(dims), np.float32)
+    gru_out = np.empty(1 + dims[3], np.float32)
+    east, north = _features_point(P, S, core_out, off_out, dt, lat, lon, speed, heading, x)
+    _decide_point(
+        P, S, H, gp, dims, x, scratch, gru_out, core_out, rec_out, east, north, speed, heading, out
+    )
+
+
+@numba.njit(cache=True)
+def _segment_kernel(
+    P: FloatArray,
+    S: FloatArray,
+    H: Any,
+    gp: Any,
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
+    dims = _dims(P)
+    core_out = np.empty(_core_width(P))
+    off_out = np.empty(N_OFFSET_FEATURES)
+    rec_out = np.empty(3)
+    x = np.empty(dims[0], np.float32)
+    scratch = np.empty(_scratch_size(dims), np.float32)
+    gru_out = np.empty(1 + dims[3], np.float32)
+    out = np.empty((lat.size, N_POINT_OUT))
+    for i in range(lat.size):
+        east, north = _features_point(
+            P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i], x
+        )
+        _decide_point(
+            P,
+            S,
+            H,
+            gp,
+            dims,
+            x,
+            scratch,
+            gru_out,
+            core_out,
+            rec_out,
+            east,
+            north,
+            speed[i],
+            heading[i],
+            out[i],
+        )
+    return out
+
+
+@numba.njit(cache=True)
+def _features_kernel(
+    P: FloatArray,
+    S: FloatArray,
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    n_features: int,
+) -> FloatArray:
+    core_out = np.empty(_core_width(P))
+    off_out = np.empty(N_OFFSET_FEATURES)
+    out = np.empty((lat.size, n_features))
+    for i in range(lat.size):
+        _features_point(
+            P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i], out[i]
+        )
+    return out
+
+
+@numba.njit(cache=True)
+def _batch_segment(
+    k: int,
+    Ps: FloatArray,
+    Ss: FloatArray,
+    s_len: NDArray[np.int64],
+    gp: Any,
+    h_len: int,
+    starts: NDArray[np.int64],
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    out: FloatArray,
+) -> None:
+    """Segment ``k`` of a batch, exactly as :func:`_segment_kernel`, into its rows of ``out``."""
+    a, b = starts[k], starts[k + 1]
+    S = Ss[k, : s_len[k]].copy()
+    H = np.zeros(h_len, np.float32)
+    out[a:b] = _segment_kernel(
+        Ps[k], S, H, gp, dt[a:b], lat[a:b], lon[a:b], speed[a:b], heading[a:b]
+    )
+
+
+# Two drivers over the same per-segment step: one thread (the default: safe to call from
+# any number of the caller's threads), and segments spread over numba's threads (opt-in:
+# with numba's "workqueue" threading layer, two caller threads must not enter it at once;
+# "omp" and "tbb" are fine). They are separate functions, not one function compiled twice,
+# because numba's on-disk cache keys a kernel by its function, not by its flags.
+@numba.njit(cache=True)
+def _batch_serial(
+    Ps: FloatArray,
+    Ss: FloatArray,
+    s_len: NDArray[np.int64],
+    gp: Any,
+    h_len: int,
+    starts: NDArray[np.int64],
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
+    out = np.empty((lat.size, N_POINT_OUT))
+    for k in range(starts.size - 1):
+        _batch_segment(k, Ps, Ss, s_len, gp, h_len, starts, dt, lat, lon, speed, heading, out)
+    return out
+
+
+@numba.njit(cache=True, parallel=True)
+def _batch_parallel(
+    Ps: FloatArray,
+    Ss: FloatArray,
+    s_len: NDArray[np.int64],
+    gp: Any,
+    h_len: int,
+    starts: NDArray[np.int64],
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
+    out = np.empty((lat.size, N_POINT_OUT))
+    for k in numba.prange(starts.size - 1):
+        _batch_segment(k, Ps, Ss, s_len, gp, h_len, starts, dt, lat, lon, speed, heading, out)
+    return out
+
+
+def grad_segments(
+    params: PipelineParams,
+    frames: list[LocalFrame],
+    gp: NDArray[np.float32],
+    dims: NDArray[np.int64],
+    starts: NDArray[np.int64],
+    t: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    threads: int = 1,
+) -> FloatArray:
+    """:func:`grad_segment` over many segments (``starts`` = their boundaries, one frame
+    each); with ``threads`` > 1 on that many numba threads. Same numbers either way."""
+    n_seg = starts.size - 1
+    if n_seg <= 0:
+        return np.empty((0, N_POINT_OUT))
+    Ps = []
+    states = []
+    dt = np.empty(t.size)
+    for k in range(n_seg):
+        seg = slice(int(starts[k]), int(starts[k + 1]))
+        P = params.array(segment_period(t[seg]), frames[k], dims)
+        Ps.append(P)
+        states.append(new_state(P))
+        dt[seg] = _segment_dt(t[seg])
+    s_len = np.array([len(x) for x in states], np.int64)
+    Ss = np.zeros((n_seg, int(s_len.max())))
+    for k, x in enumerate(states):
+        Ss[k, : x.size] = x
+    args = (
+        np.array(Ps),
+        Ss,
+        s_len,
+        gp,
+        int(dims[1] + dims[2]),
+        starts.astype(np.int64),
+        dt,
+        lat,
+        lon,
+        speed,
+        heading,
+    )
+    if threads <= 1:
+        return np.asarray(_batch_serial(*args))
+    previous = numba.get_num_threads()
+    numba.set_num_threads(min(threads, int(numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
+    try:
+        return np.asarray(_batch_parallel(*args))
+    finally:
+        numba.set_num_threads(previous)
+
+
+def _segment_dt(t: FloatArray) -> FloatArray:
+    return np.r_[0.0, np.diff(t)] if t.size else np.zeros(0)
+
+
+def segment_period(t: FloatArray) -> float:
+    """A segment's period: its first time step (1 s for a one-fix segment)."""
+    return float(t[1] - t[0]) if t.size >= 2 else 1.0
+
+
+def grad_features(
+    params: PipelineParams,
+    frame: LocalFrame,
+    t: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
+    """The GRU's input features (n, F) float64 for one segment (training and inspection)."""
+    names = pipeline_feature_names(params)
+    dims = np.array([len(names), 0, 0, 0], np.int64)
+    P = params.array(segment_period(t), frame, dims)
+    return np.asarray(
+        _features_kernel(P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names))
+    )
+
+
+def grad_segment(
+    params: PipelineParams,
+    frame: LocalFrame,
+    gp: NDArray[np.float32],
+    dims: NDArray[np.int64],
+    t: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
+    """Per-point outputs (n, 7) for one segment, from a fresh state (see the O_* columns)."""
+    P = params.array(segment_period(t), frame, dims)
+    H = np.zeros(int(dims[1] + dims[2]), np.float32)
+    return np.asarray(
+        _segment_kernel(P, new_state(P), H, gp, _segment_dt(t), lat, lon, speed, heading)
+    )

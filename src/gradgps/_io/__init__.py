@@ -1,0 +1,1 @@
+"""Reading and writing tracks: CSV/Parquet tables, GPX, NMEA, ROS bags."""

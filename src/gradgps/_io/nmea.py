@@ -1,0 +1,366 @@
+"""NMEA 0183 logs -> a Table of fixes, from GGA and RMC sentences.
+
+Receivers report one *epoch* (one instant) in several sentences. Two of them
+carry what detection needs: RMC (date, position, speed in knots, course,
+valid/void status) and GGA (position, fix quality, satellites, HDOP,
+altitude). Consecutive GGA and RMC sentences with the same time of day are
+merged into one fix; any talker is accepted (``GP``, ``GN``, ``GL``,
+``GA``, ``BD``...).
+
+The reader is lenient because real logs are damaged (serial noise, cut-off
+lines), but it never guesses:
+
+* Every GGA/RMC sentence must end in ``*hh`` and its checksum (XOR of the
+  characters between ``$`` and ``*``) must match; otherwise, or when a field is
+  malformed (a minute value of 60 or more, a hemisphere that is not N/S/E/W,
+  an impossible date), the sentence is *rejected*: counted in
+  ``Table.rejected`` with its line in ``Table.notes`` (the first
+  :data:`MAX_NOTES`), never fatal.
+* Other sentence types (GSV, GSA, VTG, proprietary ``$P...``) and text that is
+  not a sentence are skipped and *not* counted: they are not fixes, so their
+  health says nothing about the fixes. Bytes that are not ASCII are replaced,
+  so a noisy sentence fails its checksum instead of stopping the read.
+* An epoch the receiver marks as having no fix (GGA quality 0, RMC status
+  ``V`` or mode ``N``) is kept as a row with NaN latitude/longitude, so the
+  row count matches the epochs in the log and downstream code reports those
+  rows as invalid fixes rather than silently losing them.
+
+Times: when an RMC sentence gives the date, ``time`` is unix seconds (UTC);
+epochs without a date of their own take it from the nearest dated epoch.
+Without any date, ``time`` is seconds since midnight UTC of the first day,
+growing past 86400 at a midnight rollover (time of day falling by more than
+12 hours), so a drive across midnight stays ordered.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Final
+
+import numpy as np
+import pandas as pd
+
+from .._exceptions import InputError
+from .._tracks.track import ColumnMap, Table
+from .files import READ_ERRORS, open_bytes
+
+__all__ = ["KNOT_MS", "MAX_NOTES", "epoch_times", "nmea_checksum", "read_nmea"]
+
+MAX_NOTES: Final = 20
+KNOT_MS: Final = 1852.0 / 3600.0
+_HALF_DAY: Final = 43200.0
+_DAY: Final = 86400.0
+
+_NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)")
+_TIME = re.compile(r"(\d\d)(\d\d)(\d\d(\.\d+)?)")
+
+
+class _Malformed(Exception):
+    """A field that cannot be what the sentence type says it is (internal)."""
+
+
+def nmea_checksum(body: str) -> int:
+    """XOR of the characters of ``body`` (the text between ``$`` and ``*``)."""
+    value = 0
+    for char in body:
+        value ^= ord(char)
+    return value
+
+
+@dataclass
+class _Epoch:
+    """One instant, merged from its GGA and/or RMC sentence."""
+
+    line: int
+    tod: float  # seconds of day, NaN when the sentence had no time
+    midnight: float = math.nan  # unix seconds of the RMC date's midnight
+    lat: float = math.nan
+    lon: float = math.nan
+    alt: float = math.nan
+    hdop: float = math.nan
+    speed: float = math.nan
+    course: float = math.nan
+    quality: int | None = None
+    satellites: int | None = None
+    no_fix: bool = False
+    has_gga: bool = False
+    has_rmc: bool = False
+
+
+def _number(text: str, what: str) -> float:
+    if text == "":
+        return math.nan
+    if not _NUMBER.fullmatch(text):
+        raise _Malformed(f"{what} is not a number: {text!r}")
+    return float(text)
+
+
+def _time_of_day(text: str) -> float:
+    if text == "":
+        return math.nan
+    match = _TIME.fullmatch(text)
+    if match is None:
+        raise _Malformed(f"time is not hhmmss.ss: {text!r}")
+    hours, minutes, seconds = int(match[1]), int(match[2]), float(match[3])
+    if hours > 23 or minutes > 59 or seconds >= 61.0:
+        raise _Malformed(f"impossible time of day: {text!r}")
+    return round(hours * 3600.0 + minutes * 60.0 + seconds, 6)
+
+
+def _coordinate(value: str, hemisphere: str, positive: str, negative: str, limit: float) -> float:
+    """``dddmm.mmmm`` plus hemisphere -> signed degrees; both empty -> NaN."""
+    if value == "" and hemisphere == "":
+        return math.nan
+    if hemisphere not in (positive, negative):
+        raise _Malformed(f"hemisphere must be {positive} or {negative}, got {hemisphere!r}")
+    if not re.fullmatch(r"\d+(\.\d+)?", value):
+        raise _Malformed(f"coordinate is not dddmm.mmmm: {value!r}")
+    raw = float(value)
+    degrees = math.floor(raw / 100.0)
+    minutes = raw - 100.0 * degrees
+    if minutes >= 60.0:
+        raise _Malformed(f"coordinate minutes of 60 or more: {value!r}")
+    result = degrees + minutes / 60.0
+    if result > limit:
+        raise _Malformed(f"coordinate beyond {limit:g} degrees: {value!r}")
+    return -result if hemisphere == negative else result
+
+
+def _midnight(text: str) -> float:
+    """RMC ``ddmmyy`` -> unix seconds of that day's midnight UTC (NaN when empty)."""
+    if text == "":
+        return math.nan
+    if not re.fullmatch(r"\d{6}", text):
+        raise _Malformed(f"date is not ddmmyy: {text!r}")
+    day, month, year = int(text[0:2]), int(text[2:4]), int(text[4:6])
+    # NMEA has two-digit years; GPS receivers date from 1980.
+    year += 1900 if year >= 80 else 2000
+    try:
+        date = dt.date(year, month, day)
+    except ValueError:
+        raise _Malformed(f"impossible date: {text!r}") from None
+    return float((date - dt.date(1970, 1, 1)).days) * _DAY
+
+
+def _parse_gga(fields: list[str], line: int) -> _Epoch:
+    if len(fields) < 9:
+        raise _Malformed(f"GGA has {len(fields)} fields, needs at least 9")
+    quality_text = fields[5]
+    if not quality_text.isdigit():
+        raise _Malformed(f"fix quality is not a digit: {quality_text!r}")
+    quality = int(quality_text)
+    satellites = int(fields[6]) if fields[6].isdigit() else None
+    if fields[6] and satellites is None:
+        raise _Malformed(f"satellite count is not a number: {fields[6]!r}")
+    epoch = _Epoch(
+        line=line,
+        tod=_time_of_day(fields[0]),
+        lat=_coordinate(fields[1], fields[2], "N", "S", 90.0),
+        lon=_coordinate(fields[3], fields[4], "E", "W", 180.0),
+        hdop=_number(fields[7], "HDOP"),
+        alt=_number(fields[8], "altitude"),
+        quality=quality,
+        satellites=satellites,
+        no_fix=quality == 0,
+        has_gga=True,
+    )
+    return epoch
+
+
+def _parse_rmc(fields: list[str], line: int) -> _Epoch:
+    if len(fields) < 9:
+        raise _Malformed(f"RMC has {len(fields)} fields, needs at least 9")
+    status = fields[1]
+    if status not in ("A", "V"):
+        raise _Malformed(f"status must be A or V, got {status!r}")
+    # NMEA 2.3 adds a mode indicator (field 12); N means "data not valid".
+    mode_invalid = len(fields) > 11 and fields[11][:1] == "N"
+    return _Epoch(
+        line=line,
+        tod=_time_of_day(fields[0]),
+        lat=_coordinate(fields[2], fields[3], "N", "S", 90.0),
+        lon=_coordinate(fields[4], fields[5], "E", "W", 180.0),
+        speed=_number(fields[6], "speed") * KNOT_MS,
+        course=_number(fields[7], "course"),
+        midnight=_midnight(fields[8]),
+        no_fix=status == "V" or mode_invalid,
+        has_rmc=True,
+    )
+
+
+def _merge(into: _Epoch, other: _Epoch) -> None:
+    """Fold ``other`` (same instant, the other sentence type) into ``into``."""
+    if math.isnan(into.lat):
+        into.lat, into.lon = other.lat, other.lon
+    for name in ("alt", "hdop", "speed", "course", "midnight"):
+        if math.isnan(getattr(into, name)):
+            setattr(into, name, getattr(other, name))
+    into.quality = into.quality if into.quality is not None else other.quality
+    into.satellites = into.satellites if into.satellites is not None else other.satellites
+    into.no_fix = into.no_fix or other.no_fix
+    into.has_gga = into.has_gga or other.has_gga
+    into.has_rmc = into.has_rmc or other.has_rmc
+
+
+def _sentence(text: str) -> tuple[str, list[str]] | None:
+    """``(type, fields)`` of a GGA/RMC sentence; None for anything else; raises _Malformed when damaged.
+
+    ``text`` is what follows a ``$``.
+    """
+    address = text.split(",", 1)[0].split("*", 1)[0]
+    kind = address[2:]
+    if len(address) != 5 or address.startswith("P") or kind not in ("GGA", "RMC"):
+        return None
+    star = text.rfind("*")
+    if star < 0:
+        raise _Malformed(f"{kind} sentence has no checksum (cut off?)")
+    given = text[star + 1 :].strip()
+    if not re.fullmatch(r"[0-9A-Fa-f]{2}", given):
+        raise _Malformed(f"{kind} checksum is not two hex digits: {given!r}")
+    body = text[:star]
+    computed = nmea_checksum(body)
+    if computed != int(given, 16):
+        raise _Malformed(
+            f"{kind} checksum mismatch: sentence says {given.upper()}, content gives {computed:02X}"
+        )
+    return kind, body.split(",")[1:]
+
+
+@dataclass
+class _LogReader:
+    """Turns sentences, in file order, into epochs; counts and notes the rejected ones."""
+
+    epochs: list[_Epoch] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    rejected: int = 0
+
+    def add(self, text: str, line: int) -> None:
+        """Take one sentence (``text`` follows its ``$``) found on file line ``line``."""
+        try:
+            parsed = _sentence(text)
+            if parsed is None:
+                return
+            kind, fields = parsed
+            epoch = (_parse_gga if kind == "GGA" else _parse_rmc)(fields, line)
+        except _Malformed as exc:
+            self.rejected += 1
+            if len(self.notes) < MAX_NOTES:
+                self.notes.append(f"line {line}: {exc}")
+            return
+        # Same time of day as the previous epoch and the other sentence type:
+        # the same instant. NaN times never match, so they stay rows of their own.
+        current = self.epochs[-1] if self.epochs else None
+        if (
+            current is not None
+            and current.tod == epoch.tod
+            and not (current.has_gga and epoch.has_gga)
+            and not (current.has_rmc and epoch.has_rmc)
+        ):
+            _merge(current, epoch)
+        else:
+            self.epochs.append(epoch)
+
+
+def read_nmea(path: str | Path) -> Table:
+    """Read an NMEA 0183 log (optionally ``.gz``) into a Table; see the module docstring.
+
+    Columns: ``time``, ``lat``, ``lon`` and, when the log has them, ``speed``
+    (m/s), ``course`` (degrees), ``alt`` (m), ``hdop``, ``fix_quality``,
+    ``satellites``; plus ``line``, the file line of the epoch's first sentence.
+    """
+    path = Path(path)
+    source = str(path)
+    log = _LogReader()
+    n_lines = 0
+    with open_bytes(path) as raw:
+        try:
+            for raw_line in raw:
+                n_lines += 1
+                # Several sentences may share a line (a cut-off one followed
+                # by the next); text before the first "$" is a logger's prefix.
+                for piece in raw_line.decode("ascii", errors="replace").split("$")[1:]:
+                    log.add(piece, n_lines)
+        except READ_ERRORS as exc:
+            raise InputError(
+                f"cannot read compressed data: {exc}",
+                source=source,
+                hint="the .gz file is damaged or truncated",
+            ) from None
+    epochs, notes, rejected = log.epochs, log.notes, log.rejected
+    if rejected > MAX_NOTES:
+        notes.append(f"... and {rejected - MAX_NOTES} more rejected sentences")
+    if not epochs:
+        if n_lines == 0:
+            raise InputError(
+                "empty file", source=source, hint="an NMEA log has one $..*hh sentence per line"
+            )
+        detail = f"; {rejected} rejected, first: {notes[0]}" if rejected else ""
+        raise InputError(
+            f"no usable GGA or RMC sentences in {n_lines} lines{detail}",
+            source=source,
+            hint="is this an NMEA 0183 log? otherwise pass the right format",
+        )
+    frame, time_note = _frame(epochs)
+    if time_note:
+        notes.append(time_note)
+    columns = ColumnMap(
+        time="time",
+        lat="lat",
+        lon="lon",
+        track="",
+        speed="speed" if "speed" in frame.columns else "",
+        heading="course" if "course" in frame.columns else "",
+        alt="alt" if "alt" in frame.columns else "",
+        hdop="hdop" if "hdop" in frame.columns else "",
+    )
+    return Table(frame=frame, source=source, columns=columns, rejected=rejected, notes=notes)
+
+
+def epoch_times(tod: np.ndarray, midnight: np.ndarray) -> np.ndarray:
+    """Seconds for each epoch from its time of day and (maybe missing) date; see the module docstring."""
+    continuous = np.full(tod.size, np.nan)
+    days = 0
+    previous = math.nan
+    for i, value in enumerate(tod):
+        if math.isnan(value):
+            continue
+        if not math.isnan(previous) and value < previous - _HALF_DAY:
+            days += 1
+        previous = value
+        continuous[i] = value + days * _DAY
+    dated = np.isfinite(midnight) & np.isfinite(continuous)
+    if not dated.any():
+        return continuous
+    # Offset from "continuous seconds of day" to unix time, taken from the
+    # dated epochs and carried to their undated neighbours.
+    offset = pd.Series(np.where(dated, midnight + tod - continuous, np.nan)).ffill().bfill()
+    return np.asarray(continuous + offset.to_numpy(), dtype=np.float64)
+
+
+def _frame(epochs: list[_Epoch]) -> tuple[pd.DataFrame, str | None]:
+    tod = np.array([e.tod for e in epochs])
+    midnight = np.array([e.midnight for e in epochs])
+    time = epoch_times(tod, midnight)
+    no_fix = np.array([e.no_fix for e in epochs])
+    columns: dict[str, object] = {
+        "time": time,
+        "lat": np.where(no_fix, np.nan, [e.lat for e in epochs]),
+        "lon": np.where(no_fix, np.nan, [e.lon for e in epochs]),
+    }
+    if any(e.has_rmc for e in epochs):
+        columns["speed"] = np.array([e.speed for e in epochs])
+        columns["course"] = np.array([e.course for e in epochs])
+    if any(e.has_gga for e in epochs):
+        columns["alt"] = np.array([e.alt for e in epochs])
+        columns["hdop"] = np.array([e.hdop for e in epochs])
+        columns["fix_quality"] = pd.array([e.quality for e in epochs], dtype="Int64")
+        columns["satellites"] = pd.array([e.satellites for e in epochs], dtype="Int64")
+    columns["line"] = np.array([e.line for e in epochs], dtype=np.int64)
+    note = None
+    if not np.isfinite(midnight).any():
+        note = "no RMC date in the log: times are seconds since midnight UTC of the first day"
+    return pd.DataFrame(columns), note

@@ -1,0 +1,501 @@
+"""Reading and writing track files: a path on disk <-> a :class:`Table`.
+
+Formats are chosen by extension (``.csv``, ``.txt``, ``.tsv``, ``.parquet``/
+``.pq``, ``.gpx``, ``.nmea``/``.nma``/``.log``; a trailing ``.gz`` means
+gzip-compressed text) or named explicitly (``fmt``); a file with an unknown
+extension is recognised by its first bytes. GPX, NMEA and ROS bags (``.bag``,
+``.mcap``, ``.db3`` or a ROS 2 bag directory; extra ``ros``) have their own
+modules (:mod:`gradgps._io.gpx`, :mod:`gradgps._io.nmea`, :mod:`gradgps._io.rosbag`);
+CSV and Parquet live here.
+
+CSV files are read in two passes. The first pass, with the standard
+:mod:`csv` module, checks the *structure* (UTF-8 text, a header line, proper
+quoting, the same number of fields on every row) and reports the exact file
+line of the first problem; pandas would otherwise pad short rows with missing
+values without a word and report long rows by a line count that ignores
+blank lines. The second pass lets pandas parse and type the columns (the
+track-id column, when it can be found from the header, stays text so ``007``
+keeps its zeros; values pandas treats as missing, like ``NA``, become an
+empty track id). Every input column is kept under its original name and in its original order
+(pandas renames duplicate names ``x``, ``x.1``... and unnamed ones
+``Unnamed: 0``); *values* are checked later by :func:`gradgps.to_fixes`, whose
+errors name the row, the file line and the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import gzip
+import itertools
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import IO, Any, Final
+
+import pandas as pd
+
+from .._exceptions import ConfigError, InputError
+from .._tracks.track import ColumnMap, Table, resolve_columns, to_fixes
+from .files import READ_ERRORS, check_readable, open_bytes, text_lines
+from .gpx import read_gpx
+from .nmea import read_nmea
+from .rosbag import is_rosbag, read_rosbag
+
+__all__ = [
+    "FORMATS",
+    "CsvChunks",
+    "TableWriter",
+    "iter_csv_tables",
+    "read_fixes",
+    "read_table",
+    "resolve_format",
+    "write_table",
+]
+
+FORMATS: Final = ("csv", "parquet", "gpx", "nmea", "rosbag")
+
+_EXTENSIONS: Final = {
+    ".csv": "csv",
+    ".txt": "csv",
+    ".tsv": "csv",
+    ".parquet": "parquet",
+    ".pq": "parquet",
+    ".gpx": "gpx",
+    ".nmea": "nmea",
+    ".nma": "nmea",
+    ".log": "nmea",
+    ".bag": "rosbag",
+    ".mcap": "rosbag",
+    ".db3": "rosbag",
+}
+
+# Delimiters tried on the header line; the most frequent one wins.
+_DELIMITERS: Final = (",", ";", "\t", "|")
+
+
+def resolve_format(path: str | Path, fmt: str | None = None) -> str:
+    """The format of ``path``: ``fmt`` when given, else from the extension, else from its content.
+
+    Content sniffing (only for unknown extensions) looks at the first bytes:
+    ``PAR1`` is Parquet, ``<`` is XML (GPX), ``$``/``!`` is NMEA, anything
+    else is taken as CSV.
+    """
+    path = Path(path)
+    if fmt is not None:
+        name = fmt.lower()
+        if name not in FORMATS:
+            raise ConfigError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
+        return name
+    by_extension = _extension_format(path)
+    if by_extension is not None:
+        return by_extension
+    if is_rosbag(path):  # a ROS 2 bag is a directory
+        return "rosbag"
+    with open_bytes(path) as raw:
+        try:
+            head = raw.read(64).lstrip(b"\xef\xbb\xbf \t\r\n")
+        except READ_ERRORS as exc:
+            raise InputError(f"cannot read compressed data: {exc}", source=str(path)) from None
+    if head.startswith(b"PAR1"):
+        return "parquet"
+    if head.startswith(b"<"):
+        return "gpx"
+    if head.startswith((b"$", b"!")):
+        return "nmea"
+    return "csv"
+
+
+def read_table(path: str | Path, fmt: str | None = None, columns: ColumnMap | None = None) -> Table:
+    """Read a track file into a :class:`Table`, keeping every input column.
+
+    ``columns`` names the role of columns (anything ``None`` is auto-detected
+    later by :func:`gradgps.to_fixes`); it overrides what a reader already
+    knows (GPX and NMEA readers set their own column map).
+    """
+    path = Path(path)
+    kind = resolve_format(path, fmt)
+    if kind == "rosbag":
+        table = read_rosbag(path)
+        return (
+            table if columns is None else replace(table, columns=_override(table.columns, columns))
+        )
+    check_readable(path)
+    if kind == "csv":
+        table = _read_csv(path, columns)
+    elif kind == "parquet":
+        table = _read_parquet(path)
+    elif kind == "gpx":
+        table = read_gpx(path)
+    else:
+        table = read_nmea(path)
+    if columns is not None:
+        table = replace(table, columns=_override(table.columns, columns))
+    return table
+
+
+def read_fixes(
+    path: str | Path,
+    fmt: str | None = None,
+    columns: ColumnMap | None = None,
+    channels: tuple[str, ...] | list[str] = (),
+) -> pd.DataFrame:
+    """Read a track file straight into the canonical fixes frame (see :mod:`gradgps._tracks.track`)."""
+    return to_fixes(read_table(path, fmt, columns), channels=channels)
+
+
+def write_table(frame: pd.DataFrame, path: str | Path, fmt: str | None = None) -> None:
+    """Write ``frame`` as CSV (gzip for ``.gz``) or Parquet, without the index.
+
+    CSV floats are written in their shortest exact form, so reading the file
+    back gives the same numbers.
+    """
+    path = Path(path)
+    kind = resolve_format(path, fmt) if fmt is not None else _extension_format(path)
+    if kind is None:
+        raise ConfigError(
+            f"cannot tell the output format of {str(path)!r} from its extension; "
+            "use .csv, .csv.gz or .parquet, or pass fmt"
+        )
+    if kind not in ("csv", "parquet"):
+        raise ConfigError(f"writing {kind} is not supported; write csv or parquet")
+    try:
+        if kind == "csv":
+            frame.to_csv(path, index=False)
+        else:
+            frame.to_parquet(path, index=False)
+    except ImportError as exc:
+        raise ConfigError(f"writing Parquet needs pyarrow ({exc}); install gradgps[io]") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
+
+
+class TableWriter:
+    """Write a table chunk by chunk (CSV, gzip CSV or Parquet), atomically.
+
+    For outputs too big to hold in memory: every :meth:`write` appends rows
+    (the CSV header and the Parquet schema come from the first chunk; later
+    chunks must have the same columns). Rows go to ``<name>.partial`` beside
+    the target, renamed to the target only by a clean exit from the ``with``
+    block, so a run stopped by an error never leaves a truncated file that
+    looks finished.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        kind = _extension_format(self.path)
+        if kind not in ("csv", "parquet"):
+            raise ConfigError(
+                f"cannot write {str(self.path)!r}: use a .csv, .csv.gz or .parquet output"
+            )
+        self.kind = kind
+        self.partial = self.path.with_name(self.path.name + ".partial")
+        self.rows = 0
+        self._columns: list[str] | None = None
+        self._text: IO[str] | None = None
+        self._parquet: Any = None
+
+    def __enter__(self) -> TableWriter:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *_: object) -> None:
+        self._close()
+        if kind is None:
+            self.partial.replace(self.path)
+        else:
+            self.partial.unlink(missing_ok=True)
+
+    def write(self, frame: pd.DataFrame) -> None:
+        """Append ``frame``'s rows (without its index)."""
+        columns = [str(c) for c in frame.columns]
+        if self._columns is None:
+            self._columns = columns
+        elif columns != self._columns:
+            raise ConfigError(
+                f"chunk columns {columns} differ from the first chunk's {self._columns}"
+            )
+        try:
+            if self.kind == "csv":
+                self._write_csv(frame)
+            else:
+                self._write_parquet(frame)
+        except OSError as exc:
+            raise ConfigError(f"cannot write {str(self.path)!r}: {exc.strerror or exc}") from None
+        self.rows += len(frame)
+
+    def _write_csv(self, frame: pd.DataFrame) -> None:
+        first = self._text is None
+        if self._text is None:
+            if self.path.suffix.lower() == ".gz":
+                self._text = gzip.open(self.partial, "wt", encoding="utf-8", newline="")  # noqa: SIM115
+            else:
+                self._text = open(self.partial, "w", encoding="utf-8", newline="")  # noqa: SIM115
+        frame.to_csv(self._text, index=False, header=first)
+
+    def _write_parquet(self, frame: pd.DataFrame) -> None:
+        try:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+        except ImportError as exc:
+            raise ConfigError(
+                f"writing Parquet needs pyarrow ({exc}); install gradgps[io]"
+            ) from None
+        if self._parquet is None:
+            table = pa.Table.from_pandas(frame, preserve_index=False)
+            self._parquet = pq.ParquetWriter(self.partial, table.schema)
+        else:
+            try:
+                table = pa.Table.from_pandas(
+                    frame, schema=self._parquet.schema, preserve_index=False
+                )
+            except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
+                raise ConfigError(
+                    f"cannot write {str(self.path)!r}: rows {self.rows + 1}.. do not fit the "
+                    f"column types of the first chunk ({exc})",
+                ) from None
+        self._parquet.write_table(table)
+
+    def _close(self) -> None:
+        if self._columns is None:
+            # Nothing written: still leave a (header-less, empty) file behind.
+            self.partial.touch()
+        if self._text is not None:
+            self._text.close()
+            self._text = None
+        if self._parquet is not None:
+            self._parquet.close()
+            self._parquet = None
+
+
+def iter_csv_tables(
+    path: str | Path, chunksize: int, columns: ColumnMap | None = None
+) -> CsvChunks:
+    """Read a big CSV as a stream of Tables of at most ``chunksize`` rows each.
+
+    Memory stays bounded by the chunk size. Each chunk's ``row_offset`` and
+    ``first_line`` say where it sits in the file, so value errors found in a
+    later chunk name the right row and line. The structure of the whole file
+    is checked here, before any chunk is handed out (one streaming pass), so
+    a ragged row near the end fails at once, not after hours of work; that
+    pass also counts the rows (:attr:`CsvChunks.n_rows`, for progress bars).
+    """
+    if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
+        raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")
+    path = Path(path)
+    layout = _scan_csv(path)
+    return CsvChunks(
+        n_rows=layout.n_rows,
+        header=layout.header,
+        chunks=_csv_chunks(path, layout, chunksize, columns or ColumnMap()),
+    )
+
+
+@dataclass
+class CsvChunks(Iterator[Table]):
+    """The chunks of a CSV (an iterator of Tables) plus what the structure pass learned.
+
+    ``n_rows``: data rows in the file; ``header``: the column names as written.
+    """
+
+    n_rows: int
+    header: tuple[str, ...]
+    chunks: Iterator[Table]
+
+    def __next__(self) -> Table:
+        return next(self.chunks)
+
+
+def _csv_chunks(
+    path: Path, layout: _CsvLayout, chunksize: int, columns: ColumnMap
+) -> Iterator[Table]:
+    source = str(path)
+    offset = 0
+    with _pandas_errors(source):
+        reader = pd.read_csv(
+            path,
+            sep=layout.delimiter,
+            encoding="utf-8",
+            chunksize=chunksize,
+            # Type each chunk as a whole: no mixed-type columns, no DtypeWarning.
+            low_memory=False,
+            dtype=_label_dtypes(layout, columns, source),
+        )
+        with reader:
+            for chunk in reader:
+                first_line = layout.first_line + offset if layout.lines_regular else None
+                yield Table(
+                    frame=chunk,
+                    source=source,
+                    columns=columns,
+                    first_line=first_line,
+                    row_offset=offset,
+                )
+                offset += len(chunk)
+
+
+def _override(base: ColumnMap, given: ColumnMap) -> ColumnMap:
+    chosen = base.as_dict()
+    chosen.update({k: v for k, v in given.as_dict().items() if v is not None})
+    return ColumnMap(**chosen)
+
+
+def _extension_format(path: Path) -> str | None:
+    """The format named by the extension (ignoring a final ``.gz``), or None."""
+    suffixes = [s.lower() for s in path.suffixes]
+    if suffixes and suffixes[-1] == ".gz":
+        suffixes = suffixes[:-1]
+    return _EXTENSIONS.get(suffixes[-1]) if suffixes else None
+
+
+@dataclass(frozen=True)
+class _CsvLayout:
+    """What the structure pass learned: enough to parse and to map rows to lines."""
+
+    delimiter: str
+    header: tuple[str, ...]
+    first_line: int  # file line of data row 1 when lines are regular
+    n_rows: int
+    lines_regular: bool  # data row k sits on line first_line + k - 1 (no blank or multi-line rows)
+
+
+def _is_blank(record: list[str]) -> bool:
+    # pandas skips empty and whitespace-only lines; so must the row count.
+    return not record or (len(record) == 1 and not record[0].strip())
+
+
+def _scan_csv(path: Path) -> _CsvLayout:
+    """Check the structure of a CSV in one streaming pass (see the module docstring)."""
+    source = str(path)
+    with open_bytes(path) as raw:
+        lines = text_lines(raw, source)
+        header_line = 0
+        header_text = ""
+        for text in lines:
+            header_line += 1
+            if text.strip():
+                header_text = text
+                break
+        if not header_text:
+            raise InputError(
+                "empty file: no header line and no data",
+                source=source,
+                hint="a CSV needs a header line naming the columns, then one row per fix",
+            )
+        delimiter = max(_DELIMITERS, key=header_text.count)
+        if header_text.count(delimiter) == 0:
+            delimiter = ","
+        reader = csv.reader(itertools.chain([header_text], lines), delimiter=delimiter, strict=True)
+        # reader.line_num counts lines from the header; file line = line_num + base.
+        base = header_line - 1
+        prev_end = header_line
+        n_rows = 0
+        regular = True
+        try:
+            header = next(reader)
+            _check_header(header, source, header_line)
+            for record in reader:
+                end = reader.line_num + base
+                start = prev_end + 1
+                prev_end = end
+                if _is_blank(record):
+                    continue
+                n_rows += 1
+                if end != header_line + n_rows:
+                    regular = False
+                if len(record) != len(header):
+                    raise InputError(
+                        f"{len(record)} fields where the header has {len(header)}",
+                        source=source,
+                        row=n_rows,
+                        line=start,
+                        hint="a truncated line, a stray delimiter or an unquoted text field; fix that line",
+                    )
+        except csv.Error as exc:
+            raise InputError(
+                f"malformed CSV record starting here: {exc}",
+                source=source,
+                line=prev_end + 1,
+                hint="check the quoting on that line (a quote must close its field)",
+            ) from None
+    return _CsvLayout(
+        delimiter=delimiter,
+        header=tuple(header),
+        first_line=header_line + 1,
+        n_rows=n_rows,
+        lines_regular=regular,
+    )
+
+
+def _check_header(header: list[str], source: str, line: int) -> None:
+    def is_number(text: str) -> bool:
+        try:
+            float(text)
+        except ValueError:
+            return False
+        return True
+
+    if header and all(is_number(name) for name in header):
+        raise InputError(
+            "the first line holds numbers, not column names: the file has no header",
+            source=source,
+            line=line,
+            hint="add a header line naming the columns, e.g. 't,lat,lon'",
+        )
+
+
+@contextmanager
+def _pandas_errors(source: str) -> Iterator[None]:
+    """Turn what pandas may still raise after the structure pass into InputError."""
+    try:
+        yield
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot parse as CSV: {exc}", source=source) from None
+    except READ_ERRORS as exc:
+        raise InputError(f"cannot read: {exc}", source=source) from None
+
+
+def _label_dtypes(layout: _CsvLayout, columns: ColumnMap | None, source: str) -> dict[str, str]:
+    """Read the track-id column as text: ``007`` is a label, not the number 7.
+
+    Only when the column map can already be resolved from the header; when it
+    cannot, :func:`gradgps.to_fixes` reports why later.
+    """
+    try:
+        track = resolve_columns(layout.header, columns, source=source).track
+    except InputError:
+        return {}
+    return {track: "string"} if track is not None else {}
+
+
+def _read_csv(path: Path, columns: ColumnMap | None) -> Table:
+    source = str(path)
+    layout = _scan_csv(path)
+    with _pandas_errors(source):
+        frame = pd.read_csv(
+            path,
+            sep=layout.delimiter,
+            encoding="utf-8",
+            low_memory=False,
+            dtype=_label_dtypes(layout, columns, source),
+        )
+    regular = layout.lines_regular and len(frame) == layout.n_rows
+    return Table(frame=frame, source=source, first_line=layout.first_line if regular else None)
+
+
+def _read_parquet(path: Path) -> Table:
+    source = str(path)
+    try:
+        frame = pd.read_parquet(path)
+    except ImportError as exc:
+        raise ConfigError(f"reading Parquet needs pyarrow ({exc}); install gradgps[io]") from None
+    except (ValueError, OSError, TypeError) as exc:
+        # pyarrow's ArrowInvalid is a ValueError: not Parquet, truncated, damaged.
+        raise InputError(
+            f"not a readable Parquet file: {exc}",
+            source=source,
+            hint="check the file, or pass the right format",
+        ) from None
+    if not isinstance(frame.index, pd.RangeIndex):
+        # A stored index is data (often the time); make it a column like the rest.
+        frame = frame.reset_index()
+    return Table(frame=frame.reset_index(drop=True), source=source)

@@ -1,0 +1,1 @@
+"""Running detectors over files and streams: chunked CSV, follow mode, Dask and Redis fleets, reports."""

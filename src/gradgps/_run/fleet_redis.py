@@ -1,0 +1,515 @@
+"""Live fleet detection on Redis Streams: a consumer-group worker with exactly-once effect.
+
+Vehicles push fixes to one input stream (fields ``vehicle_id``, ``t``,
+``lat``, ``lon``, optional ``speed``, ``heading`` and other numeric
+channels). Any number of :class:`RedisStreamWorker` processes share one
+consumer group on it; for every input message exactly one result message
+lands on the output stream (``source_id`` = the input message id), in each
+vehicle's order, even when workers are killed (SIGKILL) and restarted or
+replaced. docs/fleet.md has the full argument; in short:
+
+**Exactly-once effect.** A worker handles a page of its pending messages in
+one ``WATCH``/``MULTI``/``EXEC`` transaction: it ``WATCH``-es the state keys
+of the page's vehicles, reads them (each holds the detector state as JSON
+and the id of the vehicle's last processed message), runs the detector, and
+in one ``MULTI`` appends the results (``XADD``), stores the new states with
+their last ids (``SET``) and acknowledges the inputs (``XACK``). A crash
+before ``EXEC`` leaves everything as it was (the messages stay pending and
+are redone); after ``EXEC`` all three happened. A message whose id is not
+after its vehicle's stored last id was already processed by someone (a
+worker that was wrongly thought dead): it is acknowledged without output.
+If another worker changes one of the states in between, ``EXEC`` fails and
+the page is redone from the stored states.
+
+**Order per vehicle.** A consumer group hands messages to whichever
+consumer asks first, so two workers could hold messages of one vehicle.
+That is prevented by *ownership*: every vehicle has an owner consumer
+(hash ``owner``), and the invariant is that all pending messages of a
+vehicle sit in its owner's pending list. New messages are read by the Lua
+script :data:`ROUTE_SCRIPT`, atomically with routing them: a message whose
+vehicle is owned by another live consumer that still has pending messages
+is moved to that owner (``XCLAIM``); otherwise the reader becomes the
+vehicle's owner and keeps it (so vehicles move to idle workers, which
+spreads the load). Each worker processes its own pending list in id order,
+so each vehicle's messages are processed in stream order. Plain
+``XAUTOCLAIM`` is not used for recovery because it picks entries by idle
+time, regardless of vehicle, and would split a vehicle between consumers.
+
+**Failure.** A worker refreshes ``alive:<consumer>`` (TTL ``lease_ms``)
+while it runs. Restarted under the same consumer name it simply continues
+with its pending list. A consumer whose key expired with messages still
+pending is taken over by the next worker that runs the script: all its
+pending messages and the vehicles they belong to move to that worker in one
+atomic step, and it is deleted from the group. Consumer names must be
+unique among running workers.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from .._exceptions import ConfigError
+from .._result import PointResult
+
+if TYPE_CHECKING:
+    import redis
+
+    from .._grad.detector import Detector
+
+__all__ = ["OUTPUT_FIELDS", "ROUTE_SCRIPT", "RedisStreamWorker", "StepReport"]
+
+#: Fields of every output message, in order.
+OUTPUT_FIELDS = (
+    "source_id",
+    "vehicle_id",
+    "t",
+    "anomaly",
+    "score",
+    "bias_type",
+    "time_type",
+    "lat_clean",
+    "lon_clean",
+    "alert",
+    "invalid_reason",
+)
+
+_POSITION_FIELDS = ("vehicle_id", "t", "lat", "lon", "speed", "heading")
+
+#: Reads new messages for the calling consumer and routes them to their
+#: vehicles' owners, atomically (see the module docstring). Also takes over
+#: consumers that died with pending messages. Returns {kept, passed on,
+#: taken over, id of the stream's last entry or ''}.
+ROUTE_SCRIPT = """
+local stream, owners = KEYS[1], KEYS[2]
+local group, me, count, alive_prefix = ARGV[1], ARGV[2], tonumber(ARGV[3]), ARGV[4]
+
+-- Messages without a vehicle_id all belong to the pseudo-vehicle '' (so they
+-- too are deduplicated by its state's last id).
+local function vehicle_of(fields)
+  if not fields then return '' end
+  for i = 1, #fields, 2 do
+    if fields[i] == 'vehicle_id' then return fields[i + 1] end
+  end
+  return ''
+end
+
+local function is_alive(name)
+  return name == me or redis.call('EXISTS', alive_prefix .. name) == 1
+end
+
+local function has_pending(name)
+  return #redis.call('XPENDING', stream, group, '-', '+', 1, name) > 0
+end
+
+-- Move every pending message of a dead consumer, and the vehicles they
+-- belong to, to me; then delete the consumer.
+local function take_over(dead)
+  local moved = 0
+  while true do
+    local pending = redis.call('XPENDING', stream, group, '-', '+', 100, dead)
+    if #pending == 0 then break end
+    local ids = {}
+    for i, p in ipairs(pending) do ids[i] = p[1] end
+    local claimed = {}
+    for _, entry in ipairs(redis.call('XCLAIM', stream, group, me, 0, unpack(ids))) do
+      if entry and entry[2] then
+        claimed[entry[1]] = true
+        redis.call('HSET', owners, vehicle_of(entry[2]), me)
+      end
+    end
+    for _, id in ipairs(ids) do
+      -- deleted from the stream (trimmed): nothing left to process
+      if not claimed[id] then redis.call('XACK', stream, group, id) end
+    end
+    moved = moved + #ids
+  end
+  redis.call('XGROUP', 'DELCONSUMER', stream, group, dead)
+  return moved
+end
+
+local taken = 0
+for _, consumer in ipairs(redis.call('XINFO', 'CONSUMERS', stream, group)) do
+  local name, pending = nil, 0
+  for i = 1, #consumer, 2 do
+    if consumer[i] == 'name' then name = consumer[i + 1] end
+    if consumer[i] == 'pending' then pending = tonumber(consumer[i + 1]) end
+  end
+  if name and pending > 0 and not is_alive(name) then taken = taken + take_over(name) end
+end
+
+local kept, passed = 0, 0
+local reply = redis.call('XREADGROUP', 'GROUP', group, me, 'COUNT', count, 'STREAMS', stream, '>')
+local entries = {}
+if reply and type(reply[1]) == 'table' then
+  entries = reply[1][2]  -- Redis: {{stream, entries}}
+elseif reply and reply[2] then
+  entries = reply[2]  -- fakeredis flattens a one-stream reply to {stream, entries}
+end
+do
+  for _, entry in ipairs(entries) do
+    local vehicle = vehicle_of(entry[2])
+    local owner = redis.call('HGET', owners, vehicle)
+    if owner and owner ~= me and is_alive(owner) and has_pending(owner) then
+      redis.call('XCLAIM', stream, group, owner, 0, entry[1], 'JUSTID')
+      passed = passed + 1
+    else
+      if owner and owner ~= me and not is_alive(owner) then taken = taken + take_over(owner) end
+      redis.call('HSET', owners, vehicle, me)
+      kept = kept + 1
+    end
+  end
+end
+local last = redis.call('XREVRANGE', stream, '+', '-', 'COUNT', 1)
+return {kept, passed, taken, last[1] and last[1][1] or ''}
+"""
+
+# A page whose states keep changing under it is redone at most this often
+# (each conflict means another worker made progress on those vehicles).
+_MAX_CONFLICTS = 100
+
+
+@dataclass(frozen=True)
+class StepReport:
+    """What one :meth:`RedisStreamWorker.step` did."""
+
+    routed_here: int
+    routed_away: int
+    taken_over: int
+    processed: int
+    skipped: int
+    last_entry_id: str
+
+
+@dataclass
+class _VehicleTrack:
+    last_id: str
+    detector: Detector
+
+
+@dataclass(frozen=True)
+class _Message:
+    id: str
+    vehicle: str  # '' when the message has none
+    fields: Mapping[str, str]
+
+
+def _id_key(message_id: str) -> tuple[int, int]:
+    ms, _, seq = message_id.partition("-")
+    return int(ms), int(seq or 0)
+
+
+def _number(text: str | None) -> float:
+    if text is None:
+        return math.nan
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
+
+
+def _text(value: float) -> str:
+    return repr(float(value))
+
+
+def _output(message: _Message, result: PointResult) -> dict[str, str]:
+    return {
+        "source_id": message.id,
+        "vehicle_id": message.vehicle,
+        "t": message.fields.get("t", ""),
+        "anomaly": str(int(result.anomaly)),
+        "score": _text(result.score),
+        "bias_type": result.bias_type or "",
+        "time_type": result.time_type or "",
+        "lat_clean": _text(result.lat_clean),
+        "lon_clean": _text(result.lon_clean),
+        "alert": str(int(result.alert)),
+        "invalid_reason": result.invalid_reason,
+    }
+
+
+class RedisStreamWorker:
+    """One consumer of a Redis Streams consumer group running GRAD per vehicle.
+
+    ``client``: a ``redis.Redis`` made with ``decode_responses=True``.
+    ``consumer`` must be unique among running workers (restart a killed one
+    under the same name to continue its work at once). ``batch_size``:
+    messages read and committed per transaction. ``lease_ms``: how long
+    after its last sign of life a worker is taken for dead and its pending
+    messages are taken over. ``cache_size``: vehicles whose detectors stay
+    in memory (others are restored from their Redis state when needed).
+    Redis keys used: ``<key_prefix>owner``, ``<key_prefix>state:<vehicle>``,
+    ``<key_prefix>alive:<consumer>``; the default prefix is
+    ``gradgps:<input_stream>:<group>:``.
+    """
+
+    def __init__(
+        self,
+        client: redis.Redis,
+        input_stream: str,
+        output_stream: str,
+        group: str,
+        consumer: str,
+        *,
+        model: str | os.PathLike[str] | None = None,
+        threshold: float | None = None,
+        batch_size: int = 100,
+        lease_ms: int = 10_000,
+        cache_size: int = 10_000,
+        key_prefix: str | None = None,
+    ) -> None:
+        self.client = client
+        self.input_stream = input_stream
+        self.output_stream = output_stream
+        self.group = group
+        self.consumer = consumer
+        self.model = model
+        self.threshold = threshold
+        self.batch_size = batch_size
+        self.lease_ms = lease_ms
+        self.cache_size = cache_size
+        self.key_prefix = f"gradgps:{input_stream}:{group}:" if key_prefix is None else key_prefix
+        self._check()
+        self._tracks: OrderedDict[str, _VehicleTrack] = OrderedDict()
+        self._route = client.register_script(ROUTE_SCRIPT)
+
+    def _check(self) -> None:
+        kwargs = self.client.connection_pool.connection_kwargs
+        if not kwargs.get("decode_responses"):
+            raise ConfigError("the Redis client must be made with decode_responses=True")
+        for name in ("input_stream", "output_stream", "group", "consumer"):
+            if not getattr(self, name):
+                raise ConfigError(f"{name} must not be empty")
+        if self.input_stream == self.output_stream:
+            raise ConfigError("input and output streams must differ")
+        if self.batch_size < 1 or self.lease_ms < 1 or self.cache_size < 1:
+            raise ConfigError("batch_size, lease_ms and cache_size must be >= 1")
+
+    # -- keys ----------------------------------------------------------------
+
+    def _state_key(self, vehicle: str) -> str:
+        return f"{self.key_prefix}state:{vehicle}"
+
+    def _alive_key(self, consumer: str) -> str:
+        return f"{self.key_prefix}alive:{consumer}"
+
+    # -- the loop -------------------------------------------------------------
+
+    def ensure_group(self) -> None:
+        """Create the consumer group (and the input stream) when missing, reading from the start."""
+        import redis
+
+        try:
+            self.client.xgroup_create(self.input_stream, self.group, id="0", mkstream=True)
+        except redis.ResponseError as exc:
+            if "BUSYGROUP" not in str(exc):
+                raise
+
+    def heartbeat(self) -> None:
+        """Tell the other workers this consumer is alive for the next ``lease_ms``."""
+        self.client.set(self._alive_key(self.consumer), "1", px=self.lease_ms)
+
+    def route(self) -> tuple[int, int, int, str]:
+        """Read one batch of new messages and route them (:data:`ROUTE_SCRIPT`).
+
+        Returns (kept here, passed to their owners, taken over from dead
+        consumers, id of the stream's last entry or '').
+        """
+        kept, passed, taken, last = self._route(
+            keys=[self.input_stream, f"{self.key_prefix}owner"],
+            args=[self.group, self.consumer, self.batch_size, f"{self.key_prefix}alive:"],
+        )
+        return int(kept), int(passed), int(taken), str(last)
+
+    def process_pending(self) -> tuple[int, int]:
+        """Process this consumer's pending messages, page by page in id order, until none is left.
+
+        Returns (results written, messages skipped as already processed).
+        """
+        processed = skipped = 0
+        while True:
+            # decode_responses: [[stream, [(id, {field: value}), ...]]]; typed loosely by redis-py
+            reply: Any = self.client.xreadgroup(
+                self.group, self.consumer, {self.input_stream: "0"}, count=self.batch_size
+            )
+            entries = reply[0][1] if reply else []
+            if not entries:
+                return processed, skipped
+            done, dropped = self._commit([self._message(i, f) for i, f in entries])
+            processed += done
+            skipped += dropped
+            self.heartbeat()
+
+    def step(self) -> StepReport:
+        """Heartbeat, route one batch of new messages, then process the whole pending list."""
+        self.heartbeat()
+        kept, passed, taken, last = self.route()
+        processed, skipped = self.process_pending()
+        return StepReport(
+            routed_here=kept,
+            routed_away=passed,
+            taken_over=taken,
+            processed=processed,
+            skipped=skipped,
+            last_entry_id=last,
+        )
+
+    def run(
+        self,
+        should_stop: Callable[[], bool],
+        *,
+        block_ms: int = 1000,
+        exit_when_idle_s: float | None = None,
+        on_step: Callable[[StepReport], None] | None = None,
+    ) -> int:
+        """Run steps until ``should_stop()``; returns the number of messages processed.
+
+        When there is nothing to do it waits up to ``block_ms`` for a new
+        input message (a blocking read that consumes nothing).
+        ``exit_when_idle_s`` stops the loop after that long without work
+        (draining a backlog). On a clean stop the alive key is deleted so
+        this consumer's vehicles move to other workers at once.
+        """
+        self.ensure_group()
+        total = 0
+        idle_since = time.monotonic()
+        try:
+            while not should_stop():
+                report = self.step()
+                total += report.processed
+                if on_step is not None:
+                    on_step(report)
+                if (
+                    report.processed
+                    or report.routed_here
+                    or report.routed_away
+                    or report.taken_over
+                ):
+                    idle_since = time.monotonic()
+                    continue
+                if (
+                    exit_when_idle_s is not None
+                    and time.monotonic() - idle_since >= exit_when_idle_s
+                ):
+                    break
+                self.client.xread(
+                    {self.input_stream: report.last_entry_id or "0-0"}, count=1, block=block_ms
+                )
+        finally:
+            self.client.delete(self._alive_key(self.consumer))
+        return total
+
+    # -- one page --------------------------------------------------------------
+
+    @staticmethod
+    def _message(message_id: str, fields: Mapping[str, str] | None) -> _Message:
+        fields = fields or {}  # an entry deleted from the stream while pending has no fields
+        return _Message(message_id, fields.get("vehicle_id", ""), fields)
+
+    def _new_detector(self) -> Detector:
+        from .._grad.detector import Detector
+
+        return Detector(self.model, threshold=self.threshold)
+
+    def _track(self, vehicle: str, stored: str | None) -> _VehicleTrack:
+        """The vehicle's detector as of its stored state (the cached one when that is current)."""
+        saved = None if stored is None else json.loads(stored)
+        last_id = "0-0" if saved is None else str(saved["last_id"])
+        cached = self._tracks.get(vehicle)
+        if cached is not None and cached.last_id == last_id:
+            self._tracks.move_to_end(vehicle)
+            return cached
+        detector = self._new_detector()
+        if saved is not None:
+            detector.set_state(saved["detector"])
+        return _VehicleTrack(last_id, detector)
+
+    def _commit(self, messages: list[_Message]) -> tuple[int, int]:
+        """Process one page of pending messages in one transaction; returns (processed, skipped)."""
+        import redis
+
+        vehicles = sorted({m.vehicle for m in messages})
+        keys = [self._state_key(v) for v in vehicles]
+        for _ in range(_MAX_CONFLICTS):
+            with self.client.pipeline(transaction=True) as pipe:
+                try:
+                    if keys:
+                        pipe.watch(*keys)  # type: ignore[no-untyped-call]
+                    stored: list[Any] = pipe.mget(keys) if keys else []
+                    tracks = {v: self._track(v, s) for v, s in zip(vehicles, stored, strict=True)}
+                    outputs, changed = self._run_detectors(messages, tracks)
+                    pipe.multi()
+                    for fields in outputs:
+                        pipe.xadd(self.output_stream, fields)  # type: ignore[arg-type]
+                    for vehicle in changed:
+                        track = tracks[vehicle]
+                        pipe.set(
+                            self._state_key(vehicle),
+                            json.dumps(
+                                {"last_id": track.last_id, "detector": track.detector.get_state()}
+                            ),
+                        )
+                    pipe.xack(self.input_stream, self.group, *[m.id for m in messages])
+                    pipe.execute()
+                except redis.WatchError:
+                    # Someone else moved these vehicles on: our in-memory detectors may have
+                    # run ahead of the stored states, so forget them and redo the page.
+                    for vehicle in vehicles:
+                        self._tracks.pop(vehicle, None)
+                    continue
+            for vehicle, track in tracks.items():
+                self._tracks[vehicle] = track
+                self._tracks.move_to_end(vehicle)
+            while len(self._tracks) > self.cache_size:
+                self._tracks.popitem(last=False)
+            return len(outputs), len(messages) - len(outputs)
+        raise RuntimeError(
+            f"{len(messages)} messages starting at {messages[0].id}: their vehicles' "
+            f"states changed under {_MAX_CONFLICTS} transactions in a row"
+        )
+
+    def _run_detectors(
+        self,
+        messages: list[_Message],
+        tracks: Mapping[str, _VehicleTrack],
+    ) -> tuple[list[dict[str, str]], set[str]]:
+        outputs: list[dict[str, str]] = []
+        changed: set[str] = set()
+        for message in messages:
+            track = tracks[message.vehicle]
+            if _id_key(message.id) <= _id_key(track.last_id):
+                continue  # already in the output stream: processed before a takeover
+            f = message.fields
+            if not f:
+                result = PointResult.invalid(
+                    "message deleted from the stream before it was processed"
+                )
+            elif not message.vehicle:
+                result = PointResult.invalid("message has no vehicle_id")
+            else:
+                channels = {k: _number(v) for k, v in f.items() if k not in _POSITION_FIELDS}
+                result = track.detector.update(
+                    _number(f.get("t")),
+                    _number(f.get("lat")),
+                    _number(f.get("lon")),
+                    _number(f.get("speed")),
+                    _number(f.get("heading")),
+                    **channels,
+                )
+            outputs.append(_output(message, result))
+            track.last_id = message.id
+            changed.add(message.vehicle)
+        return outputs, changed
+
+
+def parse_output(fields: Mapping[str, str]) -> dict[str, Any]:
+    """An output message's fields as Python values (numbers as numbers), for consumers and tests."""
+    ints = {"anomaly", "alert"}
+    floats = {"score", "lat_clean", "lon_clean", "t"}
+    return {k: int(v) if k in ints else _number(v) if k in floats else v for k, v in fields.items()}

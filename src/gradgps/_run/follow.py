@@ -1,0 +1,291 @@
+"""Live follow mode: fixes arrive as text lines, a verdict goes out for each line at once.
+
+``gradgps detect --follow -`` reads a receiver's output (``cat /dev/ttyACM0``,
+``tail -f drive.csv``, ``gpspipe -r``) from standard input and writes one CSV
+result line per input line, flushed immediately, so another program can act on
+a fix while the car is still at it. The batch reader cannot do this: it reads
+the whole file, sorts each track by time and only then detects.
+
+Input, recognised from the first non-blank line (or named with ``--format``):
+
+* **CSV**: a header line first (column roles auto-detected or named with the
+  ``--*-col`` options, as in batch mode), then one fix per line. Output: the
+  input fields (padded or cut to the header's width) plus the result columns.
+  One :class:`~gradgps.Detector` per track id (the track column's value).
+* **NMEA 0183**: GGA and RMC sentences (checksums checked, as in
+  :mod:`gradgps._io.nmea`). Output: ``line``, ``sentence``, ``time``, ``lat``,
+  ``lon``, ``speed``, ``heading``, ``epoch_line`` plus the result columns.
+  A receiver sends GGA and RMC for the same instant: the first sentence of an
+  instant is scored, the second gets the same verdict repeated, with
+  ``epoch_line`` naming the line that was scored (a stream cannot wait for the
+  second sentence without delaying every verdict). ``time`` is seconds since
+  midnight UTC of the first sentence, continuing past 86400 at midnight,
+  because a GGA carries no date and only time differences matter here.
+
+Never a crash on bad input: a line that cannot be parsed (wrong field count,
+a number that is not one, a damaged sentence) gets its output line with
+``anomaly=1`` and ``invalid_reason`` saying what was wrong, exactly as the
+Detector reports an unusable fix; NMEA sentences that are not fixes (GSV,
+GSA, text) get a line with empty result columns and ``invalid_reason`` ``not a
+fix sentence``. Blank lines are skipped (nothing to answer). A fix whose time
+is not after the previous fix of its track is invalid, as in any stream.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import math
+import os
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+from .._exceptions import ConfigError
+from .._grad.detector import Detector
+from .._io.nmea import _Malformed, _parse_gga, _parse_rmc, _sentence
+from .._result import PointResult
+from .._tracks.track import ColumnMap, resolve_columns
+
+__all__ = ["NMEA_FIELDS", "RESULT_FIELDS", "FollowCounts", "follow_lines", "parse_time"]
+
+RESULT_FIELDS = (
+    "anomaly",
+    "score",
+    "bias_type",
+    "time_type",
+    "lat_clean",
+    "lon_clean",
+    "alert",
+    "invalid_reason",
+)
+NMEA_FIELDS = ("line", "sentence", "time", "lat", "lon", "speed", "heading", "epoch_line")
+_DAY = 86400.0
+
+
+@dataclass
+class FollowCounts:
+    """What a follow session saw: result lines written, fixes scored, anomalies, unusable lines."""
+
+    lines: int = 0
+    fixes: int = 0
+    anomalies: int = 0
+    invalid: int = 0
+
+
+def _text(value: float | int | str | None) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return "" if math.isnan(value) else f"{value:.10g}"
+    return str(value)
+
+
+def _result_fields(result: PointResult | None, reason: str = "") -> list[str]:
+    if result is None:  # not a fix at all: nothing to say but why
+        return [""] * (len(RESULT_FIELDS) - 1) + [reason]
+    return [
+        _text(result.anomaly),
+        _text(result.score),
+        _text(result.bias_type),
+        _text(result.time_type),
+        _text(result.lat_clean),
+        _text(result.lon_clean),
+        _text(result.alert),
+        result.invalid_reason,
+    ]
+
+
+def parse_time(text: str) -> float:
+    """Seconds from a number (unix s, or ms/us epochs by magnitude) or an ISO-8601 time (UTC if naive).
+
+    Per value, unlike the batch reader's per-column rule: a stream cannot look
+    ahead. Raises ValueError when it is neither.
+    """
+    try:
+        value = float(text)
+    except ValueError:
+        stamp = dt.datetime.fromisoformat(text.strip())
+        if stamp.tzinfo is None:
+            stamp = stamp.replace(tzinfo=dt.UTC)
+        return stamp.timestamp()
+    if abs(value) > 1e14:
+        return value / 1e6
+    if abs(value) > 1e11:
+        return value / 1e3
+    return value
+
+
+class _CsvFollower:
+    """One CSV stream: the header fixes the columns, then one fix per line."""
+
+    def __init__(
+        self, header: list[str], columns: ColumnMap | None, new_detector: Callable[[], Detector]
+    ) -> None:
+        self.header = header
+        roles = resolve_columns(header, columns, source="<stdin>")
+        self.index = {
+            role: (None if name is None else header.index(name))
+            for role, name in roles.as_dict().items()
+        }
+        self.new_detector = new_detector
+        self.detectors: dict[str, Detector] = {}
+
+    def out_header(self) -> list[str]:
+        return [*self.header, *RESULT_FIELDS]
+
+    def _value(self, fields: list[str], role: str) -> str | None:
+        k = self.index[role]
+        return None if k is None else fields[k].strip()
+
+    def _optional(self, fields: list[str], role: str) -> float | None:
+        text = self._value(fields, role)
+        if not text:
+            return None
+        return float(text)  # ValueError reported by the caller, naming the column
+
+    def score(self, fields: list[str]) -> PointResult:
+        width = len(self.header)
+        if len(fields) != width:
+            return PointResult.invalid(
+                f"expected {width} fields as in the header, got {len(fields)}"
+            )
+        role = "time"
+        try:
+            t = parse_time(self._value(fields, "time") or "nan")
+            role = "lat"
+            lat = float(self._value(fields, "lat") or "nan")
+            role = "lon"
+            lon = float(self._value(fields, "lon") or "nan")
+            role = "speed"
+            speed = self._optional(fields, "speed")
+            role = "heading"
+            heading = self._optional(fields, "heading")
+        except ValueError:
+            k = self.index[role] or 0
+            what = "a time (seconds or ISO-8601)" if role == "time" else "a number"
+            return PointResult.invalid(
+                f"column {self.header[k]!r} ({role}) is not {what}: {fields[k]!r}"
+            )
+        track = self._value(fields, "track") or ""
+        detector = self.detectors.get(track)
+        if detector is None:
+            detector = self.detectors[track] = self.new_detector()
+        return detector.update(t, lat, lon, speed, heading)
+
+    def line(self, text: str) -> tuple[list[str], PointResult | None]:
+        fields = next(csv.reader([text]))
+        result = self.score(fields)
+        shown = (fields + [""] * len(self.header))[: len(self.header)]
+        return shown + _result_fields(result), result
+
+
+@dataclass
+class _NmeaFollower:
+    """One NMEA stream: each GGA/RMC sentence scored as it arrives (see the module docstring)."""
+
+    detector: Detector
+    line_number: int = 0
+    day_offset: float = 0.0
+    last_tod: float = math.nan
+    last_epoch: tuple[float, int, PointResult] | None = None  # (tod, line, verdict)
+
+    def out_header(self) -> list[str]:
+        return [*NMEA_FIELDS, *RESULT_FIELDS]
+
+    def line(self, text: str) -> tuple[list[str], PointResult | None]:
+        self.line_number += 1
+        n = self.line_number
+        blank = ["", "", "", "", "", ""]  # time, lat, lon, speed, heading, epoch_line
+        pieces = text.split("$")[1:]
+        if not pieces:
+            return [str(n), "", *blank, *_result_fields(None, "not a fix sentence")], None
+        body = pieces[-1]  # a cut-off sentence followed by a whole one: the whole one counts
+        try:
+            parsed = _sentence(body)
+            if parsed is None:
+                kind = body.split(",", 1)[0][2:5]
+                return [str(n), kind, *blank, *_result_fields(None, "not a fix sentence")], None
+            kind, values = parsed
+            epoch = (_parse_gga if kind == "GGA" else _parse_rmc)(values, n)
+        except _Malformed as exc:
+            result = PointResult.invalid(f"rejected sentence: {exc}")
+            return [str(n), "", *blank, *_result_fields(result)], result
+        tod = epoch.tod
+        lat = math.nan if epoch.no_fix else epoch.lat
+        lon = math.nan if epoch.no_fix else epoch.lon
+        scored: PointResult | None
+        if self.last_epoch is not None and tod == self.last_epoch[0]:
+            _, epoch_line, verdict = self.last_epoch
+            scored = None
+        else:
+            if (
+                not (math.isnan(tod) or math.isnan(self.last_tod))
+                and tod < self.last_tod - _DAY / 2
+            ):
+                self.day_offset += _DAY  # midnight
+            if not math.isnan(tod):
+                self.last_tod = tod
+            epoch_line = n
+            verdict = scored = self.detector.update(
+                tod + self.day_offset, lat, lon, epoch.speed, epoch.course
+            )
+            self.last_epoch = (tod, n, verdict)
+        shown = [_text(v) for v in (tod + self.day_offset, lat, lon, epoch.speed, epoch.course)]
+        return [str(n), kind, *shown, str(epoch_line), *_result_fields(verdict)], scored
+
+
+def _csv_text(fields: list[str]) -> str:
+    # csv.writer quotes only what needs it; one line, no trailing newline.
+    from io import StringIO
+
+    buffer = StringIO()
+    csv.writer(buffer, lineterminator="").writerow(fields)
+    return buffer.getvalue()
+
+
+def follow_lines(
+    lines: Iterable[str],
+    write: Callable[[str], None],
+    *,
+    model: str | os.PathLike[str] | None = None,
+    threshold: float | None = None,
+    columns: ColumnMap | None = None,
+    fmt: str | None = None,
+) -> FollowCounts:
+    """Score every line of ``lines`` as it comes; ``write`` gets the header, then one line per input line.
+
+    ``write`` is called with one CSV line (no newline) at a time and should
+    flush; ``fmt`` is ``"csv"``, ``"nmea"`` or ``None`` (from the first line).
+    Raises only for a CSV header without time/latitude/longitude columns, or
+    an unsupported ``fmt``.
+    """
+    if fmt is not None and fmt not in ("csv", "nmea"):
+        raise ConfigError(f"follow mode reads CSV or NMEA lines, not {fmt!r}")
+    counts = FollowCounts()
+    follower: _CsvFollower | _NmeaFollower | None = None
+    for raw in lines:
+        text = raw.rstrip("\r\n").lstrip("\ufeff")
+        if not text.strip():
+            continue
+        if follower is None:
+            kind = fmt or ("nmea" if text.lstrip().startswith(("$", "!")) else "csv")
+            if kind == "csv":
+                follower = _CsvFollower(
+                    next(csv.reader([text])), columns, lambda: Detector(model, threshold=threshold)
+                )
+                write(_csv_text(follower.out_header()))
+                continue
+            follower = _NmeaFollower(Detector(model, threshold=threshold))
+            write(_csv_text(follower.out_header()))
+        fields, result = follower.line(text)
+        write(_csv_text(fields))
+        counts.lines += 1
+        if result is not None:
+            if result.invalid_reason:
+                counts.invalid += 1
+            else:
+                counts.fixes += 1
+                counts.anomalies += result.anomaly
+        elif fields[-1]:
+            counts.invalid += 1
+    return counts

@@ -1,0 +1,456 @@
+"""A detection run as one self-contained HTML file (and the same figures as PNGs).
+
+Why one file: a report is mailed, attached to a ticket or opened on a laptop
+in a car park; it must work offline and survive being moved. So the figures
+are drawn with matplotlib into PNGs embedded as base64 ``data:`` URIs, the
+styling is inline CSS, and nothing is fetched from the network (no CDN, no
+map tiles). PNG rather than SVG: a 10,000-point track is 10,000 SVG path
+nodes per line, a PNG costs the same whatever the number of points.
+
+What it shows:
+
+* **Summary**: points, usable fixes, anomalies by bias type and by time type,
+  alerts, throughput, the model; plus any extra rows the caller adds (the
+  demo adds its scores against the injected labels).
+* **Track**: all fixes in local metres (east/north of one tangent plane),
+  as received on the left with the anomalous fixes coloured by bias type and
+  marked by time type, and the recovered track (``lat_clean``/``lon_clean``)
+  on the right, on the same axes.
+* **Channels**: per segment (the ones with the most anomalies), east and north
+  over time as the distance from the REMA prediction, with the REMA bounds
+  (the band a value must stay in) and the fixes the detector flagged. Plotting
+  the raw coordinate instead would draw a ±5 m band on a kilometres-long ramp:
+  invisible. The bounds are those of the model's own feature pipeline
+  (:func:`gradgps._grad.core.core_step` with the model's parameters), so
+  they are what the network saw, not a re-tuned lookalike. Note that the
+  anomaly verdict is the network's, so a flagged fix can sit inside the band
+  and vice versa.
+* **Anomalies**: the first rows of the anomalous fixes, as a table.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from .._grad.core import N_RESULT, _new_state, core_step
+from .._grad.pipeline import PipelineParams, segment_period
+from .._grad.rema import N_OUT, O_LOWER, O_UPPER
+from .._tracks.geo import LocalFrame
+from .._tracks.preprocess import Prepared, preprocess
+
+__all__ = ["ChannelBounds", "ReportInputs", "figures", "rema_bounds", "write_plots", "write_report"]
+
+FloatArray = NDArray[np.float64]
+
+#: Colours of the bias types (anything else is grey) and markers of the time types.
+BIAS_COLOURS = {"noise": "#d62728", "jump": "#1f77b4", "drift": "#9467bd", "offset": "#ff7f0e"}
+TIME_MARKERS = {"transient": "o", "intermittent": "s", "permanent": "^", "none": "x"}
+#: At most this many segments get a channel figure (the ones with the most anomalies).
+MAX_CHANNEL_SEGMENTS = 3
+#: Lines are decimated to at most this many vertices (markers are never dropped).
+MAX_LINE_POINTS = 20_000
+#: Rows of the anomaly table.
+MAX_TABLE_ROWS = 100
+
+
+@dataclass(frozen=True)
+class ChannelBounds:
+    """REMA bounds of one segment: per point, east/north and their lower/upper bound (metres)."""
+
+    segment: int
+    track: str
+    t: FloatArray
+    east: FloatArray
+    north: FloatArray
+    east_lower: FloatArray
+    east_upper: FloatArray
+    north_lower: FloatArray
+    north_upper: FloatArray
+    flagged: NDArray[np.bool_]
+
+
+@dataclass
+class ReportInputs:
+    """Everything a report draws: the fixes, the detector's result, and what ran."""
+
+    fixes: pd.DataFrame
+    result: pd.DataFrame
+    params: PipelineParams
+    title: str = "gradgps detection report"
+    source: str = ""
+    model: str = ""
+    elapsed_s: float = math.nan
+    extra_summary: Mapping[str, str] = field(default_factory=dict)
+
+
+def rema_bounds(
+    prepared: Prepared,
+    params: PipelineParams,
+    point_flag: NDArray[np.bool_],
+    segments: Sequence[int],
+) -> list[ChannelBounds]:
+    """REMA bounds on east and north for the given segments, as the model's pipeline computes them.
+
+    Runs :func:`core_step` point by point from Python (a few microseconds a
+    point): the batch kernel does not return bounds, and a report covers a few
+    segments, not a fleet.
+    """
+    pts = prepared.points
+    nan = np.full(len(pts), np.nan)
+    speed = pts["speed"].to_numpy(np.float64) if "speed" in pts else nan
+    heading = pts["heading"].to_numpy(np.float64) if "heading" in pts else nan
+    t_all = pts["t"].to_numpy(np.float64)
+    east_all = pts["east"].to_numpy(np.float64)
+    north_all = pts["north"].to_numpy(np.float64)
+    wanted = set(segments)
+    out = []
+    for seg, sl in prepared.segment_slices():
+        if seg not in wanted:
+            continue
+        t = t_all[sl]
+        core = params.core(segment_period(t))
+        P = core.to_array()
+        S = _new_state(P)
+        row = np.zeros(N_RESULT + 2 * N_OUT + core.n_features())
+        n = t.size
+        bounds = np.empty((n, 4))
+        east, north, sp, hd = east_all[sl], north_all[sl], speed[sl], heading[sl]
+        for i in range(n):
+            core_step(P, S, east[i], north[i], sp[i], hd[i], row)
+            bounds[i, 0] = row[N_RESULT + O_LOWER]
+            bounds[i, 1] = row[N_RESULT + O_UPPER]
+            bounds[i, 2] = row[N_RESULT + N_OUT + O_LOWER]
+            bounds[i, 3] = row[N_RESULT + N_OUT + O_UPPER]
+        out.append(
+            ChannelBounds(
+                segment=seg,
+                track=str(pts["track"].iloc[sl.start]),
+                t=t,
+                east=east,
+                north=north,
+                east_lower=bounds[:, 0],
+                east_upper=bounds[:, 1],
+                north_lower=bounds[:, 2],
+                north_upper=bounds[:, 3],
+                flagged=point_flag[sl],
+            )
+        )
+    return out
+
+
+def _decimate(n: int, limit: int = MAX_LINE_POINTS) -> NDArray[np.int64]:
+    step = max(1, math.ceil(n / limit))
+    return np.arange(0, n, step, dtype=np.int64)
+
+
+def _track_figure(inputs: ReportInputs) -> Any:
+    import matplotlib.pyplot as plt
+
+    fixes, result = inputs.fixes, inputs.result
+    valid = (result["invalid_reason"].to_numpy() == "") & np.isfinite(fixes["lat"].to_numpy())
+    lat, lon = fixes["lat"].to_numpy(np.float64), fixes["lon"].to_numpy(np.float64)
+    first = int(np.flatnonzero(valid)[0])
+    frame = LocalFrame(float(lat[first]), float(lon[first]))
+    east, north = frame.to_local(np.where(valid, lat, lat[first]), np.where(valid, lon, lon[first]))
+    lat_c = result["lat_clean"].to_numpy(np.float64)
+    lon_c = result["lon_clean"].to_numpy(np.float64)
+    clean_ok = valid & np.isfinite(lat_c) & np.isfinite(lon_c)
+    east_c, north_c = frame.to_local(
+        np.where(clean_ok, lat_c, lat[first]), np.where(clean_ok, lon_c, lon[first])
+    )
+    tracks = fixes["track"].to_numpy(object)
+    anomaly = valid & (result["anomaly"].to_numpy() == 1)
+    bias = result["bias_type"].to_numpy(object)
+    time_type = result["time_type"].to_numpy(object)
+    # Height from the track's aspect ratio: equal axes in a fixed-size figure leave bands of white.
+    span_e = float(np.ptp(east[valid])) or 1.0
+    span_n = float(np.ptp(north[valid])) or 1.0
+    height = min(12.0, max(3.5, 6.2 * span_n / span_e + 1.4))
+    fig, axes = plt.subplots(
+        1, 2, figsize=(13, height), sharex=True, sharey=True, layout="constrained"
+    )
+    for ax, (e, nn, ok, name) in zip(
+        axes,
+        ((east, north, valid, "as received"), (east_c, north_c, clean_ok, "recovered")),
+        strict=True,
+    ):
+        for track in pd.unique(tracks[ok]):
+            idx = np.flatnonzero(ok & (tracks == track))
+            keep = idx[_decimate(idx.size, MAX_LINE_POINTS // max(1, len(pd.unique(tracks))))]
+            ax.plot(e[keep], nn[keep], color="#888888", lw=0.7, zorder=1)
+        ax.set_title(f"{name} ({int(ok.sum()):,} fixes)")
+        ax.set_xlabel("east (m)")
+        ax.set_aspect("equal", adjustable="box")
+        ax.grid(True, lw=0.3, alpha=0.5)
+    axes[0].set_ylabel("north (m)")
+    ax = axes[0]
+    for b in sorted(set(bias[anomaly])):
+        for tt in sorted(set(time_type[anomaly & (bias == b)])):
+            sel = anomaly & (bias == b) & (time_type == tt)
+            ax.scatter(
+                east[sel],
+                north[sel],
+                s=14,
+                c=BIAS_COLOURS.get(b, "#555555"),
+                marker=TIME_MARKERS.get(tt, "D"),
+                linewidths=0.8,
+                zorder=3,
+                label=f"{b} / {tt} ({int(sel.sum()):,})",
+            )
+    if anomaly.any():
+        ax.legend(title="bias / time type", fontsize=8, loc="best", framealpha=0.85)
+    repaired = anomaly & clean_ok
+    axes[1].scatter(
+        east_c[repaired],
+        north_c[repaired],
+        s=6,
+        c="#2ca02c",
+        zorder=3,
+        label=f"repaired fixes ({int(repaired.sum()):,})",
+    )
+    if repaired.any():
+        axes[1].legend(fontsize=8, loc="best", framealpha=0.85)
+    fig.suptitle(f"track in local metres around {frame.lat0:.5f}, {frame.lon0:.5f}")
+    return fig
+
+
+def _channel_figure(bounds: ChannelBounds) -> Any:
+    import matplotlib.pyplot as plt
+
+    t = bounds.t - bounds.t[0]
+    fig, axes = plt.subplots(2, 1, figsize=(13, 5.6), sharex=True, layout="constrained")
+    keep = _decimate(t.size)
+    for ax, name, x, lo, hi in (
+        (axes[0], "east", bounds.east, bounds.east_lower, bounds.east_upper),
+        (axes[1], "north", bounds.north, bounds.north_lower, bounds.north_upper),
+    ):
+        centre = 0.5 * (lo + hi)
+        deviation = x - centre
+        half = 0.5 * (hi - lo)
+        ax.fill_between(
+            t[keep], -half[keep], half[keep], color="#1f77b4", alpha=0.25, lw=0, label="REMA bounds"
+        )
+        ax.plot(t[keep], deviation[keep], color="#333333", lw=0.7, label="observed")
+        f = bounds.flagged
+        ax.scatter(
+            t[f], deviation[f], s=10, c="#d62728", zorder=3, label=f"flagged ({int(f.sum()):,})"
+        )
+        ax.set_yscale("symlog", linthresh=10.0)
+        ax.set_ylabel(f"{name} − prediction (m)")
+        ax.grid(True, lw=0.3, alpha=0.5)
+    axes[0].legend(fontsize=8, loc="upper right", ncols=3)
+    axes[1].set_xlabel("seconds since segment start")
+    fig.suptitle(f"track {bounds.track}, segment {bounds.segment}: {t.size:,} points")
+    return fig
+
+
+def _point_flags(prepared: Prepared, result: pd.DataFrame) -> NDArray[np.bool_]:
+    """Per point: was any input row merged into it flagged (valid rows only)."""
+    flags = np.zeros(len(prepared.points), bool)
+    rows = np.flatnonzero((prepared.row_point >= 0) & (result["anomaly"].to_numpy() == 1))
+    flags[prepared.row_point[rows]] = True
+    return flags
+
+
+def figures(inputs: ReportInputs) -> list[tuple[str, str, Any]]:
+    """``(file stem, caption, matplotlib figure)`` for the track and the busiest segments."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # no display needed, and no GUI toolkit imported
+    prepared = preprocess(inputs.fixes, max_gap_s=inputs.params.max_gap_s, interpolate=False)
+    flags = _point_flags(prepared, inputs.result)
+    per_segment = pd.Series(flags).groupby(prepared.points["segment"].to_numpy()).sum()
+    sizes = prepared.points.groupby("segment").size()
+    ranked = sorted(per_segment.index, key=lambda s: (-int(per_segment[s]), -int(sizes[s]), s))
+    chosen = ranked[:MAX_CHANNEL_SEGMENTS]
+    out: list[tuple[str, str, Any]] = []
+    if len(prepared.points):
+        out.append(
+            (
+                "track",
+                "Track as received (anomalies coloured by bias type, marker by "
+                "time type) and recovered.",
+                _track_figure(inputs),
+            )
+        )
+    for bounds in rema_bounds(prepared, inputs.params, flags, chosen):
+        out.append(
+            (
+                f"channels_segment{bounds.segment}",
+                f"Track {bounds.track}, segment {bounds.segment}: distance from the REMA "
+                "prediction per channel, REMA bounds, flagged fixes (symmetric log scale).",
+                _channel_figure(bounds),
+            )
+        )
+    return out
+
+
+def _png(fig: Any, dpi: int = 100) -> bytes:
+    import matplotlib.pyplot as plt
+
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    plt.close(fig)
+    return buffer.getvalue()
+
+
+def write_plots(inputs: ReportInputs, folder: str | Path) -> list[Path]:
+    """The report's figures as PNG files in ``folder``; returns their paths."""
+    out_dir = Path(folder)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for stem, _, fig in figures(inputs):
+        path = out_dir / f"{stem}.png"
+        path.write_bytes(_png(fig, dpi=120))
+        paths.append(path)
+    return paths
+
+
+def summary_rows(inputs: ReportInputs) -> list[tuple[str, str]]:
+    """The summary table: what a reader asks first, as (label, value) text pairs."""
+    result = inputs.result
+    n = len(result)
+    invalid = result["invalid_reason"].to_numpy() != ""
+    anomaly = (result["anomaly"].to_numpy() == 1) & ~invalid
+    rows = [
+        ("input rows", f"{n:,}"),
+        ("tracks", f"{inputs.fixes['track'].nunique():,}"),
+        ("usable fixes", f"{int((~invalid).sum()):,}"),
+        ("invalid fixes", f"{int(invalid.sum()):,}"),
+        ("anomalies", f"{int(anomaly.sum()):,} ({100.0 * anomaly.sum() / max(1, n):.1f} %)"),
+    ]
+    for column, label in (("bias_type", "by bias type"), ("time_type", "by time type")):
+        counts = result.loc[anomaly, column].value_counts()
+        rows.append((label, ", ".join(f"{k}: {int(v):,}" for k, v in counts.items()) or "none"))
+    rows.append(("alerts (permanent faults)", f"{int(result['alert'].sum()):,}"))
+    if math.isfinite(inputs.elapsed_s) and inputs.elapsed_s > 0:
+        rows.append(
+            (
+                "throughput",
+                f"{n / inputs.elapsed_s:,.0f} fixes/s "
+                f"({1e6 * inputs.elapsed_s / max(1, n):.2f} µs per fix)",
+            )
+        )
+    if inputs.model:
+        rows.append(("model", inputs.model))
+    rows.append(("anomaly threshold", f"{inputs.params.threshold:g}"))
+    rows.extend(inputs.extra_summary.items())
+    return rows
+
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;max-width:1320px;
+color:#222;padding:0 1em}
+h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:1px solid #ddd;padding-bottom:.2em;margin-top:1.6em}
+table{border-collapse:collapse;font-size:.92em}td,th{padding:.25em .8em;border-bottom:1px solid #eee;
+text-align:left}th{background:#f6f6f6}figure{margin:1em 0}img{max-width:100%;height:auto}
+figcaption{color:#555;font-size:.9em}.muted{color:#777;font-size:.9em}
+"""
+
+
+def _table(header: Sequence[str] | None, rows: Sequence[Sequence[str]]) -> str:
+    head = (
+        ""
+        if header is None
+        else (
+            "<thead><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr></thead>"
+        )
+    )
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows
+    )
+    return f"<table>{head}<tbody>{body}</tbody></table>"
+
+
+def _anomaly_rows(inputs: ReportInputs) -> tuple[list[str], list[list[str]], int]:
+    result, fixes = inputs.result, inputs.fixes
+    sel = np.flatnonzero(
+        (result["anomaly"].to_numpy() == 1) & (result["invalid_reason"].to_numpy() == "")
+    )
+    rows = []
+    for i in sel[:MAX_TABLE_ROWS]:
+        rows.append(
+            [
+                str(i),
+                str(fixes["track"].iloc[i]),
+                f"{fixes['t'].iloc[i]:.1f}",
+                f"{fixes['lat'].iloc[i]:.6f}",
+                f"{fixes['lon'].iloc[i]:.6f}",
+                f"{result['score'].iloc[i]:.3f}",
+                str(result["bias_type"].iloc[i]),
+                str(result["time_type"].iloc[i]),
+                f"{result['lat_clean'].iloc[i]:.6f}",
+                f"{result['lon_clean'].iloc[i]:.6f}",
+            ]
+        )
+    header = [
+        "row",
+        "track",
+        "t (s)",
+        "lat",
+        "lon",
+        "score",
+        "bias type",
+        "time type",
+        "lat clean",
+        "lon clean",
+    ]
+    return header, rows, int(sel.size)
+
+
+def render_html(inputs: ReportInputs) -> str:
+    """The whole report as one HTML string (see the module docstring)."""
+    parts = [
+        f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+        f"<title>{html.escape(inputs.title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(inputs.title)}</h1>",
+    ]
+    if inputs.source:
+        parts.append(f"<p class='muted'>input: {html.escape(inputs.source)}</p>")
+    parts.append("<h2 id='summary'>Summary</h2>")
+    parts.append(_table(None, summary_rows(inputs)))
+    drawn = figures(inputs)
+    for k, (stem, caption, fig) in enumerate(drawn):
+        if k == 0:
+            parts.append("<h2 id='track'>Track</h2>")
+        if k == 1:
+            parts.append(
+                "<h2 id='channels'>Channels and REMA bounds</h2>"
+                f"<p class='muted'>The {len(drawn) - 1} segment(s) with the most "
+                "anomalies. The verdict is the network's; REMA bounds are one of its "
+                "inputs, so a flagged fix may lie inside the band.</p>"
+            )
+        data = base64.b64encode(_png(fig)).decode("ascii")
+        parts.append(
+            f"<figure><img alt='{html.escape(stem)}' src='data:image/png;base64,{data}'>"
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>"
+        )
+    header, rows, total = _anomaly_rows(inputs)
+    parts.append("<h2 id='anomalies'>Anomalies</h2>")
+    shown = f"the first {len(rows)} of {total:,}" if total > len(rows) else f"all {total:,}"
+    parts.append(f"<p class='muted'>{shown} anomalous fixes (row = input row, from 0).</p>")
+    parts.append(_table(header, rows))
+    parts.append(
+        "<p class='muted'>Made by gradgps; no network access needed to view this "
+        "file.</p></body></html>"
+    )
+    return "".join(parts)
+
+
+def write_report(inputs: ReportInputs, path: str | Path) -> Path:
+    """Write :func:`render_html` to ``path`` (folders created); returns the path."""
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(render_html(inputs), encoding="utf-8")
+    return out

@@ -1,0 +1,1 @@
+"""The track model: columns and canonical fixes, the local frame, preprocessing, summaries."""

@@ -1,0 +1,1 @@
+"""Training: the GRU, GRAD models, baselines, REMA tuning, ONNX export."""

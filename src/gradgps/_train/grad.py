@@ -1,0 +1,257 @@
+"""Training the GRAD detector end to end: clean drives -> injected faults -> features -> GRU -> model directory.
+
+The network only ever sees what the deployed pipeline computes: features come
+from :func:`gradgps._grad.pipeline.grad_features`, the very kernel the
+:class:`~gradgps.Detector` runs, over the same preprocessing (sorted, merged,
+split at long gaps, no interpolation). Labels come from the injection
+protocol ``grad`` (:func:`gradgps._data.inject.inject_grad`), one pass per
+injection seed, so several seeds give the network more faults to learn from
+without touching the validation data (its own seed, disjoint from training's).
+
+This module imports torch (through :mod:`gradgps._train.torch_gru`); inference never
+does.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .._data.inject import inject_grad
+from .._exceptions import ConfigError
+from .._grad.model_io import save_model
+from .._grad.pipeline import PipelineParams, grad_features, pipeline_feature_names
+from .._tracks.preprocess import preprocess
+from .._tracks.track import ColumnMap, to_fixes
+
+__all__ = ["GradTrainingSet", "labelled_sequences", "train_grad"]
+
+LabelledSequence = tuple[np.ndarray, np.ndarray, np.ndarray]
+GRAD_BIAS_CLASSES = ("none", "noise", "jump")
+
+
+def labelled_sequences(
+    labelled: pd.DataFrame,
+    params: PipelineParams,
+    columns: ColumnMap | None = None,
+    bias_classes: Sequence[str] = GRAD_BIAS_CLASSES,
+) -> list[LabelledSequence]:
+    """Per segment: (features (n, F) float32, anomaly (n,) int64, bias class (n,) int64).
+
+    ``labelled`` is a table with ``label_anomaly`` and ``label_bias`` columns
+    (an injection protocol's output). A point that merges several rows takes
+    the strongest label among them.
+    """
+    for col in ("label_anomaly", "label_bias"):
+        if col not in labelled.columns:
+            raise ConfigError(
+                f"labelled table lacks {col!r}; produce it with an injection protocol"
+            )
+    fixes = to_fixes(labelled, columns)
+    prepared = preprocess(fixes, max_gap_s=params.max_gap_s, interpolate=False)
+    n_pts = len(prepared.points)
+    ok = prepared.row_point >= 0
+    anomaly = np.zeros(n_pts, np.int64)
+    np.maximum.at(anomaly, prepared.row_point[ok], labelled["label_anomaly"].to_numpy(np.int64)[ok])
+    index = {name: i for i, name in enumerate(bias_classes)}
+    try:
+        bias_rows = np.array(
+            [index[str(v)] for v in labelled["label_bias"].to_numpy(object)], dtype=np.int64
+        )
+    except KeyError as exc:
+        raise ConfigError(f"bias label {exc} is not one of {list(bias_classes)}") from exc
+    bias = np.zeros(n_pts, np.int64)
+    np.maximum.at(bias, prepared.row_point[ok], bias_rows[ok])
+    pts = prepared.points
+    nan = np.full(n_pts, np.nan)
+    speed = pts["speed"].to_numpy(np.float64) if "speed" in pts else nan
+    heading = pts["heading"].to_numpy(np.float64) if "heading" in pts else nan
+    t = pts["t"].to_numpy(np.float64)
+    lat = pts["lat"].to_numpy(np.float64)
+    lon = pts["lon"].to_numpy(np.float64)
+    tracks = pts["track"].to_numpy(object)
+    out: list[LabelledSequence] = []
+    for _, sl in prepared.segment_slices():
+        feats = grad_features(
+            params,
+            prepared.frames[str(tracks[sl.start])],
+            t[sl],
+            lat[sl],
+            lon[sl],
+            speed[sl],
+            heading[sl],
+        )
+        out.append((feats.astype(np.float32), anomaly[sl], bias[sl]))
+    return out
+
+
+@dataclass(frozen=True)
+class GradTrainingSet:
+    """How training data is made from clean tables: injection seeds and magnitude scales.
+
+    Each (seed, scale) pair injects the whole table once; validation uses
+    ``val_seed`` at scale 1 (the benchmark's setting).
+    """
+
+    seeds: tuple[int, ...] = tuple(range(101, 111))
+    scales: tuple[float, ...] = (1.0,)
+    val_seed: int = 7
+
+
+@dataclass(frozen=True)
+class TrainReport:
+    """What a training run did, for logs and the model card."""
+
+    n_train_points: int
+    n_val_points: int
+    best_epoch: int
+    stop_reason: str
+    threshold: float
+    history: list[dict[str, Any]] = field(default_factory=list)
+
+
+def _sequences(
+    tables: Sequence[pd.DataFrame],
+    params: PipelineParams,
+    seeds: Sequence[int],
+    scales: Sequence[float],
+) -> list[LabelledSequence]:
+    out: list[LabelledSequence] = []
+    for table in tables:
+        cmap: ColumnMap = to_fixes(table).attrs["columns"]
+        for seed in seeds:
+            for scale in scales:
+                labelled = inject_grad(table, seed=seed, scale=scale, columns=cmap)
+                out += labelled_sequences(labelled, params, cmap)
+    return out
+
+
+def train_grad(
+    train_tables: Sequence[pd.DataFrame],
+    val_tables: Sequence[pd.DataFrame],
+    directory: str | os.PathLike[str],
+    *,
+    params: PipelineParams | None = None,
+    data: GradTrainingSet | None = None,
+    mode: str = "stream",
+    window: int = 10,
+    time_budget_s: float = 150.0,
+    seed: int = 0,
+    progress: bool = True,
+    notes: dict[str, Any] | None = None,
+    patience: int = 40,
+    learning_rate: float = 6e-3,
+    max_epochs: int = 400,
+    early_stopping: str = "loss",
+    batch_size: int = 32,
+) -> TrainReport:
+    """Train on clean tables with injected ``grad`` faults and write a model directory.
+
+    Returns a :class:`TrainReport`; the directory holds ``weights.npz`` and
+    ``config.json`` (pipeline settings, scaler, tuned threshold, history).
+
+    Early stopping watches the validation *loss* by default: validation F1 at
+    0.5 plateaus near 0.99 within 10-20 epochs and then jitters, so stopping
+    on it ended runs there, while the loss keeps improving for 100+ epochs and
+    the longer runs held permanent faults better (DrivePlotR test anomaly F1
+    0.93-0.95 -> 0.96; simulator-trained on DrivePlotR test 0.946 -> 0.976).
+    ``batch_size`` (TBPTT lanes) is 32, not 256: an epoch of DrivePlotR train
+    is then ~25 optimiser steps instead of 4, and a time-limited run reaches
+    the same validation loss in a fraction of the epochs; with those smaller
+    batches a learning rate of 6e-3 beat 3e-3 on DrivePlotR validation (best
+    loss 0.103 vs 0.121). ``time_budget_s``
+    bounds the network's training loop only; injection and features add
+    10-25 s, so the default 150 s keeps a whole run under 3 minutes.
+    """
+    import torch
+
+    from .._grad.model_io import export_torch
+    from .torch_gru import TrainConfig, train_model
+
+    prm = params or PipelineParams()
+    spec = data or GradTrainingSet()
+    train = _sequences(train_tables, prm, spec.seeds, spec.scales)
+    val = _sequences(val_tables, prm, (spec.val_seed,), (1.0,))
+    if not train or not val:
+        raise ConfigError("training needs at least one training and one validation segment")
+    config = TrainConfig(
+        bias_classes=GRAD_BIAS_CLASSES,
+        mode=mode,
+        window=window,
+        time_budget_s=time_budget_s,
+        seed=seed,
+        progress=progress,
+        early_stopping=early_stopping,
+        patience=patience,
+        learning_rate=learning_rate,
+        max_epochs=max_epochs,
+        batch_size=batch_size,
+    )
+    with torch.random.fork_rng():
+        trained = train_model(train, val, config)
+    threshold = float(trained.anomaly_threshold)
+    tuned = PipelineParams(**{**prm.__dict__, "threshold": threshold})
+    cfg = trained.model_config(
+        pipeline_feature_names(tuned), {"pipeline": tuned.to_dict()}, tuned.rema.__dict__
+    )
+    cfg["training"]["data"] = {
+        "seeds": list(spec.seeds),
+        "scales": list(spec.scales),
+        "val_seed": spec.val_seed,
+        **(notes or {}),
+    }
+    save_model(Path(directory), export_torch(trained.network), cfg)
+    return TrainReport(
+        n_train_points=sum(len(s[1]) for s in train),
+        n_val_points=sum(len(s[1]) for s in val),
+        best_epoch=trained.best_epoch,
+        stop_reason=trained.stop_reason,
+        threshold=threshold,
+        history=[h.__dict__ for h in trained.history],
+    )
+
+
+def dataset_model(dataset: str, data_dir: str | Path | None = None) -> Path:
+    """A GRAD model trained on ``dataset``'s train split (validation split for early stopping).
+
+    Trained once with the default settings and kept in ``$GRADGPS_CACHE``
+    (default ``~/.cache/gradgps``) under a key of everything that decides it:
+    package version, pipeline settings, training-data recipe, data set and
+    its file size. ``gradgps bench --detector grad`` uses it, so benchmarks
+    re-run in seconds after the first time.
+    """
+    import hashlib
+    import json
+
+    from .. import __version__
+    from .._data.datasets import find_data_dir
+
+    params = PipelineParams()
+    recipe: dict[str, Any] = {
+        "version": __version__,
+        "pipeline": params.to_dict(),
+        "data": GradTrainingSet().__dict__,
+        "dataset": dataset,
+    }
+    if dataset != "simulated":
+        folder = find_data_dir(data_dir)
+        recipe["files"] = sorted((p.name, p.stat().st_size) for p in folder.glob("*.csv"))
+    key = hashlib.sha256(json.dumps(recipe, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    cache = Path(os.environ.get("GRADGPS_CACHE", Path.home() / ".cache" / "gradgps"))
+    target = cache / "models" / f"{dataset}-{key}"
+    if not (target / "config.json").is_file():
+        from .._data.datasets import load_dataset
+
+        train_grad(
+            [load_dataset(dataset, "train", data_dir=data_dir)],
+            [load_dataset(dataset, "validation", data_dir=data_dir)],
+            target,
+            notes={"source": f"dataset {dataset}", "protocol": "grad"},
+        )
+    return target

@@ -1,0 +1,633 @@
+"""Training the GRAD network in PyTorch (paper sections 4.5 and 5.3).
+
+Only training code and tests import this module (it imports torch; the
+``train`` extra). Inference is :mod:`gradgps._grad.gru`, which never needs torch:
+:func:`gradgps._grad.model_io.export_torch` turns the trained module into plain
+arrays.
+
+The input is generic: a list of per-segment ``(features (n, F) float32,
+anomaly (n,) int 0/1, bias (n,) int 0..K-1)`` tuples, whatever features the
+extractor produced and whatever bias classes the labelling protocol uses.
+
+Two feeding modes, matching inference exactly:
+
+* ``window`` (the paper's feed sliding window): one sample per point, the
+  last W points ending at it, run from a zero state; only the last step is a
+  target. The first W-1 points of a segment are targets of the segment's
+  first window (whose step ``t`` has seen exactly the points ``0..t``, as at
+  inference), so every point is a target exactly once.
+* ``stream``: truncated backpropagation through time. Segments are cut into
+  pieces of at most ``stream_piece_length`` points, the pieces are laid end
+  to end in ``batch_size`` lanes, and each optimiser step processes one
+  ``chunk_length`` chunk of every lane, carrying (detached) hidden states
+  from chunk to chunk and resetting them to zero where a new piece starts.
+
+Determinism: everything random comes from ``seed`` (torch generator and
+NumPy ``default_rng``), torch runs on one CPU thread with deterministic
+algorithms, so the same data, config and seed give bit-identical weights --
+unless the time budget cuts training short at a different point.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from torch import nn
+
+from .._exceptions import ConfigError
+from .._grad.gru import MODES
+from .._grad.model_io import export_torch
+
+__all__ = ["EpochMetrics", "GRADNet", "TrainConfig", "TrainedModel", "train_model"]
+
+LabelledSequence = tuple[np.ndarray, np.ndarray, np.ndarray]
+_IGNORE = -100  # torch's CrossEntropyLoss ignore_index: padding and non-target steps
+
+
+@dataclass
+class TrainConfig:
+    """Everything that decides a training run (all plain values, JSON-able)."""
+
+    bias_classes: tuple[str, ...] = ("none", "noise", "jump")
+    mode: str = "window"
+    window: int = 10
+    chunk_length: int = 200
+    stream_piece_length: int = 1000
+    hidden1: int = 32
+    hidden2: int = 16
+    batch_size: int = 256  # windows per step (window mode) or TBPTT lanes (stream mode)
+    learning_rate: float = 3e-3
+    max_epochs: int = 100
+    patience: int = 6
+    early_stopping: str = "loss"  # "loss" (validation loss) or "f1" (validation anomaly F1)
+    time_budget_s: float = 180.0
+    max_samples_per_epoch: int = 100_000  # window mode: windows drawn per epoch
+    bias_loss_weight: float = 1.0
+    max_class_weight: float = 50.0
+    seed: int = 0
+    progress: bool = True
+
+    def validate(self) -> None:
+        if self.mode not in MODES:
+            raise ConfigError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.early_stopping not in ("loss", "f1"):
+            raise ConfigError(f"early_stopping must be 'loss' or 'f1', got {self.early_stopping!r}")
+        if len(self.bias_classes) < 2:
+            raise ConfigError("bias_classes needs 'none' plus at least one fault type")
+        for name in (
+            "window",
+            "chunk_length",
+            "stream_piece_length",
+            "hidden1",
+            "hidden2",
+            "batch_size",
+            "max_epochs",
+            "patience",
+            "max_samples_per_epoch",
+        ):
+            if int(getattr(self, name)) < 1:
+                raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if not (
+            self.learning_rate > 0
+            and self.time_budget_s > 0
+            and self.max_class_weight >= 1
+            and self.bias_loss_weight >= 0
+        ):
+            raise ConfigError(
+                "learning_rate and time_budget_s must be > 0, max_class_weight >= 1, "
+                "bias_loss_weight >= 0"
+            )
+
+
+class GRADNet(nn.Module):
+    """Scaler -> GRU(hidden1) -> GRU(hidden2) -> per-step anomaly (2) and bias-type (K) logits.
+
+    The scaler is two buffers (``scaler_mean``, ``scaler_std``) so it travels
+    with the module; non-finite scaled inputs become 0, as in inference.
+    """
+
+    scaler_mean: torch.Tensor
+    scaler_std: torch.Tensor
+
+    def __init__(
+        self, n_features: int, n_bias_classes: int, hidden1: int = 32, hidden2: int = 16
+    ) -> None:
+        super().__init__()
+        self.register_buffer("scaler_mean", torch.zeros(n_features))
+        self.register_buffer("scaler_std", torch.ones(n_features))
+        self.gru1 = nn.GRU(n_features, hidden1, batch_first=True)
+        self.gru2 = nn.GRU(hidden1, hidden2, batch_first=True)
+        self.anomaly_head = nn.Linear(hidden2, 2)
+        self.bias_head = nn.Linear(hidden2, n_bias_classes)
+
+    def forward(
+        self,
+        x: torch.Tensor,
+        state: tuple[torch.Tensor, torch.Tensor] | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+        """``x`` (B, T, F) raw features -> anomaly logits (B, T, 2), bias logits (B, T, K), final states."""
+        scaled = (x - self.scaler_mean) / self.scaler_std
+        scaled = torch.where(torch.isfinite(scaled), scaled, torch.zeros_like(scaled))
+        h1, h2 = (None, None) if state is None else state
+        out1, h1_n = self.gru1(scaled, h1)
+        out2, h2_n = self.gru2(out1, h2)
+        return self.anomaly_head(out2), self.bias_head(out2), (h1_n, h2_n)
+
+
+@dataclass
+class EpochMetrics:
+    """One epoch: mean training loss, validation loss and anomaly F1 (threshold 0.5), bias accuracy
+    on true anomalies, wall seconds since training started."""
+
+    epoch: int
+    train_loss: float
+    val_loss: float
+    val_f1: float
+    val_bias_accuracy: float
+    seconds: float
+
+
+@dataclass
+class TrainedModel:
+    """A trained network (best validation epoch) plus what is needed to deploy it."""
+
+    network: GRADNet
+    config: TrainConfig
+    n_features: int
+    anomaly_threshold: float
+    best_epoch: int
+    stop_reason: str
+    history: list[EpochMetrics] = field(default_factory=list)
+
+    def weights(self) -> dict[str, np.ndarray]:
+        """Network weights as float32 arrays named as in :data:`gradgps._grad.gru.WEIGHT_NAMES`."""
+        return export_torch(self.network)
+
+    def model_config(
+        self,
+        feature_names: Sequence[str],
+        feature_params: dict[str, Any],
+        rema_params: dict[str, Any],
+    ) -> dict[str, Any]:
+        """The ``config.json`` content for :func:`gradgps._grad.model_io.save_model`.
+
+        ``feature_params`` and ``rema_params`` are opaque here: whatever the
+        feature extractor and REMA need to reproduce the training features.
+        """
+        if len(feature_names) != self.n_features:
+            raise ConfigError(
+                f"{len(feature_names)} feature names for a model with {self.n_features} features"
+            )
+        cfg = self.config
+        return {
+            "architecture": {
+                "n_features": self.n_features,
+                "hidden1": cfg.hidden1,
+                "hidden2": cfg.hidden2,
+                "n_bias_classes": len(cfg.bias_classes),
+            },
+            "mode": cfg.mode,
+            "window": cfg.window,
+            "features": {"names": list(feature_names), "params": dict(feature_params)},
+            "scaler": {
+                "mean": self.network.scaler_mean.tolist(),
+                "std": self.network.scaler_std.tolist(),
+            },
+            "thresholds": {"anomaly": self.anomaly_threshold},
+            "rema": dict(rema_params),
+            "class_names": {"anomaly": ["normal", "anomaly"], "bias": list(cfg.bias_classes)},
+            "training": {
+                "best_epoch": self.best_epoch,
+                "stop_reason": self.stop_reason,
+                "config": {**asdict(cfg), "bias_classes": list(cfg.bias_classes)},
+                "history": [
+                    {
+                        k: None if isinstance(v, float) and math.isnan(v) else v
+                        for k, v in vars(m).items()
+                    }
+                    for m in self.history
+                ],
+            },
+        }
+
+
+# ----------------------------------------------------------------------------
+# Data layout: every sequence right-padded (zeros, label _IGNORE) and laid end
+# to end in one array, so batches are fancy-indexed gathers, no Python loops.
+# ----------------------------------------------------------------------------
+
+
+@dataclass
+class _Packed:
+    features: np.ndarray  # (N, F) float32
+    anomaly: np.ndarray  # (N,) int64, _IGNORE on padding
+    bias: np.ndarray  # (N,) int64
+    starts: np.ndarray  # (S,) offset of each sequence
+    lengths: np.ndarray  # (S,) real length of each sequence
+
+
+def _check_sequences(sequences: Sequence[LabelledSequence], n_bias: int, what: str) -> int:
+    if len(sequences) == 0:
+        raise ConfigError(f"{what}: no sequences given")
+    n_features = -1
+    for i, seq in enumerate(sequences):
+        if len(seq) != 3:
+            raise ConfigError(
+                f"{what}[{i}]: expected (features, anomaly, bias), got {len(seq)} items"
+            )
+        features, anomaly, bias = (np.asarray(a) for a in seq)
+        if features.ndim != 2 or features.shape[0] == 0:
+            raise ConfigError(
+                f"{what}[{i}]: features must be a non-empty (n, F) array, got shape {features.shape}"
+            )
+        if n_features < 0:
+            n_features = features.shape[1]
+        if features.shape[1] != n_features:
+            raise ConfigError(
+                f"{what}[{i}]: {features.shape[1]} features, sequence 0 has {n_features}"
+            )
+        if anomaly.shape != (len(features),) or bias.shape != (len(features),):
+            raise ConfigError(
+                f"{what}[{i}]: need one anomaly and one bias label per row "
+                f"({len(features)}), got {anomaly.shape} and {bias.shape}"
+            )
+        if not np.isin(anomaly, (0, 1)).all():
+            raise ConfigError(f"{what}[{i}]: anomaly labels must be 0 or 1")
+        if bias.size and (bias.min() < 0 or bias.max() >= n_bias):
+            raise ConfigError(
+                f"{what}[{i}]: bias labels must be in 0..{n_bias - 1} (one per bias class)"
+            )
+    return n_features
+
+
+def _pack(sequences: Sequence[LabelledSequence], min_length: int, multiple: int) -> _Packed:
+    """Lay sequences end to end, each padded to >= ``min_length`` and a multiple of ``multiple``."""
+    lengths = np.array([len(s[0]) for s in sequences], np.int64)
+    padded = np.maximum(lengths, min_length)
+    padded = -(-padded // multiple) * multiple
+    starts = np.concatenate([[0], np.cumsum(padded)[:-1]]).astype(np.int64)
+    total = int(padded.sum())
+    n_features = np.asarray(sequences[0][0]).shape[1]
+    features = np.zeros((total, n_features), np.float32)
+    anomaly = np.full(total, _IGNORE, np.int64)
+    bias = np.full(total, _IGNORE, np.int64)
+    for (f, a, b), s, n in zip(sequences, starts, lengths, strict=True):
+        features[s : s + n] = f
+        anomaly[s : s + n] = a
+        bias[s : s + n] = b
+    return _Packed(features, anomaly, bias, starts, lengths)
+
+
+def _window_samples(packed: _Packed, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(start offsets, is_first)`` of every window; the first window of a sequence targets all its steps."""
+    starts, first = [], []
+    for s, n in zip(packed.starts, packed.lengths, strict=True):
+        count = max(int(n) - window + 1, 1)
+        starts.append(s + np.arange(count))
+        first.append(np.arange(count) == 0)
+    return np.concatenate(starts), np.concatenate(first)
+
+
+def _window_batch(
+    packed: _Packed,
+    starts: np.ndarray,
+    first: np.ndarray,
+    window: int,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    idx = starts[:, None] + np.arange(window)
+    target = first[:, None] | (np.arange(window) == window - 1)
+    anomaly = np.where(target, packed.anomaly[idx], _IGNORE)
+    bias = np.where(target, packed.bias[idx], _IGNORE)
+    return torch.from_numpy(packed.features[idx]), torch.from_numpy(anomaly), torch.from_numpy(bias)
+
+
+def _stream_lanes(
+    packed: _Packed,
+    n_lanes: int,
+    chunk: int,
+    piece_points: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Chunk start offsets (lanes, steps) and reset flags; pieces shuffled, lanes balanced greedily.
+
+    Sequences are packed padded to a multiple of ``chunk``; a piece is a run of
+    whole chunks. Empty slots point at chunk 0 with reset=True and are fully
+    ignored via :func:`_chunk_labels` (``valid=False``).
+    """
+    pieces: list[np.ndarray] = []  # chunk offsets of each piece
+    for s, n in zip(packed.starts, packed.lengths, strict=True):
+        chunks = s + chunk * np.arange(-(-int(n) // chunk))
+        pieces += np.array_split(chunks, max(1, math.ceil(len(chunks) * chunk / piece_points)))
+    order = rng.permutation(len(pieces))
+    n_lanes = min(n_lanes, len(pieces))
+    lanes: list[list[tuple[int, bool]]] = [[] for _ in range(n_lanes)]
+    for p in order:
+        shortest = min(range(n_lanes), key=lambda k: len(lanes[k]))
+        lanes[shortest] += [(int(c), j == 0) for j, c in enumerate(pieces[p])]
+    steps = max(len(lane) for lane in lanes)
+    offsets = np.full((n_lanes, steps), -1, np.int64)
+    resets = np.ones((n_lanes, steps), bool)
+    for k, lane in enumerate(lanes):
+        offsets[k, : len(lane)] = [c for c, _ in lane]
+        resets[k, : len(lane)] = [r for _, r in lane]
+    return offsets, resets
+
+
+def _fit_scaler(features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-feature mean and std over the finite values (float32).
+
+    A feature with no finite value gets mean 0; a (near) constant one gets
+    std 1, so scaling never divides by zero and such a feature scales to ~0.
+    """
+    finite = np.isfinite(features)
+    count = np.maximum(finite.sum(axis=0), 1)
+    values = np.where(finite, features, 0.0).astype(np.float64)
+    mean = values.sum(axis=0) / count
+    std = np.sqrt((np.where(finite, values - mean, 0.0) ** 2).sum(axis=0) / count)
+    std[std < 1e-6 * np.maximum(1.0, np.abs(mean))] = 1.0
+    return mean.astype(np.float32), std.astype(np.float32)
+
+
+def _class_weights(labels: np.ndarray, n_classes: int, cap: float) -> torch.Tensor:
+    """Inverse-frequency ("balanced") weights, capped; classes absent from training get 1."""
+    labels = labels[labels != _IGNORE]
+    counts = np.bincount(labels, minlength=n_classes).astype(np.float64)
+    weights = np.ones(n_classes)
+    present = counts > 0
+    balanced = labels.size / (present.sum() * counts[present])
+    weights[present] = np.clip(balanced / balanced.min(), 1.0, cap)  # most frequent class: 1
+    return torch.tensor(weights, dtype=torch.float32)
+
+
+class _Loss:
+    def __init__(
+        self, anomaly_weights: torch.Tensor, bias_weights: torch.Tensor, bias_factor: float
+    ) -> None:
+        self.anomaly = nn.CrossEntropyLoss(weight=anomaly_weights, ignore_index=_IGNORE)
+        self.bias = nn.CrossEntropyLoss(weight=bias_weights, ignore_index=_IGNORE)
+        self.bias_factor = bias_factor
+
+    def __call__(
+        self,
+        anomaly_logits: torch.Tensor,
+        bias_logits: torch.Tensor,
+        anomaly: torch.Tensor,
+        bias: torch.Tensor,
+    ) -> torch.Tensor:
+        loss: torch.Tensor = self.anomaly(anomaly_logits.reshape(-1, 2), anomaly.reshape(-1))
+        bias_loss: torch.Tensor = self.bias(
+            bias_logits.reshape(-1, bias_logits.shape[-1]), bias.reshape(-1)
+        )
+        return loss + self.bias_factor * bias_loss
+
+
+def _predict_packed(
+    net: GRADNet,
+    packed: _Packed,
+    config: TrainConfig,
+) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray]:
+    """Logits for every real point of ``packed`` fed the config's way; labels alongside."""
+    with torch.no_grad():
+        if config.mode == "window":
+            starts, first = _window_samples(packed, config.window)
+            a_logits, b_logits, a_labels, b_labels = [], [], [], []
+            for lo in range(0, len(starts), 4096):
+                x, a, b = _window_batch(
+                    packed, starts[lo : lo + 4096], first[lo : lo + 4096], config.window
+                )
+                la, lb, _ = net(x)
+                keep = a != _IGNORE
+                a_logits.append(la[keep])
+                b_logits.append(lb[keep])
+                a_labels.append(a[keep].numpy())
+                b_labels.append(b[keep].numpy())
+            return (
+                torch.cat(a_logits),
+                torch.cat(b_logits),
+                np.concatenate(a_labels),
+                np.concatenate(b_labels),
+            )
+        # Whole sequences from zero state, in groups of similar length so
+        # right-padding (harmless: the GRU is causal) wastes little memory.
+        order = np.argsort(packed.lengths, kind="stable")
+        parts: list[tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray]] = []
+        for lo in range(0, len(order), 64):
+            group = order[lo : lo + 64]
+            longest = int(packed.lengths[group].max())
+            idx = np.minimum(
+                packed.starts[group, None] + np.arange(longest), len(packed.features) - 1
+            )
+            valid = np.arange(longest) < packed.lengths[group, None]
+            la, lb, _ = net(torch.from_numpy(packed.features[idx]))
+            keep = torch.from_numpy(valid)
+            parts.append((la[keep], lb[keep], packed.anomaly[idx][valid], packed.bias[idx][valid]))
+        return (
+            torch.cat([p[0] for p in parts]),
+            torch.cat([p[1] for p in parts]),
+            np.concatenate([p[2] for p in parts]),
+            np.concatenate([p[3] for p in parts]),
+        )
+
+
+def _f1(truth: np.ndarray, predicted: np.ndarray) -> float:
+    tp = int(np.sum(truth & predicted))
+    denominator = int(np.sum(truth)) + int(np.sum(predicted))
+    return 2.0 * tp / denominator if denominator else 1.0
+
+
+def _best_threshold(truth: np.ndarray, probability: np.ndarray) -> float:
+    """Anomaly threshold with the best validation F1 (0.5 when there is nothing to tune on)."""
+    if not truth.any():
+        return 0.5
+    grid = np.round(np.arange(0.05, 0.96, 0.01), 2)
+    scores = np.array([_f1(truth, probability >= t) for t in grid])
+    best = np.flatnonzero(scores == scores.max())
+    return float(grid[best[np.argmin(np.abs(grid[best] - 0.5))]])
+
+
+def train_model(
+    sequences: Sequence[LabelledSequence],
+    val_sequences: Sequence[LabelledSequence],
+    config: TrainConfig | None = None,
+    *,
+    console: Console | None = None,
+) -> TrainedModel:
+    """Train the GRAD network on labelled feature sequences; early-stop on the validation set.
+
+    Returns the weights of the best validation epoch, with the anomaly
+    threshold tuned for validation F1. Training stops at ``max_epochs``,
+    after ``patience`` epochs without improvement, or when ``time_budget_s``
+    is spent (checked after every optimiser step).
+    """
+    config = TrainConfig() if config is None else config
+    config.validate()
+    n_bias = len(config.bias_classes)
+    n_features = _check_sequences(sequences, n_bias, "sequences")
+    if _check_sequences(val_sequences, n_bias, "val_sequences") != n_features:
+        raise ConfigError("val_sequences have a different number of features than sequences")
+
+    threads, deterministic = torch.get_num_threads(), torch.are_deterministic_algorithms_enabled()
+    torch.set_num_threads(1)
+    torch.use_deterministic_algorithms(True)
+    try:
+        return _train(sequences, val_sequences, config, n_features, console)
+    finally:
+        torch.set_num_threads(threads)
+        torch.use_deterministic_algorithms(deterministic)
+
+
+def _train(
+    sequences: Sequence[LabelledSequence],
+    val_sequences: Sequence[LabelledSequence],
+    config: TrainConfig,
+    n_features: int,
+    console: Console | None,
+) -> TrainedModel:
+    n_bias = len(config.bias_classes)
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    began = time.perf_counter()
+
+    is_window = config.mode == "window"
+    train = _pack(
+        sequences, config.window if is_window else 1, 1 if is_window else config.chunk_length
+    )
+    val = _pack(val_sequences, config.window if is_window else 1, 1)
+
+    net = GRADNet(n_features, n_bias, config.hidden1, config.hidden2)
+    mean, std = _fit_scaler(train.features[train.anomaly != _IGNORE])
+    net.scaler_mean.copy_(torch.from_numpy(mean))
+    net.scaler_std.copy_(torch.from_numpy(std))
+
+    loss_fn = _Loss(
+        _class_weights(train.anomaly, 2, config.max_class_weight),
+        _class_weights(train.bias, n_bias, config.max_class_weight),
+        config.bias_loss_weight,
+    )
+    optimizer = torch.optim.Adam(net.parameters(), lr=config.learning_rate)
+
+    if is_window:
+        all_starts, all_first = _window_samples(train, config.window)
+        steps_per_epoch = math.ceil(
+            min(len(all_starts), config.max_samples_per_epoch) / config.batch_size
+        )
+    else:
+        steps_per_epoch = _stream_lanes(
+            train,
+            config.batch_size,
+            config.chunk_length,
+            config.stream_piece_length,
+            np.random.default_rng(0),
+        )[0].shape[1]
+
+    history: list[EpochMetrics] = []
+    best_score, best_epoch, best_state = math.inf, 0, None
+    stop_reason = "max_epochs"
+    out_of_time = False
+    progress = Progress(
+        TextColumn("[bold]training GRU[/]"),
+        BarColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=console,
+        disable=not config.progress,
+        transient=False,
+    )
+    with progress:
+        task = progress.add_task("epoch 1", total=config.max_epochs * steps_per_epoch)
+        for epoch in range(1, config.max_epochs + 1):
+            net.train()
+            losses: list[float] = []
+            if is_window:
+                pick = rng.permutation(len(all_starts))[: config.max_samples_per_epoch]
+                for lo in range(0, len(pick), config.batch_size):
+                    chosen = pick[lo : lo + config.batch_size]
+                    x, a, b = _window_batch(
+                        train, all_starts[chosen], all_first[chosen], config.window
+                    )
+                    la, lb, _ = net(x)
+                    losses.append(_optimise(optimizer, loss_fn(la, lb, a, b)))
+                    progress.advance(task)
+                    if time.perf_counter() - began > config.time_budget_s:
+                        out_of_time = True
+                        break
+            else:
+                offsets, resets = _stream_lanes(
+                    train, config.batch_size, config.chunk_length, config.stream_piece_length, rng
+                )
+                state: tuple[torch.Tensor, torch.Tensor] | None = None
+                for step in range(offsets.shape[1]):
+                    idx = np.maximum(offsets[:, step], 0)[:, None] + np.arange(config.chunk_length)
+                    valid = (offsets[:, step] >= 0)[:, None]
+                    a = torch.from_numpy(np.where(valid, train.anomaly[idx], _IGNORE))
+                    b = torch.from_numpy(np.where(valid, train.bias[idx], _IGNORE))
+                    if state is not None:
+                        keep = torch.from_numpy(~resets[:, step]).to(torch.float32)[None, :, None]
+                        state = (state[0].detach() * keep, state[1].detach() * keep)
+                    la, lb, state = net(torch.from_numpy(train.features[idx]), state)
+                    losses.append(_optimise(optimizer, loss_fn(la, lb, a, b)))
+                    progress.advance(task)
+                    if time.perf_counter() - began > config.time_budget_s:
+                        out_of_time = True
+                        break
+
+            net.eval()
+            la, lb, a_true, b_true = _predict_packed(net, val, config)
+            val_loss = float(loss_fn(la, lb, torch.from_numpy(a_true), torch.from_numpy(b_true)))
+            p_anomaly = torch.softmax(la, -1)[:, 1].numpy()
+            val_f1 = _f1(a_true == 1, p_anomaly >= 0.5)
+            on_anomaly = a_true == 1
+            bias_acc = (
+                float(np.mean(lb.argmax(-1).numpy()[on_anomaly] == b_true[on_anomaly]))
+                if on_anomaly.any()
+                else math.nan
+            )
+            metrics = EpochMetrics(
+                epoch,
+                float(np.mean(losses)) if losses else math.nan,
+                val_loss,
+                val_f1,
+                bias_acc,
+                time.perf_counter() - began,
+            )
+            history.append(metrics)
+            progress.update(
+                task, description=f"epoch {epoch} val loss {val_loss:.4f} F1 {val_f1:.3f}"
+            )
+            if config.progress:
+                progress.console.print(
+                    f"epoch {epoch:3d}  train loss {metrics.train_loss:.4f}  val loss {val_loss:.4f}  "
+                    f"val F1 {val_f1:.4f}  bias acc {bias_acc:.3f}  {metrics.seconds:6.1f}s"
+                )
+            score = val_loss if config.early_stopping == "loss" else -val_f1
+            if score < best_score:
+                best_score, best_epoch = score, epoch
+                best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
+            if out_of_time:
+                stop_reason = "time_budget"
+                break
+            if epoch - best_epoch >= config.patience:
+                stop_reason = "patience"
+                break
+
+    if best_state is not None:
+        net.load_state_dict(best_state)
+    net.eval()
+    la, _, a_true, _ = _predict_packed(net, val, config)
+    threshold = _best_threshold(a_true == 1, torch.softmax(la, -1)[:, 1].numpy())
+    return TrainedModel(net, config, n_features, threshold, best_epoch, stop_reason, history)
+
+
+def _optimise(optimizer: torch.optim.Optimizer, loss: torch.Tensor) -> float:
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()  # type: ignore[no-untyped-call]
+    optimizer.step()
+    return float(loss.detach())
