@@ -25,9 +25,9 @@ from hypothesis import strategies as st
 
 from _track_strategies import expected_reasons, messy_tracks
 from gradgps import GradGPSError, iter_csv_tables, read_table, to_fixes
-from gradgps._grad.detector import Detector
+from gradgps._grad.detector import Detector, TrackStreams
 from gradgps._io.nmea import nmea_checksum
-from gradgps._run.chunked import TrackStreams, detect_csv_in_chunks
+from gradgps._run.chunked import detect_csv_in_chunks
 
 T = TypeVar("T")
 EXAMPLES = int(os.environ.get("GRADGPS_FUZZ_EXAMPLES", "30"))

@@ -22,8 +22,8 @@ from hypothesis import strategies as st
 from _track_strategies import expected_reasons, messy_tracks
 from gradgps import InputError, simulate_fleet, to_fixes
 from gradgps._cli import main
-from gradgps._grad.detector import RESULT_DTYPES, Detector
-from gradgps._run.chunked import TrackStreams, detect_csv_in_chunks
+from gradgps._grad.detector import RESULT_DTYPES, Detector, TrackStreams
+from gradgps._run.chunked import detect_csv_in_chunks
 
 REPO = Path(__file__).resolve().parents[1]
 MIXED = REPO / "tests" / "data" / "mixed_bad_fixes.csv"

@@ -10,7 +10,8 @@ features of :mod:`gradgps._grad.features` (the 11 per-channel features, no
 cross-channel cues) -> the three channels' features side by side -> the same
 stacked GRU (32, 16) with an anomaly head and a bias-type head over the
 sensor-grid classes ``none``, ``instant``, ``constant``, ``bias``, ``drift``,
-trained by :func:`gradgps._train.torch_gru.train_model` (stream mode, early stopping
+trained by :func:`gradgps._train.baselines.dataset_channel_grad`
+with :func:`gradgps._train.torch_gru.train_model` (stream mode, early stopping
 on validation F1, 3-minute budget, the same injection seeds as GRAD, the
 ``mixed`` row), threshold tuned on validation.
 
@@ -26,24 +27,17 @@ the arithmetic it needs.
 
 from __future__ import annotations
 
-import hashlib
-import json
-import os
-from collections.abc import Sequence
-from dataclasses import asdict, dataclass
-from pathlib import Path
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from .._exceptions import ConfigError, ModelError
 from .._grad.features import N_CHANNEL, FeatureParams, features_batch_kernel
 from .._grad.gru import GRUModel
 from .._grad.rema import RemaParams
 from .base import Segment, result_frame, segments
 
-__all__ = ["SENSOR_BIAS_CLASSES", "ChannelGradDetector", "channel_features", "dataset_channel_grad"]
+__all__ = ["SENSOR_BIAS_CLASSES", "ChannelGradDetector", "ChannelGradModel", "channel_features"]
 
 SENSOR_BIAS_CLASSES = ("none", "instant", "constant", "bias", "drift")
 
@@ -115,102 +109,3 @@ class ChannelGradDetector:
             fixes["lon"].to_numpy(np.float64),
             bias,
         )
-
-
-def _sequences(
-    table: pd.DataFrame, seeds: Sequence[int], features: FeatureParams, rema: RemaParams
-) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    from .._train.baselines import labelled_fixes
-
-    index = {name: i for i, name in enumerate(SENSOR_BIAS_CLASSES)}
-    out = []
-    for seed in seeds:
-        fixes, truth, labelled = labelled_fixes(table, "sensor-grid", seed)
-        kinds = np.array([index[str(v)] for v in labelled["label_type"].to_numpy(object)])
-        for seg in segments(fixes, "sensor")[0]:
-            out.append(
-                (
-                    channel_features(seg, features, rema).astype(np.float32),
-                    truth[seg.rows],
-                    kinds[seg.rows],
-                )
-            )
-    return out
-
-
-def dataset_channel_grad(
-    dataset: str, data_dir: str | Path | None = None, recipe: Any = None
-) -> ChannelGradModel:
-    """Channel-wise GRAD trained on ``dataset`` under ``sensor-grid`` (cached; see module doc).
-
-    ``recipe`` is a :class:`gradgps._train.baselines.BaselineRecipe` (seeds, budget, stopping).
-    """
-    from .. import __version__
-    from .._data.datasets import find_data_dir
-    from .._train.baselines import BaselineRecipe, _splits
-
-    rec = recipe or BaselineRecipe()
-    features, rema = FeatureParams(speed_heading=False), RemaParams()
-    key: dict[str, Any] = {
-        "version": __version__,
-        "recipe": asdict(rec),
-        "dataset": dataset,
-        "features": asdict(features),
-        "rema": asdict(rema),
-    }
-    if dataset != "simulated":
-        key["files"] = sorted(
-            (p.name, p.stat().st_size) for p in find_data_dir(data_dir).glob("*.csv")
-        )
-    digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16]
-    cache = Path(os.environ.get("GRADGPS_CACHE", Path.home() / ".cache" / "gradgps"))
-    target = cache / "baselines" / f"channel-grad-{dataset}-{digest}"
-    if not (target / "config.json").is_file():
-        from .._train.torch_gru import TrainConfig, train_model
-
-        train, val = _splits(dataset, data_dir)
-        config = TrainConfig(
-            bias_classes=SENSOR_BIAS_CLASSES,
-            mode="stream",
-            time_budget_s=rec.time_budget_s,
-            seed=rec.seed,
-            progress=False,
-            early_stopping="f1",
-            patience=rec.patience,
-            learning_rate=rec.learning_rate,
-            max_epochs=rec.max_epochs,
-        )
-        trained = train_model(
-            _sequences(train, rec.seeds, features, rema),
-            _sequences(val, (rec.val_seed,), features, rema),
-            config,
-        )
-        target.mkdir(parents=True, exist_ok=True)
-        np.savez(target / "weights.npz", allow_pickle=False, **trained.weights())
-        cfg = {
-            "threshold": trained.anomaly_threshold,
-            "scaler": {
-                "mean": trained.network.scaler_mean.tolist(),
-                "std": trained.network.scaler_std.tolist(),
-            },
-            "best_epoch": trained.best_epoch,
-            "stop_reason": trained.stop_reason,
-        }
-        (target / "config.json").write_text(json.dumps(cfg) + "\n")
-    try:
-        cfg = json.loads((target / "config.json").read_text())
-        with np.load(target / "weights.npz", allow_pickle=False) as data:
-            weights = {k: data[k] for k in data.files}
-        gru = GRUModel(
-            weights,
-            np.asarray(cfg["scaler"]["mean"]),
-            np.asarray(cfg["scaler"]["std"]),
-            mode="stream",
-        )
-    except (OSError, KeyError, ValueError) as exc:
-        raise ModelError(
-            f"{target}: unusable channel-GRAD model ({exc}); delete it to retrain"
-        ) from exc
-    if not 0.0 < float(cfg["threshold"]) < 1.0:
-        raise ConfigError(f"{target}: threshold {cfg['threshold']} outside (0, 1)")
-    return ChannelGradModel(gru, float(cfg["threshold"]), features, rema)

@@ -16,6 +16,7 @@ without repeated timestamps both give the same numbers.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -96,9 +97,7 @@ def detect(
     if follow:
         if report_path is not None or plots_dir is not None:
             raise click.UsageError("--report and --plots need a whole file, not --follow")
-        from .follow import run_follow
-
-        run_follow(input_path, output, model_dir, threshold, fmt, column_map(cols))
+        _run_follow(input_path, output, model_dir, threshold, fmt, column_map(cols))
         return
     if output is None:
         raise click.UsageError("missing option '-o' / '--output'")
@@ -195,3 +194,48 @@ def _detect_in_chunks(
         f"({summary.invalid:,} invalid fixes), {summary.alerts:,} alerts; "
         f"{summary.rows_per_second:,.0f} fixes/s"
     )
+
+
+def _run_follow(
+    input_path: Path,
+    output: Path | None,
+    model_dir: Path | None,
+    threshold: float | None,
+    fmt: str | None,
+    columns: ColumnMap,
+) -> None:
+    """``--follow``: follow INPUT ('-' = standard input) and write one CSV line per input line to OUTPUT/stdout."""
+    from .._run.follow import follow_lines
+
+    with click.open_file(str(input_path), "r", encoding="utf-8", errors="replace") as source:
+        # Line by line, flushing after every line, so a reader at the other end
+        # of a pipe sees each verdict at once.
+        if output is None:
+
+            def write(text: str) -> None:
+                click.echo(text)  # click.echo flushes
+
+            counts = follow_lines(
+                source, write, model=model_dir, threshold=threshold, columns=columns, fmt=fmt
+            )
+        else:
+            with output.open("w", encoding="utf-8", newline="") as sink:
+
+                def write_file(text: str) -> None:
+                    sink.write(text + "\n")
+                    sink.flush()
+
+                counts = follow_lines(
+                    source,
+                    write_file,
+                    model=model_dir,
+                    threshold=threshold,
+                    columns=columns,
+                    fmt=fmt,
+                )
+    click.echo(
+        f"followed {counts.lines:,} lines: {counts.fixes:,} fixes scored, "
+        f"{counts.anomalies:,} anomalies, {counts.invalid:,} unusable lines",
+        err=True,
+    )
+    sys.stderr.flush()

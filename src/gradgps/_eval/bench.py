@@ -134,7 +134,8 @@ def _trained_baseline(
     from .._train import baselines as bt
 
     if name == "grad":
-        from .._baselines.channel_grad import ChannelGradDetector, dataset_channel_grad
+        from .._baselines.channel_grad import ChannelGradDetector
+        from .._train.baselines import dataset_channel_grad
 
         return ChannelGradDetector(dataset_channel_grad(dataset, data_dir, recipe))
     if name == "kf":

@@ -103,7 +103,7 @@ def _state_size(P: FloatArray) -> int:
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _new_state(P: FloatArray) -> FloatArray:
+def core_new_state(P: FloatArray) -> FloatArray:
     S = np.zeros(_state_size(P))
     rs_e, _, rs_n, _, _, _, _, ts, _ = _layout(P)
     S[rs_e + S_ALPHA] = P[P_ALPHA]
@@ -209,7 +209,7 @@ def _core_batch_kernel(
     The per-point row is built in one reused scratch array and only what
     :class:`CoreOutput` returns is stored, straight into its final arrays.
     """
-    S = _new_state(P)
+    S = core_new_state(P)
     n = east.size
     f0 = N_RESULT + 2 * N_OUT
     width = f0 + features.shape[1]
@@ -342,7 +342,7 @@ class CorePipeline:
     def __init__(self, params: CoreParams | None = None) -> None:
         self.params = params or CoreParams()
         self._P = self.params.to_array()
-        self._S = _new_state(self._P)
+        self._S = core_new_state(self._P)
         self._out = np.zeros(N_RESULT + 2 * N_OUT + self.params.n_features())
         self.features = self._out[N_RESULT + 2 * N_OUT :]
 

@@ -47,9 +47,10 @@ from .core import (
     N_CORE_PARAMS,
     N_RESULT,
     CoreParams,
-    _new_state,
+    core_new_state,
     core_step,
 )
+from .defaults import grad_rema_params, grad_time_params
 from .features import N_CHANNEL, FeatureParams, feature_names
 from .gru import _heads, _recurrent_step, _scratch_size
 from .offset import (
@@ -90,23 +91,14 @@ O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT = range(7)
 N_POINT_OUT = 7
 
 
-def _tuned() -> Any:
-    """REMA and time-classifier settings tuned by ``gradgps tune-rema`` (see RemaDetector):
-    with untuned ones REMA loses a moving car after its first long fault, and its
-    features would tell the network nothing from then on."""
-    from .._baselines.rema_detector import RemaDetector
-
-    return RemaDetector()
-
-
 @dataclass(frozen=True)
 class PipelineParams:
     """Everything but the network weights; saved in a model's ``config.json``."""
 
-    rema: RemaParams = field(default_factory=lambda: _tuned().rema)
+    rema: RemaParams = field(default_factory=grad_rema_params)
     features: FeatureParams = field(default_factory=FeatureParams)
     offset: OffsetParams = field(default_factory=OffsetParams)
-    time: TimeParams = field(default_factory=lambda: _tuned().time)
+    time: TimeParams = field(default_factory=grad_time_params)
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
     threshold: float = 0.5
     max_gap_s: float = 5.0
@@ -161,7 +153,7 @@ def pipeline_feature_names(params: PipelineParams) -> list[str]:
 
 def new_state(P: FloatArray) -> FloatArray:
     """Fresh ``S`` for a segment with parameters ``P``."""
-    core = _new_state(P[:N_CORE_PARAMS])
+    core = core_new_state(P[:N_CORE_PARAMS])
     rest = np.zeros(N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE)
     rest[N_OFFSET_STATE + T_GAP] = np.inf
     return np.concatenate([core, rest])

@@ -48,7 +48,18 @@ from .._exceptions import InputError
 from .._tracks.track import ColumnMap, Table
 from .files import READ_ERRORS, open_bytes
 
-__all__ = ["KNOT_MS", "MAX_NOTES", "epoch_times", "nmea_checksum", "read_nmea"]
+__all__ = [
+    "KNOT_MS",
+    "MAX_NOTES",
+    "Epoch",
+    "Malformed",
+    "epoch_times",
+    "nmea_checksum",
+    "parse_gga",
+    "parse_rmc",
+    "read_nmea",
+    "split_sentence",
+]
 
 MAX_NOTES: Final = 20
 KNOT_MS: Final = 1852.0 / 3600.0
@@ -59,7 +70,7 @@ _NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)")
 _TIME = re.compile(r"(\d\d)(\d\d)(\d\d(\.\d+)?)")
 
 
-class _Malformed(Exception):
+class Malformed(Exception):
     """A field that cannot be what the sentence type says it is (internal)."""
 
 
@@ -72,7 +83,7 @@ def nmea_checksum(body: str) -> int:
 
 
 @dataclass
-class _Epoch:
+class Epoch:
     """One instant, merged from its GGA and/or RMC sentence."""
 
     line: int
@@ -95,7 +106,7 @@ def _number(text: str, what: str) -> float:
     if text == "":
         return math.nan
     if not _NUMBER.fullmatch(text):
-        raise _Malformed(f"{what} is not a number: {text!r}")
+        raise Malformed(f"{what} is not a number: {text!r}")
     return float(text)
 
 
@@ -104,10 +115,10 @@ def _time_of_day(text: str) -> float:
         return math.nan
     match = _TIME.fullmatch(text)
     if match is None:
-        raise _Malformed(f"time is not hhmmss.ss: {text!r}")
+        raise Malformed(f"time is not hhmmss.ss: {text!r}")
     hours, minutes, seconds = int(match[1]), int(match[2]), float(match[3])
     if hours > 23 or minutes > 59 or seconds >= 61.0:
-        raise _Malformed(f"impossible time of day: {text!r}")
+        raise Malformed(f"impossible time of day: {text!r}")
     return round(hours * 3600.0 + minutes * 60.0 + seconds, 6)
 
 
@@ -116,17 +127,17 @@ def _coordinate(value: str, hemisphere: str, positive: str, negative: str, limit
     if value == "" and hemisphere == "":
         return math.nan
     if hemisphere not in (positive, negative):
-        raise _Malformed(f"hemisphere must be {positive} or {negative}, got {hemisphere!r}")
+        raise Malformed(f"hemisphere must be {positive} or {negative}, got {hemisphere!r}")
     if not re.fullmatch(r"\d+(\.\d+)?", value):
-        raise _Malformed(f"coordinate is not dddmm.mmmm: {value!r}")
+        raise Malformed(f"coordinate is not dddmm.mmmm: {value!r}")
     raw = float(value)
     degrees = math.floor(raw / 100.0)
     minutes = raw - 100.0 * degrees
     if minutes >= 60.0:
-        raise _Malformed(f"coordinate minutes of 60 or more: {value!r}")
+        raise Malformed(f"coordinate minutes of 60 or more: {value!r}")
     result = degrees + minutes / 60.0
     if result > limit:
-        raise _Malformed(f"coordinate beyond {limit:g} degrees: {value!r}")
+        raise Malformed(f"coordinate beyond {limit:g} degrees: {value!r}")
     return -result if hemisphere == negative else result
 
 
@@ -135,28 +146,28 @@ def _midnight(text: str) -> float:
     if text == "":
         return math.nan
     if not re.fullmatch(r"\d{6}", text):
-        raise _Malformed(f"date is not ddmmyy: {text!r}")
+        raise Malformed(f"date is not ddmmyy: {text!r}")
     day, month, year = int(text[0:2]), int(text[2:4]), int(text[4:6])
     # NMEA has two-digit years; GPS receivers date from 1980.
     year += 1900 if year >= 80 else 2000
     try:
         date = dt.date(year, month, day)
     except ValueError:
-        raise _Malformed(f"impossible date: {text!r}") from None
+        raise Malformed(f"impossible date: {text!r}") from None
     return float((date - dt.date(1970, 1, 1)).days) * _DAY
 
 
-def _parse_gga(fields: list[str], line: int) -> _Epoch:
+def parse_gga(fields: list[str], line: int) -> Epoch:
     if len(fields) < 9:
-        raise _Malformed(f"GGA has {len(fields)} fields, needs at least 9")
+        raise Malformed(f"GGA has {len(fields)} fields, needs at least 9")
     quality_text = fields[5]
     if not quality_text.isdigit():
-        raise _Malformed(f"fix quality is not a digit: {quality_text!r}")
+        raise Malformed(f"fix quality is not a digit: {quality_text!r}")
     quality = int(quality_text)
     satellites = int(fields[6]) if fields[6].isdigit() else None
     if fields[6] and satellites is None:
-        raise _Malformed(f"satellite count is not a number: {fields[6]!r}")
-    epoch = _Epoch(
+        raise Malformed(f"satellite count is not a number: {fields[6]!r}")
+    epoch = Epoch(
         line=line,
         tod=_time_of_day(fields[0]),
         lat=_coordinate(fields[1], fields[2], "N", "S", 90.0),
@@ -171,15 +182,15 @@ def _parse_gga(fields: list[str], line: int) -> _Epoch:
     return epoch
 
 
-def _parse_rmc(fields: list[str], line: int) -> _Epoch:
+def parse_rmc(fields: list[str], line: int) -> Epoch:
     if len(fields) < 9:
-        raise _Malformed(f"RMC has {len(fields)} fields, needs at least 9")
+        raise Malformed(f"RMC has {len(fields)} fields, needs at least 9")
     status = fields[1]
     if status not in ("A", "V"):
-        raise _Malformed(f"status must be A or V, got {status!r}")
+        raise Malformed(f"status must be A or V, got {status!r}")
     # NMEA 2.3 adds a mode indicator (field 12); N means "data not valid".
     mode_invalid = len(fields) > 11 and fields[11][:1] == "N"
-    return _Epoch(
+    return Epoch(
         line=line,
         tod=_time_of_day(fields[0]),
         lat=_coordinate(fields[2], fields[3], "N", "S", 90.0),
@@ -192,7 +203,7 @@ def _parse_rmc(fields: list[str], line: int) -> _Epoch:
     )
 
 
-def _merge(into: _Epoch, other: _Epoch) -> None:
+def _merge(into: Epoch, other: Epoch) -> None:
     """Fold ``other`` (same instant, the other sentence type) into ``into``."""
     if math.isnan(into.lat):
         into.lat, into.lon = other.lat, other.lon
@@ -206,8 +217,8 @@ def _merge(into: _Epoch, other: _Epoch) -> None:
     into.has_rmc = into.has_rmc or other.has_rmc
 
 
-def _sentence(text: str) -> tuple[str, list[str]] | None:
-    """``(type, fields)`` of a GGA/RMC sentence; None for anything else; raises _Malformed when damaged.
+def split_sentence(text: str) -> tuple[str, list[str]] | None:
+    """``(type, fields)`` of a GGA/RMC sentence; None for anything else; raises Malformed when damaged.
 
     ``text`` is what follows a ``$``.
     """
@@ -217,14 +228,14 @@ def _sentence(text: str) -> tuple[str, list[str]] | None:
         return None
     star = text.rfind("*")
     if star < 0:
-        raise _Malformed(f"{kind} sentence has no checksum (cut off?)")
+        raise Malformed(f"{kind} sentence has no checksum (cut off?)")
     given = text[star + 1 :].strip()
     if not re.fullmatch(r"[0-9A-Fa-f]{2}", given):
-        raise _Malformed(f"{kind} checksum is not two hex digits: {given!r}")
+        raise Malformed(f"{kind} checksum is not two hex digits: {given!r}")
     body = text[:star]
     computed = nmea_checksum(body)
     if computed != int(given, 16):
-        raise _Malformed(
+        raise Malformed(
             f"{kind} checksum mismatch: sentence says {given.upper()}, content gives {computed:02X}"
         )
     return kind, body.split(",")[1:]
@@ -234,19 +245,19 @@ def _sentence(text: str) -> tuple[str, list[str]] | None:
 class _LogReader:
     """Turns sentences, in file order, into epochs; counts and notes the rejected ones."""
 
-    epochs: list[_Epoch] = field(default_factory=list)
+    epochs: list[Epoch] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     rejected: int = 0
 
     def add(self, text: str, line: int) -> None:
         """Take one sentence (``text`` follows its ``$``) found on file line ``line``."""
         try:
-            parsed = _sentence(text)
+            parsed = split_sentence(text)
             if parsed is None:
                 return
             kind, fields = parsed
-            epoch = (_parse_gga if kind == "GGA" else _parse_rmc)(fields, line)
-        except _Malformed as exc:
+            epoch = (parse_gga if kind == "GGA" else parse_rmc)(fields, line)
+        except Malformed as exc:
             self.rejected += 1
             if len(self.notes) < MAX_NOTES:
                 self.notes.append(f"line {line}: {exc}")
@@ -341,7 +352,7 @@ def epoch_times(tod: np.ndarray, midnight: np.ndarray) -> np.ndarray:
     return np.asarray(continuous + offset.to_numpy(), dtype=np.float64)
 
 
-def _frame(epochs: list[_Epoch]) -> tuple[pd.DataFrame, str | None]:
+def _frame(epochs: list[Epoch]) -> tuple[pd.DataFrame, str | None]:
     tod = np.array([e.tod for e in epochs])
     midnight = np.array([e.midnight for e in epochs])
     time = epoch_times(tod, midnight)

@@ -23,97 +23,19 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from .._exceptions import ConfigError, InputError
-from .._grad.detector import RESULT_DTYPES, Detector
+from .._exceptions import InputError
+from .._grad.detector import RESULT_DTYPES, TrackStreams
 from .._io.read import TableWriter, iter_csv_tables
 from .._tracks.track import ColumnMap, to_fixes
 
-__all__ = ["DetectSummary", "TrackStreams", "detect_csv_in_chunks"]
-
-
-class TrackStreams:
-    """One streaming :class:`Detector` per track id, made on first sight, kept across calls.
-
-    ``model`` and ``threshold`` are passed to every Detector.
-    """
-
-    def __init__(
-        self, model: str | os.PathLike[str] | None = None, *, threshold: float | None = None
-    ) -> None:
-        self.model = model
-        self.threshold = threshold
-        self.detectors: dict[str, Detector] = {}
-
-    def _detector(self, track: str) -> Detector:
-        det = self.detectors.get(track)
-        if det is None:
-            det = Detector(self.model, threshold=self.threshold)
-            self.detectors[track] = det
-        return det
-
-    def get_state(self) -> dict[str, Any]:
-        """Every track's detector state, as plain JSON-able data (see :meth:`Detector.get_state`)."""
-        return {"tracks": {track: det.get_state() for track, det in self.detectors.items()}}
-
-    def set_state(self, state: Mapping[str, Any]) -> TrackStreams:
-        """Restore :meth:`get_state` output (same model and threshold); returns self."""
-        try:
-            tracks = dict(state["tracks"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ConfigError(f"not a track streams state: {exc}") from exc
-        self.detectors = {
-            str(track): Detector(self.model, threshold=self.threshold).set_state(s)
-            for track, s in tracks.items()
-        }
-        return self
-
-    def update_fixes(self, fixes: pd.DataFrame) -> pd.DataFrame:
-        """Feed canonical fixes to their tracks' detectors in row order; one result row per row.
-
-        The result has the batch result columns (``anomaly`` ... ``invalid_reason``)
-        and ``fixes``' index.
-        """
-        n = len(fixes)
-        nan = [float("nan")] * n
-        tracks = fixes["track"].to_numpy(object)
-        t = fixes["t"].to_numpy(np.float64).tolist()
-        lat = fixes["lat"].to_numpy(np.float64).tolist()
-        lon = fixes["lon"].to_numpy(np.float64).tolist()
-        speed = fixes["speed"].to_numpy(np.float64).tolist() if "speed" in fixes else nan
-        heading = fixes["heading"].to_numpy(np.float64).tolist() if "heading" in fixes else nan
-        columns: dict[str, list[object]] = {name: [] for name in RESULT_DTYPES}
-        values = list(columns.values())
-        for i in range(n):
-            r = self._detector(str(tracks[i])).update(t[i], lat[i], lon[i], speed[i], heading[i])
-            for column, value in zip(
-                values,
-                (
-                    r.anomaly,
-                    r.score,
-                    r.bias_type,
-                    r.time_type,
-                    r.lat_clean,
-                    r.lon_clean,
-                    r.alert,
-                    r.invalid_reason,
-                ),
-                strict=True,
-            ):
-                column.append(value)
-        return pd.DataFrame(
-            {
-                name: pd.Series(v, dtype=RESULT_DTYPES[name], index=fixes.index)
-                for name, v in columns.items()
-            }
-        )
+__all__ = ["DetectSummary", "detect_csv_in_chunks"]
 
 
 @dataclass(frozen=True)

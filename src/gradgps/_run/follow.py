@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 from .._exceptions import ConfigError
 from .._grad.detector import Detector
-from .._io.nmea import _Malformed, _parse_gga, _parse_rmc, _sentence
+from .._io.nmea import Malformed, parse_gga, parse_rmc, split_sentence
 from .._result import PointResult
 from .._tracks.track import ColumnMap, resolve_columns
 
@@ -201,13 +201,13 @@ class _NmeaFollower:
             return [str(n), "", *blank, *_result_fields(None, "not a fix sentence")], None
         body = pieces[-1]  # a cut-off sentence followed by a whole one: the whole one counts
         try:
-            parsed = _sentence(body)
+            parsed = split_sentence(body)
             if parsed is None:
                 kind = body.split(",", 1)[0][2:5]
                 return [str(n), kind, *blank, *_result_fields(None, "not a fix sentence")], None
             kind, values = parsed
-            epoch = (_parse_gga if kind == "GGA" else _parse_rmc)(values, n)
-        except _Malformed as exc:
+            epoch = (parse_gga if kind == "GGA" else parse_rmc)(values, n)
+        except Malformed as exc:
             result = PointResult.invalid(f"rejected sentence: {exc}")
             return [str(n), "", *blank, *_result_fields(result)], result
         tod = epoch.tod

@@ -43,7 +43,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from .._grad.core import N_RESULT, _new_state, core_step
+from .._grad.core import N_RESULT, core_new_state, core_step
 from .._grad.pipeline import PipelineParams, segment_period
 from .._grad.rema import N_OUT, O_LOWER, O_UPPER
 from .._tracks.geo import LocalFrame
@@ -121,7 +121,7 @@ def rema_bounds(
         t = t_all[sl]
         core = params.core(segment_period(t))
         P = core.to_array()
-        S = _new_state(P)
+        S = core_new_state(P)
         row = np.zeros(N_RESULT + 2 * N_OUT + core.n_features())
         n = t.size
         bounds = np.empty((n, 4))

@@ -10,7 +10,9 @@ early stopping on validation anomaly F1 with patience 25, a 3-minute wall
 budget, one torch thread, seeded; then the anomaly threshold with the best
 validation F1 (:func:`gradgps._train.torch_gru.train_model` does the same for the
 GRU; its helpers are reused here, the loop differs because these networks
-judge windows, not sequences).
+judge windows, not sequences). The channel-wise GRAD of protocol
+``sensor-grid`` (:mod:`gradgps._baselines.channel_grad`) is trained with
+:func:`gradgps._train.torch_gru.train_model` itself (:func:`dataset_channel_grad`).
 
 Torch is imported inside the functions that train, so fitting the Kalman
 filter and loading cached models never needs it.
@@ -32,6 +34,7 @@ import numpy as np
 import pandas as pd
 
 from .._baselines.base import Segment, segments
+from .._baselines.channel_grad import SENSOR_BIAS_CLASSES, ChannelGradModel, channel_features
 from .._baselines.kalman import KalmanDetector, KalmanParams, tune_threshold
 from .._baselines.window import (
     WindowModel,
@@ -42,7 +45,10 @@ from .._baselines.window import (
     windows,
 )
 from .._data.inject import inject_grad, inject_sensor_grid, with_accel_mps2
-from .._exceptions import ConfigError
+from .._exceptions import ConfigError, ModelError
+from .._grad.features import FeatureParams
+from .._grad.gru import GRUModel
+from .._grad.rema import RemaParams
 from .._tracks.track import ColumnMap, to_fixes
 
 if TYPE_CHECKING:
@@ -50,6 +56,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "BaselineRecipe",
+    "dataset_channel_grad",
     "dataset_cnn_kf",
     "dataset_kalman",
     "dataset_window_model",
@@ -313,8 +320,8 @@ def train_window_model(
 def _cache_dir(
     kind: str, dataset: str, protocol: str, recipe: BaselineRecipe, data_dir: str | Path | None
 ) -> Path:
-    from .. import __version__
     from .._data.datasets import find_data_dir
+    from .._version import __version__
 
     key: dict[str, Any] = {
         "version": __version__,
@@ -399,3 +406,99 @@ def dataset_cnn_kf(
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(json.dumps({**kf.to_dict(), "threshold": threshold}) + "\n")
     return cnn, KalmanParams.from_dict(json.loads(target.read_text()))
+
+
+def _sequences(
+    table: pd.DataFrame, seeds: Sequence[int], features: FeatureParams, rema: RemaParams
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    index = {name: i for i, name in enumerate(SENSOR_BIAS_CLASSES)}
+    out = []
+    for seed in seeds:
+        fixes, truth, labelled = labelled_fixes(table, "sensor-grid", seed)
+        kinds = np.array([index[str(v)] for v in labelled["label_type"].to_numpy(object)])
+        for seg in segments(fixes, "sensor")[0]:
+            out.append(
+                (
+                    channel_features(seg, features, rema).astype(np.float32),
+                    truth[seg.rows],
+                    kinds[seg.rows],
+                )
+            )
+    return out
+
+
+def dataset_channel_grad(
+    dataset: str, data_dir: str | Path | None = None, recipe: Any = None
+) -> ChannelGradModel:
+    """Channel-wise GRAD trained on ``dataset`` under ``sensor-grid`` (cached; see module doc).
+
+    ``recipe`` is a :class:`gradgps._train.baselines.BaselineRecipe` (seeds, budget, stopping).
+    """
+    from .._data.datasets import find_data_dir
+    from .._version import __version__
+
+    rec = recipe or BaselineRecipe()
+    features, rema = FeatureParams(speed_heading=False), RemaParams()
+    key: dict[str, Any] = {
+        "version": __version__,
+        "recipe": asdict(rec),
+        "dataset": dataset,
+        "features": asdict(features),
+        "rema": asdict(rema),
+    }
+    if dataset != "simulated":
+        key["files"] = sorted(
+            (p.name, p.stat().st_size) for p in find_data_dir(data_dir).glob("*.csv")
+        )
+    digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    cache = Path(os.environ.get("GRADGPS_CACHE", Path.home() / ".cache" / "gradgps"))
+    target = cache / "baselines" / f"channel-grad-{dataset}-{digest}"
+    if not (target / "config.json").is_file():
+        from .torch_gru import TrainConfig, train_model  # torch only when training
+
+        train, val = _splits(dataset, data_dir)
+        config = TrainConfig(
+            bias_classes=SENSOR_BIAS_CLASSES,
+            mode="stream",
+            time_budget_s=rec.time_budget_s,
+            seed=rec.seed,
+            progress=False,
+            early_stopping="f1",
+            patience=rec.patience,
+            learning_rate=rec.learning_rate,
+            max_epochs=rec.max_epochs,
+        )
+        trained = train_model(
+            _sequences(train, rec.seeds, features, rema),
+            _sequences(val, (rec.val_seed,), features, rema),
+            config,
+        )
+        target.mkdir(parents=True, exist_ok=True)
+        np.savez(target / "weights.npz", allow_pickle=False, **trained.weights())
+        cfg = {
+            "threshold": trained.anomaly_threshold,
+            "scaler": {
+                "mean": trained.network.scaler_mean.tolist(),
+                "std": trained.network.scaler_std.tolist(),
+            },
+            "best_epoch": trained.best_epoch,
+            "stop_reason": trained.stop_reason,
+        }
+        (target / "config.json").write_text(json.dumps(cfg) + "\n")
+    try:
+        cfg = json.loads((target / "config.json").read_text())
+        with np.load(target / "weights.npz", allow_pickle=False) as data:
+            weights = {k: data[k] for k in data.files}
+        gru = GRUModel(
+            weights,
+            np.asarray(cfg["scaler"]["mean"]),
+            np.asarray(cfg["scaler"]["std"]),
+            mode="stream",
+        )
+    except (OSError, KeyError, ValueError) as exc:
+        raise ModelError(
+            f"{target}: unusable channel-GRAD model ({exc}); delete it to retrain"
+        ) from exc
+    if not 0.0 < float(cfg["threshold"]) < 1.0:
+        raise ConfigError(f"{target}: threshold {cfg['threshold']} outside (0, 1)")
+    return ChannelGradModel(gru, float(cfg["threshold"]), features, rema)

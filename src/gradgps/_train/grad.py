@@ -229,8 +229,8 @@ def dataset_model(dataset: str, data_dir: str | Path | None = None) -> Path:
     import hashlib
     import json
 
-    from .. import __version__
     from .._data.datasets import find_data_dir
+    from .._version import __version__
 
     params = PipelineParams()
     recipe: dict[str, Any] = {
