@@ -18,13 +18,18 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
 import argparse  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gradgps._grad.gru import GRUModel, stream_step_kernel, weight_shapes  # noqa: E402
+from gradgps._grad.gru import GRUModel, weight_shapes  # noqa: E402
+
+# GRUStream and GRUFleet are not part of the product: they live with the GRU tests.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from _gru_support import GRUFleet, GRUStream, stream_step_kernel  # noqa: E402
 
 
 def _model(n_features: int, n_bias: int, mode: str, window: int) -> GRUModel:
@@ -90,7 +95,7 @@ def main() -> None:
     }
 
     stream_model = _model(n_features, args.bias_classes, "stream", 10)
-    stream = stream_model.new_stream()
+    stream = GRUStream(stream_model)
     stream.update(inputs[0])
     results["stream_step_GRUStream_update"] = _percentiles(_time_calls(stream.update, inputs))
 
@@ -107,7 +112,7 @@ def main() -> None:
 
     for window in (10, 50):
         window_model = _model(n_features, args.bias_classes, "window", window)
-        online = window_model.new_stream()
+        online = GRUStream(window_model)
         online.update(inputs[0])
         results[f"window{window}_step_GRUStream_update"] = _percentiles(
             _time_calls(online.update, inputs[: max(1000, args.steps // window)])
@@ -126,7 +131,7 @@ def main() -> None:
         results[f"window{window}_batch_points_per_s"] = len(part) / (time.perf_counter() - start)
 
     n_tracks = 1000
-    fleet = stream_model.new_fleet(n_tracks)
+    fleet = GRUFleet(stream_model, n_tracks)
     rows = np.arange(n_tracks, dtype=np.int64)
     fleet.step(rows, inputs[:n_tracks])
     per_vehicle = []

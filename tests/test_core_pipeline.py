@@ -8,8 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from _core_support import CorePipeline
 from gradgps._baselines.rema_detector import RemaDetector
-from gradgps._grad.core import CoreParams, CorePipeline, core_batch
+from gradgps._grad.core import CoreParams, core_batch
 from gradgps._grad.features import FeatureParams, segment_features
 from gradgps._grad.rema import RemaParams, rema_batch
 from gradgps._grad.time_classifier import classify_time

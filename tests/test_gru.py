@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from _gru_support import random_weights
+from _gru_support import GRUFleet, GRUStream, random_weights
 from gradgps import ConfigError, ModelError
 from gradgps._grad.gru import GRUModel, reference_stream, reference_windows
 
@@ -81,7 +81,7 @@ def test_any_layer_sizes(features):
         atol=1e-6,
     )
     np.testing.assert_allclose(
-        model.new_stream().update(features[0])[1:],
+        GRUStream(model).update(features[0])[1:],
         reference_stream(weights, mean, std, features[:1])[1][0],
         atol=1e-6,
     )
@@ -153,10 +153,10 @@ def test_stream_state_carries_across_calls(split, seed):
 def test_one_track_stream_matches_batch_and_restores_state(weights, scaler, features, mode, window):
     model = _model(weights, scaler, mode=mode, window=window)
     batch = model.predict(features)
-    stream = model.new_stream()
+    stream = GRUStream(model)
     online = np.array([stream.update(x).copy() for x in features[:50]])
     saved = json.loads(json.dumps(stream.get_state()))
-    restored = model.new_stream()
+    restored = GRUStream(model)
     restored.set_state(saved)
     online = np.vstack([online, [restored.update(x).copy() for x in features[50:]]])
     np.testing.assert_allclose(online[:, 0], batch.anomaly, atol=1e-6)
@@ -170,7 +170,7 @@ def test_fleet_steps_tracks_independently(weights, scaler):
     rng = np.random.default_rng(4)
     tracks = [rng.normal(size=(n, F)).astype(np.float32) for n in (30, 12, 25)]
     expected = [model.predict_stream(x)[0].anomaly for x in tracks]
-    fleet = model.new_fleet(3)
+    fleet = GRUFleet(model, 3)
     got: list[list[float]] = [[], [], []]
     cursor = [0, 0, 0]
     for _ in range(40):  # each step, a random subset of vehicles reports
@@ -203,11 +203,11 @@ def test_bad_shapes_fail_clearly(weights, scaler):
     with pytest.raises(ConfigError, match=r"shape \(n, 7\)"):
         model.predict(np.zeros((4, F + 1)))
     with pytest.raises(ConfigError, match="stream-mode"):
-        _model(weights, scaler, mode="window").new_fleet(2)
+        GRUFleet(_model(weights, scaler, mode="window"), 2)
     with pytest.raises(ConfigError, match=r"shape \(7,\)"):
-        model.new_stream().update(np.zeros(F - 1, np.float32))
+        GRUStream(model).update(np.zeros(F - 1, np.float32))
     with pytest.raises(ConfigError, match="rows must be in"):
-        model.new_fleet(2).step(np.array([2]), np.zeros((1, F)))
+        GRUFleet(model, 2).step(np.array([2]), np.zeros((1, F)))
 
 
 def test_inference_never_imports_torch(tmp_path):
@@ -218,12 +218,12 @@ def test_inference_never_imports_torch(tmp_path):
         import gradgps
         from gradgps._grad.model_io import gru_model, load_model, save_model
         sys.path.insert(0, sys.argv[2])
-        from _gru_support import model_config, random_weights
+        from _gru_support import GRUFleet, GRUStream, model_config, random_weights
         save_model(sys.argv[1], random_weights(4, 3), model_config(4, 3, mode="stream"))
         model = gru_model(*load_model(sys.argv[1]))
         x = np.random.default_rng(0).normal(size=(20, 4)).astype(np.float32)
-        model.predict_stream(x); model.predict_windows(x, 5); model.new_stream().update(x[0])
-        model.new_fleet(2).step(np.array([0, 1]), x[:2])
+        model.predict_stream(x); model.predict_windows(x, 5); GRUStream(model).update(x[0])
+        GRUFleet(model, 2).step(np.array([0, 1]), x[:2])
         assert "torch" not in sys.modules, sorted(m for m in sys.modules if m.startswith("torch"))
         print("ok")
     """)

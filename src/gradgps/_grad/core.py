@@ -16,8 +16,8 @@ prediction starts from, so one fault does not poison the points after it.
 Features are computed from the *observed* positions (a model must see the
 fault to detect it).
 
-:func:`core_batch` runs the same kernel over arrays; :class:`CorePipeline` is
-the streaming object (``update`` per point, JSON-able ``get_state``).
+:func:`core_batch` runs the same kernel over arrays; :func:`core_step` is one
+point (the tests' and benchmarks' streaming ``CorePipeline`` wraps it).
 
 Speed choices (``benchmarks/core_speed.py``, docs/rema.md): the per-point
 kernels are inlined into this loop (``inline="always"``); every kernel of the
@@ -66,7 +66,14 @@ from .rema import (
 )
 from .time_classifier import INTERMITTENT, N_TIME_STATE, T_GAP, TRANSIENT, TimeParams, time_step
 
-__all__ = ["CoreOutput", "CoreParams", "CorePipeline", "core_batch", "core_step"]
+__all__ = [
+    "CoreOutput",
+    "CoreParams",
+    "core_batch",
+    "core_new_state",
+    "core_state_size",
+    "core_step",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -98,13 +105,13 @@ def _layout(P: FloatArray) -> tuple[int, int, int, int, int, int, int, int, int]
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _state_size(P: FloatArray) -> int:
+def core_state_size(P: FloatArray) -> int:
     return _layout(P)[8] + N_RECOVERY_STATE
 
 
 @numba.njit(cache=True, error_model="numpy")
 def core_new_state(P: FloatArray) -> FloatArray:
-    S = np.zeros(_state_size(P))
+    S = np.zeros(core_state_size(P))
     rs_e, _, rs_n, _, _, _, _, ts, _ = _layout(P)
     S[rs_e + S_ALPHA] = P[P_ALPHA]
     S[rs_n + S_ALPHA] = P[P_ALPHA]
@@ -328,55 +335,3 @@ def core_batch(
     emas = np.empty((n, 2))
     _core_batch_kernel(prm.to_array(), e, north_a, speed_a, heading_a, features, results, emas)
     return _split(features, results, emas)
-
-
-class CorePipeline:
-    """Streaming pipeline for one segment: ``update(east, north, speed, heading)`` per point.
-
-    Returns ``(flag, time_code, east_clean, north_clean, alert, score)``; the
-    point's feature vector is :attr:`features` (a view, overwritten by the
-    next call). State: one float array, moved by :meth:`get_state` /
-    :meth:`set_state` as plain JSON-able data.
-    """
-
-    def __init__(self, params: CoreParams | None = None) -> None:
-        self.params = params or CoreParams()
-        self._P = self.params.to_array()
-        self._S = core_new_state(self._P)
-        self._out = np.zeros(N_RESULT + 2 * N_OUT + self.params.n_features())
-        self.features = self._out[N_RESULT + 2 * N_OUT :]
-
-    def update(
-        self, east: float, north: float, speed: float = np.nan, heading: float = np.nan
-    ) -> tuple[int, int, float, float, int, float]:
-        core_step(self._P, self._S, east, north, speed, heading, self._out)
-        o = self._out
-        return (
-            int(o[R_FLAG]),
-            int(o[R_CODE]),
-            float(o[R_EAST]),
-            float(o[R_NORTH]),
-            int(o[R_ALERT]),
-            float(o[R_SCORE]),
-        )
-
-    def get_state(self) -> dict[str, Any]:
-        # JSON has no infinity: the time classifier's "no earlier run" gap is stored as None.
-        return {
-            "params": self.params.to_dict(),
-            "state": [None if not np.isfinite(v) else float(v) for v in self._S],
-        }
-
-    def set_state(self, state: dict[str, Any]) -> CorePipeline:
-        params = CoreParams.from_dict(state["params"])
-        P = params.to_array()
-        values = np.array([np.inf if v is None else v for v in state["state"]], dtype=np.float64)
-        if values.shape != (_state_size(P),):
-            raise ConfigError(
-                f"pipeline state has {values.size} values, expected {_state_size(P)}: "
-                "it was saved by another version or with other parameters"
-            )
-        self.params, self._P, self._S = params, P, values
-        self._out = np.zeros(N_RESULT + 2 * N_OUT + params.n_features())
-        self.features = self._out[N_RESULT + 2 * N_OUT :]
-        return self

@@ -57,10 +57,8 @@ from .._exceptions import ConfigError, ModelError
 __all__ = [
     "MODES",
     "WEIGHT_NAMES",
-    "GRUFleet",
     "GRUModel",
     "GRUPrediction",
-    "GRUStream",
     "pack_parameters",
     "reference_stream",
     "reference_windows",
@@ -361,13 +359,6 @@ def _scratch_size(dims: Any) -> int:
 
 
 @numba.njit(cache=True)
-def stream_step_kernel(params: Any, dims: Any, x: Any, state: Any, scratch: Any, out: Any) -> None:
-    """(c) One streaming step for one track: advance ``state`` with ``x``, write ``out`` (1+K)."""
-    _recurrent_step(params, dims, x, state, scratch)
-    _heads(params, dims, state, scratch, out)
-
-
-@numba.njit(cache=True)
 def stream_sequence_kernel(params: Any, dims: Any, features: Any, state: Any, out: Any) -> None:
     """(a) Streaming mode over a whole sequence: ``out[i]`` for each row, ``state`` carried."""
     scratch = np.empty(_scratch_size(dims), np.float32)
@@ -385,32 +376,6 @@ def window_sequence_kernel(params: Any, dims: Any, features: Any, window: int, o
         state[:] = 0.0
         for t in range(max(0, i - window + 1), i + 1):
             _recurrent_step(params, dims, features[t], state, scratch)
-        _heads(params, dims, state, scratch, out[i])
-
-
-@numba.njit(cache=True)
-def window_step_kernel(
-    params: Any, dims: Any, ring: Any, count: int, state: Any, scratch: Any, out: Any
-) -> None:
-    """Window mode for one track online: ``ring`` (W, F) holds the last points, the newest at
-    ``(count - 1) % W``; runs the window from zero state (``state`` is scratch here)."""
-    window = ring.shape[0]
-    state[:] = 0.0
-    first = max(0, count - window)
-    for t in range(first, count):
-        _recurrent_step(params, dims, ring[t % window], state, scratch)
-    _heads(params, dims, state, scratch, out)
-
-
-@numba.njit(cache=True)
-def fleet_step_kernel(
-    params: Any, dims: Any, rows: Any, features: Any, states: Any, out: Any
-) -> None:
-    """(d) One streaming step for many tracks: ``states[rows[i]]`` advanced with ``features[i]``."""
-    scratch = np.empty(_scratch_size(dims), np.float32)
-    for i in range(rows.shape[0]):
-        state = states[rows[i]]
-        _recurrent_step(params, dims, features[i], state, scratch)
         _heads(params, dims, state, scratch, out[i])
 
 
@@ -539,119 +504,3 @@ class GRUModel:
         if h.shape != (self.state_size,):
             raise ConfigError(f"state must have shape ({self.state_size},), got {h.shape}")
         return h
-
-    def new_stream(self) -> GRUStream:
-        """A one-track online predictor fed the model's way (window or stream)."""
-        return GRUStream(self)
-
-    def new_fleet(self, n_tracks: int) -> GRUFleet:
-        """Streaming state for ``n_tracks`` tracks stepped together (stream mode only)."""
-        return GRUFleet(self, n_tracks)
-
-
-class GRUStream:
-    """Online predictions for one track, one point at a time (river style).
-
-    Stream mode keeps the GRU state (hidden1 + hidden2 floats) and costs one
-    step per point; window mode keeps the last W feature rows and reruns the
-    window from zero state, W steps per point. Call :meth:`reset` at every
-    segment start. :meth:`update` returns a view of an internal buffer,
-    overwritten by the next call: copy it to keep it.
-    """
-
-    def __init__(self, model: GRUModel) -> None:
-        self.model = model
-        self._state = np.zeros(model.state_size, np.float32)
-        self._scratch = np.empty(
-            model.n_features + 6 * int(max(model.dims[1], model.dims[2])), np.float32
-        )
-        self._out = np.empty(1 + model.n_bias_classes, np.float32)
-        self._ring = np.zeros((model.window, model.n_features), np.float32)
-        self._count = 0
-
-    def reset(self) -> None:
-        """Forget the past (a new segment starts)."""
-        self._state[:] = 0.0
-        self._count = 0
-
-    def update(self, features: np.ndarray) -> np.ndarray:
-        """Feed one point's features (F,); returns ``[P(anomaly), P(bias class 0..K-1)]``."""
-        model = self.model
-        x = features if isinstance(features, np.ndarray) else np.asarray(features, np.float32)
-        if x.shape != self._ring.shape[1:]:  # the kernel would read out of bounds
-            raise ConfigError(f"features must have shape ({model.n_features},), got {x.shape}")
-        if model.mode == "stream":
-            stream_step_kernel(model.params, model.dims, x, self._state, self._scratch, self._out)
-        else:
-            self._ring[self._count % model.window] = x
-            self._count += 1
-            window_step_kernel(
-                model.params,
-                model.dims,
-                self._ring,
-                self._count,
-                self._state,
-                self._scratch,
-                self._out,
-            )
-        return self._out
-
-    def get_state(self) -> dict[str, Any]:
-        """Plain JSON-able state: the GRU state (stream) or the last points (window)."""
-        if self.model.mode == "stream":
-            return {"mode": "stream", "h": self._state.tolist()}
-        window = self.model.window
-        last = [
-            self._ring[t % window].tolist()
-            for t in range(max(0, self._count - window), self._count)
-        ]
-        return {"mode": "window", "count": self._count, "last": last}
-
-    def set_state(self, state: Mapping[str, Any]) -> None:
-        """Restore what :meth:`get_state` returned (for the same model)."""
-        if state.get("mode") != self.model.mode:
-            raise ConfigError(
-                f"state is for mode {state.get('mode')!r}, this model streams in {self.model.mode!r}"
-            )
-        if self.model.mode == "stream":
-            self._state[:] = self.model._state(np.asarray(state["h"], np.float32))
-            return
-        last = np.asarray(state["last"], np.float32).reshape(-1, self.model.n_features)
-        count = int(state["count"])
-        if len(last) != min(count, self.model.window):
-            raise ConfigError(f"window state holds {len(last)} points but count={count}")
-        self._count = count
-        for t, row in zip(range(max(0, count - self.model.window), count), last, strict=True):
-            self._ring[t % self.model.window] = row
-
-
-class GRUFleet:
-    """Streaming state of many tracks, stepped together: ``states`` is (n_tracks, hidden1 + hidden2).
-
-    Each call advances only the tracks in ``rows`` (vehicles report at
-    different times); :meth:`reset` zeroes tracks whose segment restarts.
-    """
-
-    def __init__(self, model: GRUModel, n_tracks: int) -> None:
-        if model.mode != "stream":
-            raise ConfigError(
-                "fleet stepping needs a stream-mode model; window-mode models "
-                "rerun W points per step, use one GRUStream per track"
-            )
-        self.model = model
-        self.states = np.zeros((n_tracks, model.state_size), np.float32)
-
-    def reset(self, rows: np.ndarray) -> None:
-        self.states[np.asarray(rows, np.int64)] = 0.0
-
-    def step(self, rows: np.ndarray, features: np.ndarray) -> GRUPrediction:
-        """Advance track ``rows[i]`` with ``features[i]``, in order (a repeated row takes its points in turn)."""
-        rows = np.ascontiguousarray(rows, dtype=np.int64)
-        x = self.model._features(features)
-        if rows.shape != (len(x),):
-            raise ConfigError(f"need one row index per feature row: {rows.shape} vs {len(x)} rows")
-        if rows.size and (rows.min() < 0 or rows.max() >= len(self.states)):
-            raise ConfigError(f"track rows must be in 0..{len(self.states) - 1}")
-        out = np.empty((len(x), 1 + self.model.n_bias_classes), np.float32)
-        fleet_step_kernel(self.model.params, self.model.dims, rows, x, self.states, out)
-        return _split_out(out)
