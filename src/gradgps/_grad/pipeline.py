@@ -53,6 +53,14 @@ from .core import (
 from .defaults import grad_rema_params, grad_time_params
 from .features import N_CHANNEL, FeatureParams, feature_names
 from .gru import _heads, _recurrent_step, _scratch_size
+from .motion import (
+    MOTION_FEATURES,
+    N_MOTION_FEATURES,
+    N_MOTION_PARAMS,
+    N_MOTION_STATE,
+    MotionParams,
+    motion_step,
+)
 from .offset import (
     N_OFFSET_FEATURES,
     N_OFFSET_PARAMS,
@@ -85,7 +93,12 @@ _REC = _TIME + 3
 _THR = _REC + 2
 _PERIOD, _DIMS = _THR + 1, _THR + 2
 _FRAME = _DIMS + 4
-N_REST_PARAMS = _FRAME + N_FRAME_CONSTANTS
+# The motion model: an on/off flag, then its parameters (zeros when off).
+_MOTION_ON = _FRAME + N_FRAME_CONSTANTS
+_MOTION = _MOTION_ON + 1
+N_REST_PARAMS = _MOTION + N_MOTION_PARAMS
+# State blocks after the core's: offset, time, recovery, motion.
+_N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_MOTION_STATE
 # Per-point outputs.
 O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT = range(7)
 N_POINT_OUT = 7
@@ -102,6 +115,9 @@ class PipelineParams:
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
     threshold: float = 0.5
     max_gap_s: float = 5.0
+    motion: MotionParams | None = field(default_factory=MotionParams)
+    """The positions-only motion model's features (:mod:`gradgps._grad.motion`); ``None``
+    in models trained before it existed (their ``config.json`` has no ``motion``)."""
 
     def core(self, period: float) -> CoreParams:
         return CoreParams(
@@ -128,6 +144,7 @@ class PipelineParams:
             recovery=RecoveryParams(**data["recovery"]),
             threshold=float(data["threshold"]),
             max_gap_s=float(data["max_gap_s"]),
+            motion=MotionParams(**data["motion"]).checked() if data.get("motion") else None,
         )
 
     def array(self, period: float, frame: LocalFrame, dims: NDArray[np.int64]) -> FloatArray:
@@ -141,6 +158,8 @@ class PipelineParams:
                 [self.threshold, period],
                 np.asarray(dims, dtype=np.float64),
                 frame.constants(),
+                [0.0 if self.motion is None else 1.0],
+                np.zeros(N_MOTION_PARAMS) if self.motion is None else self.motion.to_array(period),
             ]
         )
         return np.concatenate([core, rest])
@@ -148,13 +167,14 @@ class PipelineParams:
 
 def pipeline_feature_names(params: PipelineParams) -> list[str]:
     """Names of the GRU's input features, in order."""
-    return feature_names(params.features) + list(OFFSET_FEATURES)
+    motion = [] if params.motion is None else list(MOTION_FEATURES)
+    return feature_names(params.features) + list(OFFSET_FEATURES) + motion
 
 
 def new_state(P: FloatArray) -> FloatArray:
     """Fresh ``S`` for a segment with parameters ``P``."""
     core = core_new_state(P[:N_CORE_PARAMS])
-    rest = np.zeros(N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE)
+    rest = np.zeros(_N_TAIL_STATE)
     rest[N_OFFSET_STATE + T_GAP] = np.inf
     return np.concatenate([core, rest])
 
@@ -181,7 +201,7 @@ def _features_point(
     """Project, run core + offset tracker, write the feature vector into ``x``; return (east, north)."""
     Pc = P[:N_CORE_PARAMS]
     rest = P[N_CORE_PARAMS:]
-    core_size = S.size - (N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE)
+    core_size = S.size - _N_TAIL_STATE
     east, north = to_local_scalar(rest[_FRAME : _FRAME + N_FRAME_CONSTANTS], lat, lon)
     core_step(Pc, S[:core_size], east, north, speed, heading, core_out)
     offset_step(
@@ -200,6 +220,14 @@ def _features_point(
         x[k] = _compress(core_out[f0 + k])
     for k in range(N_OFFSET_FEATURES):
         x[nc + k] = _compress(off_out[k])
+    if rest[_MOTION_ON] != 0.0:
+        # The motion features reuse the tail of ``off_out`` as scratch.
+        ms = S.size - N_MOTION_STATE
+        m_out = off_out[N_OFFSET_FEATURES:]
+        motion_step(rest[_MOTION : _MOTION + N_MOTION_PARAMS], S[ms:], dt, east, north, m_out)
+        m0 = nc + N_OFFSET_FEATURES
+        for k in range(N_MOTION_FEATURES):
+            x[m0 + k] = _compress(m_out[k])
     return east, north
 
 
@@ -234,7 +262,7 @@ def _decide_point(
 ) -> None:
     """GRU on ``x`` -> threshold -> time type -> recovery -> clean position in degrees."""
     rest = P[N_CORE_PARAMS:]
-    core_size = S.size - (N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE)
+    core_size = S.size - _N_TAIL_STATE
     ts = core_size + N_OFFSET_STATE
     rs = ts + N_TIME_STATE
     _recurrent_step(gp, dims, x, H, scratch)
@@ -303,7 +331,7 @@ def grad_step(
     """One fix of one segment: advance ``S`` and ``H`` and write the 7 outputs into ``out``."""
     dims = _dims(P)
     core_out = np.empty(_core_width(P))
-    off_out = np.empty(N_OFFSET_FEATURES)
+    off_out = np.empty(N_OFFSET_FEATURES + N_MOTION_FEATURES)
     rec_out = np.empty(3)
     x = np.empty(dims[0], np.float32)
     scratch = np.empty(_scratch_size(dims), np.float32)
@@ -328,7 +356,7 @@ def _segment_kernel(
 ) -> FloatArray:
     dims = _dims(P)
     core_out = np.empty(_core_width(P))
-    off_out = np.empty(N_OFFSET_FEATURES)
+    off_out = np.empty(N_OFFSET_FEATURES + N_MOTION_FEATURES)
     rec_out = np.empty(3)
     x = np.empty(dims[0], np.float32)
     scratch = np.empty(_scratch_size(dims), np.float32)
@@ -370,7 +398,7 @@ def _features_kernel(
     n_features: int,
 ) -> FloatArray:
     core_out = np.empty(_core_width(P))
-    off_out = np.empty(N_OFFSET_FEATURES)
+    off_out = np.empty(N_OFFSET_FEATURES + N_MOTION_FEATURES)
     out = np.empty((lat.size, n_features))
     for i in range(lat.size):
         _features_point(

@@ -1,0 +1,99 @@
+"""The positions-only motion model: kernel equals reference; it never stays diverged."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gradgps._exceptions import ConfigError
+from gradgps._grad.motion import MOTION_FEATURES, MotionParams, motion_batch, motion_reference
+
+RUN_S = MOTION_FEATURES.index("motion_run_s")
+NIS = MOTION_FEATURES.index("motion_nis")
+
+
+def _curve(n: int, period: float, speed: float, radius: float, noise: float, seed: int):
+    """A car at ``speed`` m/s on a circle of ``radius`` m, fixes every ``period`` s."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * period
+    angle = speed * t / radius
+    east = radius * np.sin(angle) + rng.normal(0, noise, n)
+    north = radius * (1 - np.cos(angle)) + rng.normal(0, noise, n)
+    return t, east, north
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(0, 200),
+    jumps=st.integers(0, 6),
+)
+def test_kernel_equals_reference(seed: int, n: int, jumps: int) -> None:
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.choice([0.1, 0.5, 1.0, 1.0, 2.0], n))
+    heading = np.cumsum(rng.normal(0, 0.05, n))
+    speed = np.clip(15 + np.cumsum(rng.normal(0, 0.3, n)), 0, 40)
+    step = np.r_[0.0, np.diff(t)] if n else np.zeros(0)
+    east = np.cumsum(speed * np.sin(heading) * step) + rng.normal(0, 2, n)
+    north = np.cumsum(speed * np.cos(heading) * step) + rng.normal(0, 2, n)
+    if n and jumps:
+        k = rng.integers(0, n, jumps)
+        east[k] += rng.normal(0, 80, jumps)
+    fast = motion_batch(t, east, north, 1.0)
+    slow = motion_reference(t, east, north, 1.0)
+    assert fast.shape == slow.shape == (n, len(MOTION_FEATURES))
+    np.testing.assert_allclose(fast, slow, rtol=1e-9, atol=1e-7)
+
+
+@pytest.mark.parametrize(
+    ("period", "speed", "radius"),
+    [(1.0, 30.0, 600.0), (2.0, 30.0, 600.0), (1.0, 10.0, 25.0), (0.1, 15.0, 100.0)],
+)
+def test_clean_curves_are_not_surprising(period: float, speed: float, radius: float) -> None:
+    """A motorway curve at 1 Hz and 0.5 Hz, a roundabout, a 10 Hz bend: positions only."""
+    t, east, north = _curve(400, period, speed, radius, noise=1.0, seed=1)
+    feats = motion_batch(t, east, north, period)
+    nis = feats[20:, NIS]
+    assert np.mean(nis > MotionParams().gate) < 0.01
+    assert np.all(feats[20:, RUN_S] <= MotionParams().max_run_s)
+
+
+@pytest.mark.parametrize("period", [0.1, 1.0, 2.0])
+def test_reacquires_after_a_long_jump(period: float) -> None:
+    """A 100-fix offset of 150 m, then clean driving: followed again within max_run_s."""
+    t, east, north = _curve(600, period, 25.0, 800.0, noise=1.5, seed=2)
+    east = east.copy()
+    east[200:300] += 150.0
+    feats = motion_batch(t, east, north, period)
+    params = MotionParams()
+    # The onset and the return are surprises ...
+    assert feats[200, NIS] > params.gate
+    assert feats[300, NIS] > params.gate
+    # ... and within max_run_s (plus one step) after each, the model follows again.
+    settle = math.ceil(params.max_run_s / period) + 2
+    for start in (200, 300):
+        after = feats[start + settle : start + settle + 50]
+        assert np.all(after[:, RUN_S] == 0.0)
+        assert np.mean(after[:, NIS] > params.gate) < 0.05
+
+
+def test_dropped_fix_is_not_a_fault() -> None:
+    """A fix missing from a 1 Hz drive: the next one is 2 s later, as the model predicts."""
+    t, east, north = _curve(300, 1.0, 30.0, 2000.0, noise=0.5, seed=3)
+    keep = np.ones(300, bool)
+    keep[150] = False
+    feats = motion_batch(t[keep], east[keep], north[keep], 1.0)
+    assert feats[150, MOTION_FEATURES.index("dt_ratio")] == pytest.approx(2.0)
+    assert feats[150, NIS] < MotionParams().gate
+
+
+@pytest.mark.parametrize(
+    "bad", [{"gate": 0.0}, {"memory": 1.5}, {"max_run_s": math.inf}, {"turn_gain": -0.1}]
+)
+def test_params_are_checked(bad: dict[str, float]) -> None:
+    with pytest.raises(ConfigError):
+        MotionParams(**bad).checked()
