@@ -172,21 +172,70 @@ def test_window_training_learns_an_obvious_fault() -> None:
     assert p[truth].mean() > p[~truth].mean() + 0.3
 
 
-def test_channel_grad_features_are_the_position_features_of_each_channel() -> None:
-    from gradgps._baselines.channel_grad import channel_features
+def test_channel_grad_features_are_the_position_features_plus_raw_and_consistency() -> None:
+    from gradgps._baselines.channel_grad import N_RAW, channel_features, cross_names, signed_log
     from gradgps._grad.features import N_CHANNEL, FeatureParams, features_reference
     from gradgps._grad.rema import RemaParams
 
     fixes = drive(50)
     seg = segments(fixes, "sensor")[0][0]
-    feats = channel_features(seg, FeatureParams(speed_heading=False), RemaParams())
-    assert feats.shape == (50, 3 * N_CHANNEL)
+    rema = (RemaParams(), RemaParams(sensitivity=4.0), RemaParams(alpha=0.3, slide_size=5))
+    feats = channel_features(seg, FeatureParams(speed_heading=False), rema)
+    width = N_CHANNEL + N_RAW
+    assert feats.shape == (50, 3 * width + 2 * len(cross_names("sensor")))
     for k in range(3):
         x = seg.values[:, k]
-        expected = features_reference(seg.t, x, x, FeatureParams(speed_heading=False), RemaParams())
+        expected = features_reference(seg.t, x, x, FeatureParams(speed_heading=False), rema[k])
         np.testing.assert_allclose(
-            feats[:, k * N_CHANNEL : (k + 1) * N_CHANNEL],
-            expected[:, :N_CHANNEL],
+            feats[:, k * width : k * width + N_CHANNEL],
+            signed_log(np.nan_to_num(expected[:, :N_CHANNEL], nan=np.nan)),
             rtol=1e-7,
             atol=1e-7,
         )
+        np.testing.assert_allclose(feats[:, k * width + N_CHANNEL], signed_log(x))
+        np.testing.assert_allclose(feats[1:, k * width + N_CHANNEL + 1], signed_log(np.diff(x)))
+    speed, accel = seg.values[:, 0], seg.values[:, 1]
+    residual = np.diff(speed) - 0.5 * (accel[1:] + accel[:-1])
+    np.testing.assert_allclose(feats[1:, -2], signed_log(residual))
+    # ... and over its robust spread: 1.4826 MAD of the previous 30 steps.
+    i = 40
+    spread = 1.4826 * np.median(np.abs(np.r_[0.0, residual][i - 30 : i]))
+    assert feats[i, -1] == pytest.approx(signed_log(np.r_[0.0, residual][i] / spread))
+    # With the second speed source: reported against fix-derived speed.
+    fixes["speed_fix_mps"] = fixes["speed"] + 0.5
+    seg4 = segments(fixes, "sensor-fix")[0][0]
+    feats4 = channel_features(
+        seg4, FeatureParams(speed_heading=False), (RemaParams(),) * 4, "sensor-fix"
+    )
+    assert feats4.shape == (50, 4 * width + 6)
+    mid = 0.5 * (speed[1:] + speed[:-1])
+    np.testing.assert_allclose(feats4[1:, -5], signed_log(mid - (speed[1:] + 0.5)))
+
+
+def test_recall_floor_threshold_keeps_normal_recall() -> None:
+    from gradgps._train.channel_grad import recall_floor_threshold
+
+    rng = np.random.default_rng(0)
+    truth = rng.random(4000) < 0.1
+    p = np.clip(np.where(truth, 0.6, 0.3) + rng.normal(0, 0.15, truth.size), 0, 1)
+    t = recall_floor_threshold(truth, p, 0.995)
+    assert np.mean(p[~truth] < t) >= 0.995
+    assert recall_floor_threshold(truth, p, 0.5) < t  # a looser floor lets F1 decide
+
+
+def test_waved_is_the_weighted_mean_of_its_members() -> None:
+    from gradgps._baselines.waved import WavedDetector, WavedModel, ensemble_probability
+
+    models = {
+        name: _random_model(name, "sensor", seed)[0]
+        for seed, name in enumerate(("cnn", "lstm-cnn"))
+    }
+    fixes = drive(40)
+    det = WavedDetector(WavedModel(models["cnn"], models["lstm-cnn"], 0.3, 0.4))
+    out = det.detect(fixes)
+    seg = segments(fixes, "sensor")[0][0]
+    expected = ensemble_probability(
+        models["cnn"].segment_probability(seg), models["lstm-cnn"].segment_probability(seg), 0.3
+    )
+    np.testing.assert_allclose(out["score"].to_numpy()[seg.rows], expected, rtol=1e-6)
+    np.testing.assert_array_equal(out["anomaly"].to_numpy()[seg.rows], expected >= 0.4)

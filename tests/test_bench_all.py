@@ -89,8 +89,12 @@ def test_quick_bench_writes_every_table(tmp_path: Path) -> None:
         for block in report[key]["results"].values():
             assert set(block["anomaly"]) == {"precision", "recall", "f1"}
     grid = report["sensor-grid"]["results"]
-    assert set(grid) == {"grad", "kf", "cnn", "cnn-kf", "lstm-cnn"}
+    assert set(grid) == {"grad", "kf", "cnn", "cnn-kf", "lstm-cnn", "waved"}
     assert all(len(rows) == GRID_ROWS for rows in grid.values())
+    assert report["sensor-grid"]["per_row"] is True
+    for rows in grid.values():
+        for block in rows.values():
+            assert set(block["window"]["anomaly"]) == {"precision", "recall", "f1"}
     assert set(report["sweep"]) == {"0.25", "0.5", "1.0", "2.0"}
     assert set(report["speed"]) == methods | {"points"}
     assert report["speed"]["kf"]["stream_us_per_point"] > 0
@@ -100,4 +104,6 @@ def test_quick_bench_writes_every_table(tmp_path: Path) -> None:
     assert text.count("<!-- bench:start -->") == 1
     assert text.count("<!-- bench:end -->") == 1
     assert "quick mode" in text
-    assert text.count("| instant-25 |") == 1
+    # point F1, window F1 and normal recall: one line each
+    assert text.count("| instant-25 |") == 3
+    assert "SPMD, published" in text

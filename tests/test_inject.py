@@ -22,6 +22,7 @@ from gradgps._data.inject import (
     inject_grad,
     inject_sensor_grid,
     sensor_grid_row,
+    with_fix_speed,
 )
 
 
@@ -290,3 +291,40 @@ def test_sensor_grid_needs_its_channels() -> None:
         inject_sensor_grid(drives([50]).drop(columns=["gyro_z_dps"]), row="bias-5-3", seed=0)
     with pytest.raises(InputError, match="speed"):
         inject_sensor_grid(drives([50]).drop(columns=["speed_mps"]), row="bias-5-3", seed=0)
+
+
+def test_constant_offset_mode_adds_one_offset_and_stuck_mode_holds_the_value() -> None:
+    table = drives([800])
+    stuck = inject_sensor_grid(table, row="constant-5-10", seed=3)
+    offset = inject_sensor_grid(table, row="constant-5-10", seed=3, constant="offset")
+    # Same draws: the same episodes, only how the value is written differs.
+    np.testing.assert_array_equal(stuck["label_episode"], offset["label_episode"])
+    found = 0
+    for e, first, last in runs(offset["label_episode"].to_numpy()):
+        idx = np.arange(first, last + 1)
+        ch = next(c for c in SENSOR_CHANNELS if offset[f"label_{c}"].iloc[first] == 1)
+        d = offset[ch].to_numpy()[idx] - offset[f"{ch}_true"].to_numpy()[idx]
+        np.testing.assert_allclose(d, d[0], atol=1e-9)
+        assert 0 <= d[0] <= 5.0
+        held = stuck[ch].to_numpy()[idx]
+        assert np.all(held == held[0])
+        assert held[0] - offset[f"{ch}_true"].to_numpy()[first] == pytest.approx(d[0])
+        found += e >= 0
+    assert found > 5
+    with pytest.raises(ConfigError, match="stuck, offset"):
+        inject_sensor_grid(table, row="constant-5-10", seed=3, constant="frozen")
+
+
+def test_fix_speed_is_the_distance_over_the_time_step_and_is_never_corrupted() -> None:
+    table = drives([300, 50])
+    with_fix = with_fix_speed(table)
+    v = with_fix["speed_fix_mps"].to_numpy()
+    first = with_fix.groupby("drive").head(1).index
+    assert np.isnan(v[first]).all()
+    # 15 m/s east plus the weave's north speed: within a few cm/s of the truth.
+    rest = np.setdiff1d(np.arange(len(v)), first)
+    t = (with_fix["t"].to_numpy() - 1.6e9)[rest]
+    expected = np.hypot(15.0, 20.0 / 30.0 * np.cos((t - 0.5) / 30.0))
+    np.testing.assert_allclose(v[rest], expected, atol=0.05)
+    out = inject_sensor_grid(with_fix, row="mixed", seed=1)
+    np.testing.assert_array_equal(out["speed_fix_mps"].to_numpy(), v)

@@ -107,3 +107,26 @@ def test_rmse_m_by_hand() -> None:
     rmse = metrics.rmse_m(lat, lon_true, lat_true, lon_true, mask=[True, True, False])
     assert rmse == pytest.approx(math.sqrt((9 + 16) / 2), rel=1e-4)
     assert math.isnan(metrics.rmse_m(lat, lon_true, lat_true, lon_true, mask=[False] * 3))
+
+
+def test_window_scores_count_a_window_once_if_any_step_is_labelled_or_flagged() -> None:
+    from gradgps.metrics import window_scores
+
+    # Track a: steps 0..9 -> windows [0-3], [4-7], [8-9]; track b: steps 0..4 -> [0-3], [4].
+    track = np.array(["a"] * 10 + ["b"] * 5, dtype=object)
+    pos = np.r_[np.arange(10), np.arange(5)]
+    truth = np.zeros(15, int)
+    truth[[1, 2, 9, 14]] = 1  # a:[0-3] a:[8-9] b:[4] anomalous
+    flagged = np.zeros(15, bool)
+    flagged[[3, 5, 14]] = True  # a:[0-3] (hit), a:[4-7] (false), b:[4] (hit)
+    out = window_scores(truth, flagged, track, pos, 4)
+    assert out["anomaly"]["precision"] == pytest.approx(2 / 3)
+    assert out["anomaly"]["recall"] == pytest.approx(2 / 3)
+    assert out["normal"]["recall"] == pytest.approx(1 / 2)
+    # A window of one step is the point score.
+    one = window_scores(truth, flagged, track, pos, 1)
+    from gradgps.metrics import class_scores
+
+    assert one == class_scores(truth, flagged)
+    with pytest.raises(ValueError, match="window"):
+        window_scores(truth, flagged, track, pos, 0)

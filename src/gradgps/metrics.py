@@ -11,6 +11,7 @@ from ._eval.metrics import (
     false_alarms_per_hour,
     rmse_m,
     type_accuracy,
+    window_scores,
 )
 
 __all__ = [
@@ -21,4 +22,5 @@ __all__ = [
     "false_alarms_per_hour",
     "rmse_m",
     "type_accuracy",
+    "window_scores",
 ]

@@ -8,7 +8,10 @@ baseline reads one of two kinds of input, chosen by the benchmark protocol:
   (``LocalFrame`` at its first usable fix), east and north in metres: two
   channels, which is how a Kalman filter or a network sees a position;
 * ``sensor`` (protocol ``sensor-grid``): the scalar readings ``speed`` (m/s),
-  ``accel_x_mps2`` (m/s²) and ``gyro_z_dps`` (deg/s), as in the source papers.
+  ``accel_x_mps2`` (m/s²) and ``gyro_z_dps`` (deg/s), as in the source papers;
+* ``sensor-fix``: the same plus ``speed_fix_mps``, the speed derived from the
+  fixes (:func:`gradgps._data.inject.with_fix_speed`): a second speed sensor
+  beside the reported speed, as SPMD has two (protocol option ``fix_speed``).
 
 A track is cut into *segments* at gaps longer than ``max_gap_s`` (what
 preprocessing does for GRAD): nothing before a long dropout says anything
@@ -31,10 +34,19 @@ from .._result import PointResult
 from .._tracks.geo import LocalFrame
 from .._tracks.preprocess import invalid_reasons
 
-__all__ = ["INPUTS", "SENSOR_CHANNELS", "Segment", "input_names", "result_frame", "segments"]
+__all__ = [
+    "INPUTS",
+    "SENSOR_CHANNELS",
+    "SENSOR_FIX_CHANNELS",
+    "Segment",
+    "input_names",
+    "result_frame",
+    "segments",
+]
 
-INPUTS = ("position", "sensor")
+INPUTS = ("position", "sensor", "sensor-fix")
 SENSOR_CHANNELS = ("speed", "accel_x_mps2", "gyro_z_dps")
+SENSOR_FIX_CHANNELS = ("speed", "speed_fix_mps", "accel_x_mps2", "gyro_z_dps")
 
 
 def unusable_fix(t: float, lat: float, lon: float) -> PointResult | None:
@@ -66,6 +78,8 @@ def input_names(inputs: str) -> tuple[str, ...]:
         return ("east", "north")
     if inputs == "sensor":
         return SENSOR_CHANNELS
+    if inputs == "sensor-fix":
+        return SENSOR_FIX_CHANNELS
     raise ConfigError(f"unknown input kind {inputs!r}; choose one of {', '.join(INPUTS)}")
 
 
@@ -94,7 +108,7 @@ def segments(
     of range) belong to no segment.
     """
     names = input_names(inputs)
-    if inputs == "sensor":
+    if inputs != "position":
         missing = [c for c in names if c not in fixes.columns]
         if missing:
             raise ConfigError(

@@ -3,30 +3,46 @@
 The paper's comparison table corrupts sensor readings (speed, acceleration,
 yaw rate), not positions, so the position pipeline of :class:`gradgps.Detector`
 has nothing to look at there. GRAD's statistical core works on any 1-D
-channel, so the channel-wise GRAD is the same method on other inputs:
+channel, so the channel GRAD is the same method on other inputs, with
+features that see what sensor faults change:
 
-per channel (``speed``, ``accel_x_mps2``, ``gyro_z_dps``) REMA + the MS-SW
-features of :mod:`gradgps._grad.features` (the 11 per-channel features, no
-cross-channel cues) -> the three channels' features side by side -> the same
-stacked GRU (32, 16) with an anomaly head and a bias-type head over the
-sensor-grid classes ``none``, ``instant``, ``constant``, ``bias``, ``drift``,
-trained by :func:`gradgps._train.baselines.dataset_channel_grad`
-with :func:`gradgps._train.torch_gru.train_model` (stream mode, early stopping
-on validation F1, 3-minute budget, the same injection seeds as GRAD, the
-``mixed`` row), threshold tuned on validation.
+per channel (``speed``, [``speed_fix_mps``], ``accel_x_mps2``, ``gyro_z_dps``)
+
+* REMA + the 11 MS-SW features of :mod:`gradgps._grad.features` (slope,
+  intercept, fit error over 30 s; spread, RSI, range, last change over 5 s;
+  REMA distance, width, flag, alpha), with REMA **tuned per channel** on the
+  validation split (:mod:`gradgps._train.channel_grad`);
+* the raw reading and its step difference ``x[i] - x[i-1]`` (what instant,
+  constant and bias faults change; the MS-SW windows blur a one-step jump
+  on channels whose natural spread is as large as the fault);
+
+and across channels (**consistency**, what a fault on one sensor breaks):
+
+* ``d(speed)/dt - accel``: the reported speed's change against the
+  measured longitudinal acceleration (mean of the two readings);
+* with the second speed source (input ``sensor-fix``): ``speed -
+  speed_fix`` (reported against position-derived speed, both at the
+  half step) and ``d(speed_fix)/dt - accel``.
+
+-> every feature signed-log compressed (``sign(x) log(1 + |x|)``), the steps
+and residuals also over their causal robust spread (MAD of the previous 30
+steps) -> the same stacked GRU (32, 16) with an anomaly head and a
+bias-type head over ``none``, ``instant``, ``constant``, ``bias``,
+``drift``, fed the paper's sliding window of 10 steps, trained by
+:func:`gradgps._train.channel_grad.dataset_channel_grad` (early stopping on
+validation F1, the baselines' data and budget), with the anomaly threshold
+tuned on validation F1 under a normal-recall floor.
 
 Where it differs from position GRAD: no offset tracker, time classifier or
-recovery (the protocol scores detection and type only), REMA with its
-paper defaults in channel units, and batch inference only (the benchmark
-measures ``detect``; the position GRAD is the streaming product). A missing
-reading is carried forward from the previous one (0 at a segment start).
-The features use the numba kernel of the position features with the second
-(north) channel fed zeros and dropped: the same code GRAD runs, at twice
-the arithmetic it needs.
+recovery (the protocol scores detection and type only), and batch inference
+only. A missing reading is carried forward from the previous one (0 at a
+segment start); an undefined difference or residual is 0. See
+docs/deviations.md.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,11 +51,24 @@ import pandas as pd
 from .._grad.features import N_CHANNEL, FeatureParams, features_batch_kernel
 from .._grad.gru import GRUModel
 from .._grad.rema import RemaParams
-from .base import Segment, result_frame, segments
+from .base import Segment, input_names, result_frame, segments
 
-__all__ = ["SENSOR_BIAS_CLASSES", "ChannelGradDetector", "ChannelGradModel", "channel_features"]
+__all__ = [
+    "N_RAW",
+    "ROBUST_SPAN",
+    "SENSOR_BIAS_CLASSES",
+    "ChannelGradDetector",
+    "ChannelGradModel",
+    "channel_features",
+    "cross_names",
+    "signed_log",
+]
 
 SENSOR_BIAS_CLASSES = ("none", "instant", "constant", "bias", "drift")
+#: Raw features per channel: the reading, its step difference, and that step over its robust spread.
+N_RAW = 3
+#: Steps over which the robust spread of a step or residual is measured.
+ROBUST_SPAN = 30
 
 
 def _filled(x: np.ndarray) -> np.ndarray:
@@ -48,27 +77,74 @@ def _filled(x: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(s.to_numpy(np.float64))
 
 
-def channel_features(segment: Segment, features: FeatureParams, rema: RemaParams) -> np.ndarray:
-    """(n, 11 C) per-channel REMA + MS-SW features of one sensor segment."""
+def _step(x: np.ndarray) -> np.ndarray:
+    out = np.zeros_like(x)
+    out[1:] = np.diff(x)
+    return out
+
+
+def _robust_z(x: np.ndarray, span: int = ROBUST_SPAN) -> np.ndarray:
+    """``x`` over its causal robust spread: 1.4826 × the median of ``|x|`` over the previous ``span`` steps.
+
+    0 until three earlier values exist; the spread is floored at 1e-3 units.
+    """
+    spread = pd.Series(np.abs(x)).shift(1).rolling(span, min_periods=3).median().to_numpy()
+    z = x / np.maximum(1.4826 * spread, 1e-3)
+    return np.where(np.isfinite(z), z, 0.0)
+
+
+def signed_log(x: np.ndarray) -> np.ndarray:
+    """``sign(x) · log(1 + |x|)``: keeps small values, tames fault-sized outliers for the scaler."""
+    out: np.ndarray = np.sign(x) * np.log1p(np.abs(x))
+    return out
+
+
+def cross_names(inputs: str) -> tuple[str, ...]:
+    """Names of the cross-channel consistency features for an input kind."""
+    if inputs == "sensor-fix":
+        return ("dspeed_dt_minus_accel", "speed_minus_speed_fix", "dspeed_fix_dt_minus_accel")
+    return ("dspeed_dt_minus_accel",)
+
+
+def _cross(values: dict[str, np.ndarray], dt: np.ndarray, inputs: str) -> list[np.ndarray]:
+    speed, accel = values["speed"], values["accel_x_mps2"]
+    accel_mid = np.r_[accel[0], 0.5 * (accel[1:] + accel[:-1])]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = [_step(speed) / dt - accel_mid]
+        if inputs == "sensor-fix":
+            fix = values["speed_fix_mps"]
+            speed_mid = np.r_[speed[0], 0.5 * (speed[1:] + speed[:-1])]
+            accel_prev = np.r_[accel[0], accel[:-1]]
+            out += [speed_mid - fix, _step(fix) / dt - accel_prev]
+    return [np.where(np.isfinite(c), c, 0.0) for c in out]
+
+
+def channel_features(
+    segment: Segment, features: FeatureParams, rema: Sequence[RemaParams], inputs: str = "sensor"
+) -> np.ndarray:
+    """(n, C·(11 + 3) + 2·cross) features of one sensor segment, signed-log compressed (module docstring)."""
     n = len(segment.t)
     period = float(segment.t[1] - segment.t[0]) if n > 1 and segment.t[1] > segment.t[0] else 1.0
     long_n, short_n = features.points(period)
     zeros, nan = np.zeros(n), np.full(n, np.nan)
-    parts = [
-        features_batch_kernel(
-            _filled(segment.values[:, k]),
-            zeros,
-            nan,
-            nan,
-            period,
-            long_n,
-            short_n,
-            rema.to_array(),
-            False,
-        )[:, :N_CHANNEL]
-        for k in range(segment.values.shape[1])
-    ]
-    return np.hstack(parts)
+    names = input_names(inputs)
+    values = {name: _filled(segment.values[:, k]) for k, name in enumerate(names)}
+    parts = []
+    for k, name in enumerate(names):
+        x = values[name]
+        parts.append(
+            features_batch_kernel(
+                x, zeros, nan, nan, period, long_n, short_n, rema[k].to_array(), False
+            )[:, :N_CHANNEL]
+        )
+        step = _step(x)
+        parts.append(np.column_stack([x, step, _robust_z(step)]))
+    dt = np.r_[period, np.diff(segment.t)]
+    dt = np.where(dt > 0, dt, np.nan)
+    cross = _cross(values, dt, inputs)
+    parts.append(np.column_stack(cross + [_robust_z(c) for c in cross]))
+    out: np.ndarray = signed_log(np.hstack(parts))
+    return out
 
 
 @dataclass(frozen=True)
@@ -76,25 +152,26 @@ class ChannelGradModel:
     gru: GRUModel
     threshold: float
     features: FeatureParams
-    rema: RemaParams
+    rema: tuple[RemaParams, ...]
+    inputs: str = "sensor"
     max_gap_s: float = 5.0
 
 
 class ChannelGradDetector:
-    """Batch channel-wise GRAD detector over fixes carrying the three sensor channels."""
+    """Batch channel GRAD detector over fixes carrying the sensor channels of its input kind."""
 
     def __init__(self, model: ChannelGradModel) -> None:
         self.model = model
 
     def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
         m = self.model
-        segs, reason = segments(fixes, "sensor", m.max_gap_s)
+        segs, reason = segments(fixes, m.inputs, m.max_gap_s)
         n = len(fixes)
         score = np.full(n, np.nan)
         bias = np.full(n, None, dtype=object)
         names = np.array(SENSOR_BIAS_CLASSES, dtype=object)
         for seg in segs:
-            pred, _ = m.gru.predict_stream(channel_features(seg, m.features, m.rema))
+            pred = m.gru.predict(channel_features(seg, m.features, m.rema, m.inputs))
             score[seg.rows] = pred.anomaly
             bias[seg.rows] = names[np.argmax(pred.bias, axis=1)]
         anomaly = np.nan_to_num(score) >= m.threshold

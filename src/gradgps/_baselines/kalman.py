@@ -511,7 +511,7 @@ class KalmanDetector:
             z = np.array([float(east), float(north)])
         else:
             readings = {"speed": math.nan if speed is None else float(speed), **channels}
-            z = np.array([float(readings.get(c, math.nan)) for c in input_names("sensor")])
+            z = np.array([float(readings.get(c, math.nan)) for c in input_names(params.inputs)])
         gap = self._last_t is None or t - self._last_t > params.max_gap_s
         if gap or self._state is None:
             self._state = np.zeros((z.size, N_CHANNEL_STATE))

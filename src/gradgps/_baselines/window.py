@@ -60,7 +60,7 @@ ARCHITECTURES: dict[
 
 
 def _signal(values: np.ndarray, t: np.ndarray, inputs: str) -> np.ndarray:
-    if inputs == "sensor":
+    if inputs != "position":
         return values
     sig = np.full(values.shape, np.nan)
     dt = np.diff(t)
@@ -239,7 +239,7 @@ class WindowClassifier:
             values = [float(east), float(north)]
         else:
             readings = {"speed": math.nan if speed is None else float(speed), **channels}
-            values = [float(readings.get(c, math.nan)) for c in input_names("sensor")]
+            values = [float(readings.get(c, math.nan)) for c in input_names(m.inputs)]
         self._recent = ([*self._recent, (float(t), values)])[-3:]
         recent = Segment(
             "",

@@ -35,6 +35,7 @@ from .._tracks.track import ColumnMap, to_fixes
 
 __all__ = [
     "BIAS_TYPES",
+    "CONSTANT_MODES",
     "GRAD_RATES",
     "GRAVITY",
     "SENSOR_CHANNELS",
@@ -48,6 +49,7 @@ __all__ = [
     "sensor_grid_rates",
     "sensor_grid_row",
     "with_accel_mps2",
+    "with_fix_speed",
 ]
 
 TIME_TYPES = ("transient", "intermittent", "permanent")
@@ -320,6 +322,10 @@ def grad_rates(labelled: pd.DataFrame) -> pd.DataFrame:
 # --------------------------------------------------------- protocol sensor-grid
 
 SENSOR_START_PROBABILITY = 0.05
+#: How a ``constant`` fault is written: ``stuck`` (default) holds the reading at
+#: ``x(t0) + u`` for the episode; ``offset`` adds ``u`` to every reading of the
+#: episode (``x + u``), the additive reading of the source papers' injection.
+CONSTANT_MODES = ("stuck", "offset")
 INSTANT_SIGMA = 0.1  # N(0, 0.01) read as variance 0.01
 
 
@@ -381,6 +387,38 @@ def with_accel_mps2(table: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+def with_fix_speed(table: pd.DataFrame, columns: ColumnMap | None = None) -> pd.DataFrame:
+    """``table`` with ``speed_fix_mps``: the speed derived from the fixes, beside the reported one.
+
+    Per track in time order, the distance (in the track's tangent plane) from the
+    previous usable fix divided by the time step (m/s): a second, independent
+    speed source like the GPS speed beside the wheel speed in SPMD. The first
+    fix of a track, a repeated time stamp and unusable rows get NaN. Under
+    ``sensor-grid`` the positions are never corrupted, so this channel is a
+    clean reference; it is computed before injection and never faulty.
+    Returned unchanged when the column is already there.
+    """
+    if "speed_fix_mps" in table.columns:
+        return table
+    fixes = to_fixes(table, columns)
+    lat = fixes["lat"].to_numpy(dtype=np.float64)
+    lon = fixes["lon"].to_numpy(dtype=np.float64)
+    t = fixes["t"].to_numpy(dtype=np.float64)
+    out_speed = np.full(len(fixes), np.nan)
+    for rows in _track_order(fixes, invalid_reasons(fixes) == ""):
+        if rows.size < 2:
+            continue
+        frame = LocalFrame(float(lat[rows[0]]), float(lon[rows[0]]))
+        east, north = frame.to_local(lat[rows], lon[rows])
+        dt = np.diff(t[rows])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v = np.hypot(np.diff(east), np.diff(north)) / dt
+        out_speed[rows[1:]] = np.where(dt > 0, v, np.nan)
+    result = table.copy()
+    result["speed_fix_mps"] = out_speed
+    return result
+
+
 def _check_sensor_columns(table: pd.DataFrame, speed_col: str | None, source: str) -> None:
     if speed_col is None:
         raise InputError(
@@ -399,13 +437,18 @@ def _check_sensor_columns(table: pd.DataFrame, speed_col: str | None, source: st
 
 
 def _sensor_fault(
-    truth: np.ndarray, row: SensorFaultRow, rng: np.random.Generator, scale: float
+    truth: np.ndarray,
+    row: SensorFaultRow,
+    rng: np.random.Generator,
+    scale: float,
+    constant: str = "stuck",
 ) -> np.ndarray:
     """The corrupted values of one episode of ``row`` over the true readings ``truth``."""
     if row.kind == "instant":
         return truth + row.magnitude * scale * rng.normal(0.0, INSTANT_SIGMA, size=truth.size)
     if row.kind == "constant":
-        return np.full(truth.size, truth[0] + rng.uniform(0.0, row.magnitude * scale))
+        u = rng.uniform(0.0, row.magnitude * scale)
+        return truth + u if constant == "offset" else np.full(truth.size, truth[0] + u)
     if row.kind == "bias":
         return truth + rng.uniform(0.0, row.magnitude * scale)
     ramp = np.linspace(0.0, row.magnitude * scale, row.duration)
@@ -419,6 +462,7 @@ def inject_sensor_grid(
     seed: int,
     scale: float = 1.0,
     columns: ColumnMap | None = None,
+    constant: str = "stuck",
 ) -> pd.DataFrame:
     """Corrupt speed, acceleration and yaw rate with one sensor-grid row (or ``"mixed"``).
 
@@ -434,9 +478,15 @@ def inject_sensor_grid(
     ``label_episode`` and ``<channel>_true`` for channels ``speed_mps``,
     ``accel_x_mps2``, ``gyro_z_dps``. Every step of an episode is labelled,
     including draws that happen to change nothing (a drift's first step, a
-    constant fault equal to the reading).
+    constant fault equal to the reading). ``constant`` is ``"stuck"`` (the
+    reading held at ``x(t0) + u``) or ``"offset"`` (``x + u`` over the
+    episode), see :data:`CONSTANT_MODES`.
     """
     _check_scale(scale)
+    if constant not in CONSTANT_MODES:
+        raise ConfigError(
+            f"constant fault mode must be one of {', '.join(CONSTANT_MODES)}, got {constant!r}"
+        )
     fault = sensor_grid_row(row)
     source = str(table.attrs.get("source", "<data>"))
     in_g = "accel_x_mps2" not in table.columns and "accel_x_g" in table.columns
@@ -471,7 +521,7 @@ def inject_sensor_grid(
             end = min(step + this.duration, rows.size)
             name = SENSOR_CHANNELS[channel]
             span = rows[step:end]
-            values[name][span] = _sensor_fault(truth[name][span], this, rng, scale)
+            values[name][span] = _sensor_fault(truth[name][span], this, rng, scale, constant)
             channel_of[span] = channel
             kind[span] = this.kind
             episode[span] = next_id

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -18,7 +19,13 @@ import numpy as np
 import pandas as pd
 
 from .._data.datasets import load_dataset
-from .._data.inject import SENSOR_GRID_ROWS, inject_grad, inject_sensor_grid, with_accel_mps2
+from .._data.inject import (
+    SENSOR_GRID_ROWS,
+    inject_grad,
+    inject_sensor_grid,
+    with_accel_mps2,
+    with_fix_speed,
+)
 from .._exceptions import ConfigError
 from .._result import RESULT_COLUMNS
 from .._tracks.track import ColumnMap, to_fixes
@@ -29,6 +36,7 @@ from .metrics import (
     false_alarms_per_hour,
     rmse_m,
     type_accuracy,
+    window_scores,
 )
 
 if TYPE_CHECKING:
@@ -48,9 +56,12 @@ DETECTOR_NAMES = (
     "cnn",
     "cnn-kf",
     "lstm-cnn",
+    "waved",
 )
 _SENSOR_CHANNELS = ["accel_x_mps2", "gyro_z_dps"]
 GRAD_BIAS = ("noise", "jump")
+#: Window of :func:`window_scores` in the benchmark (steps; 10 for every detector).
+WINDOW_STEPS = 10
 GRAD_TIME = ("transient", "intermittent", "permanent")
 
 
@@ -84,12 +95,12 @@ def make_detector(
     ``grad`` is the channel-wise GRAD (:mod:`gradgps._baselines.channel_grad`) trained on
     ``dataset`` for that protocol (``model`` does not apply), and the
     baselines read the sensor channels instead of positions. The baselines
-    ``kf``, ``cnn``, ``cnn-kf`` and ``lstm-cnn`` are fitted on ``dataset``'s
+    ``kf``, ``cnn``, ``cnn-kf``, ``lstm-cnn`` and ``waved`` are fitted on ``dataset``'s
     train split (validation split for stopping and thresholds) with
     ``recipe`` (default: GRAD's data, budget and stopping) and cached, see
     :mod:`gradgps._train.baselines`.
     """
-    if name in ("kf", "cnn", "cnn-kf", "lstm-cnn") or (
+    if name in ("kf", "cnn", "cnn-kf", "lstm-cnn", "waved") or (
         name == "grad" and protocol == "sensor-grid"
     ):
         if dataset is None:
@@ -135,9 +146,13 @@ def _trained_baseline(
 
     if name == "grad":
         from .._baselines.channel_grad import ChannelGradDetector
-        from .._train.baselines import dataset_channel_grad
+        from .._train.channel_grad import dataset_channel_grad
 
         return ChannelGradDetector(dataset_channel_grad(dataset, data_dir, recipe))
+    if name == "waved":
+        from .._baselines.waved import WavedDetector
+
+        return WavedDetector(bt.dataset_waved(dataset, protocol, data_dir, recipe))
     if name == "kf":
         from .._baselines.kalman import KalmanDetector
 
@@ -248,50 +263,93 @@ def run_bench(
     rema_params: Path | None = None,
     model: Path | None = None,
     recipe: BaselineRecipe | None = None,
+    per_row: bool = False,
+    constant: str = "stuck",
+    fix_speed: bool = False,
+    window: int = WINDOW_STEPS,
+    rows: Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """Run the benchmark; return the JSON-ready report (``nan`` turned into ``None``).
 
     ``results[detector]`` holds the scores for protocol ``grad`` and
     ``results[detector][row]`` one block per sensor-grid row (plus ``mixed``).
     ``advance`` is called after each (row, detector) evaluation.
+
+    Under ``sensor-grid``: ``per_row`` trains (and thresholds) every trained
+    detector on each row's own injection (one experiment per row, as in the
+    source papers) instead of once on ``mixed``; ``constant`` is how
+    ``constant`` faults are written (``stuck`` or ``offset``); ``fix_speed``
+    adds the speed derived from the fixes as a second speed channel for
+    every detector; ``rows`` limits the run to those rows. Every block then
+    also holds ``window`` scores: :func:`window_scores` over windows of
+    ``window`` steps.
     """
-    rows = _row_names(protocol)
+    all_rows = _row_names(protocol)
+    if rows is not None:
+        unknown = [r for r in rows if r not in all_rows]
+        if unknown:
+            raise ConfigError(f"unknown rows {unknown}; known rows: {', '.join(all_rows)}")
+        all_rows = [r for r in all_rows if r in rows]
     for name in detectors:  # bad names fail before any work
         if name not in DETECTOR_NAMES:
             raise ConfigError(
                 f"unknown detector {name!r}; known detectors: {', '.join(DETECTOR_NAMES)}"
             )
-    built = {
-        name: make_detector(
-            name,
-            rema_params,
-            dataset=dataset,
-            data_dir=data_dir,
-            model=model,
-            protocol=protocol,
-            recipe=recipe,
-        )
-        for name in detectors
-    }
+    grid = protocol == "sensor-grid"
+    if grid and (per_row or constant != "stuck" or fix_speed or recipe is not None):
+        from .._train.baselines import BaselineRecipe as Recipe
+
+        recipe = replace(recipe or Recipe(), constant=constant, fix_speed=fix_speed)
+
+    def build(row_recipe: BaselineRecipe | None) -> dict[str, Detector]:
+        return {
+            name: make_detector(
+                name,
+                rema_params,
+                dataset=dataset,
+                data_dir=data_dir,
+                model=model,
+                protocol=protocol,
+                recipe=row_recipe,
+            )
+            for name in detectors
+        }
+
     table = load_dataset(dataset, split, data_dir=data_dir)
     cmap: ColumnMap = to_fixes(table).attrs["columns"]
-    channels = _SENSOR_CHANNELS if protocol == "sensor-grid" else []
+    channels = _SENSOR_CHANNELS if grid else []
+    if grid and fix_speed:
+        table = with_fix_speed(table, cmap)
+        channels = ["speed_fix_mps", *channels]
     # False alarms are counted on the uncorrupted drive.
-    clean_table = with_accel_mps2(table) if protocol == "sensor-grid" else table
-    clean = to_fixes(clean_table, cmap, channels=channels)
-    false_alarms = {}
-    for name, det in built.items():
-        clean_result = det.detect(clean)
-        _check_result(name, clean_result, clean)
-        false_alarms[name] = false_alarms_per_hour(
-            clean_result["anomaly"].to_numpy() == 1, clean["track"], clean["t"]
-        )
+    clean = to_fixes(with_accel_mps2(table) if grid else table, cmap, channels=channels)
+
+    def false_alarms(built: dict[str, Detector]) -> dict[str, float]:
+        out = {}
+        for name, det in built.items():
+            clean_result = det.detect(clean)
+            _check_result(name, clean_result, clean)
+            out[name] = false_alarms_per_hour(
+                clean_result["anomaly"].to_numpy() == 1, clean["track"], clean["t"]
+            )
+        return out
+
+    shared = None if per_row and grid else build(recipe)
+    shared_alarms = None if shared is None else false_alarms(shared)
     results: dict[str, Any] = {name: {} for name in detectors}
-    for row in rows:
+    for row in all_rows:
+        if shared is None or shared_alarms is None:
+            assert recipe is not None
+            built = build(replace(recipe, row=row))
+            alarms = false_alarms(built)
+        else:
+            built, alarms = shared, shared_alarms
         if protocol == "grad":
             labelled = inject_grad(table, seed=seed, scale=scale, columns=cmap)
         else:
-            labelled = inject_sensor_grid(table, row=row, seed=seed, scale=scale, columns=cmap)
+            labelled = inject_sensor_grid(
+                table, row=row, seed=seed, scale=scale, columns=cmap, constant=constant
+            )
         fixes = to_fixes(labelled, cmap, channels=channels)
         for name, det in built.items():
             start = time.perf_counter()
@@ -299,7 +357,15 @@ def run_bench(
             elapsed = time.perf_counter() - start
             _check_result(name, result, fixes)
             block = _scores(labelled, fixes, result, protocol)
-            block["false_alarms_per_hour"] = false_alarms[name]
+            block["window"] = window_scores(
+                labelled["label_anomaly"].to_numpy(),
+                result["anomaly"].to_numpy() == 1,
+                fixes["track"],
+                _positions(fixes),
+                window,
+            )
+            block["window_steps"] = window
+            block["false_alarms_per_hour"] = alarms[name]
             block["us_per_point"] = 1e6 * elapsed / max(len(fixes), 1)
             if protocol == "grad":
                 results[name] = block
@@ -313,6 +379,10 @@ def run_bench(
         "split": split,
         "seed": seed,
         "scale": scale,
+        "per_row": bool(per_row and grid),
+        "constant": constant,
+        "fix_speed": bool(fix_speed),
+        "window_steps": window,
         "results": results,
     }
     jsonable: dict[str, Any] = _jsonable(report)

@@ -24,6 +24,7 @@ __all__ = [
     "false_alarms_per_hour",
     "rmse_m",
     "type_accuracy",
+    "window_scores",
 ]
 
 
@@ -51,6 +52,31 @@ def class_scores(y_true: ArrayLike, y_pred: ArrayLike) -> dict[str, dict[str, fl
             "f1": _ratio(2 * tp, 2 * tp + fp + fn),
         }
     return out
+
+
+def window_scores(
+    y_true: ArrayLike, y_pred: ArrayLike, track: ArrayLike, position: ArrayLike, window: int
+) -> dict[str, dict[str, float]]:
+    """:func:`class_scores` over windows instead of points.
+
+    Each track is cut into consecutive, non-overlapping windows of ``window``
+    steps (``position`` = the step's index within its track in time order; a
+    track's last window may be shorter). A window is anomalous when any of its
+    steps is labelled, and flagged when any of its steps is flagged.
+    """
+    if int(window) != window or window < 1:
+        raise ValueError(f"window must be a positive whole number of steps, got {window}")
+    t = np.asarray(y_true).astype(bool)
+    p = np.asarray(y_pred).astype(bool)
+    codes = pd.factorize(pd.Series(np.asarray(track, dtype=object)))[0]
+    block = np.asarray(position, dtype=np.int64) // int(window)
+    key = pd.factorize(pd.Series(codes.astype(np.int64) * (block.max(initial=0) + 1) + block))[0]
+    n = int(key.max(initial=-1)) + 1
+    wt = np.zeros(n, bool)
+    wp = np.zeros(n, bool)
+    np.logical_or.at(wt, key, t)
+    np.logical_or.at(wp, key, p)
+    return class_scores(wt, wp)
 
 
 def confusion_matrix(y_true: ArrayLike, y_pred: ArrayLike, labels: Sequence[str]) -> pd.DataFrame:

@@ -26,7 +26,7 @@ import math
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -34,8 +34,8 @@ import numpy as np
 import pandas as pd
 
 from .._baselines.base import Segment, segments
-from .._baselines.channel_grad import SENSOR_BIAS_CLASSES, ChannelGradModel, channel_features
-from .._baselines.kalman import KalmanDetector, KalmanParams, tune_threshold
+from .._baselines.kalman import KalmanDetector, KalmanParams, fit_noise, tune_threshold
+from .._baselines.waved import WavedModel
 from .._baselines.window import (
     WindowModel,
     input_rows,
@@ -44,11 +44,8 @@ from .._baselines.window import (
     scale_rows,
     windows,
 )
-from .._data.inject import inject_grad, inject_sensor_grid, with_accel_mps2
-from .._exceptions import ConfigError, ModelError
-from .._grad.features import FeatureParams
-from .._grad.gru import GRUModel
-from .._grad.rema import RemaParams
+from .._data.inject import inject_grad, inject_sensor_grid, with_accel_mps2, with_fix_speed
+from .._exceptions import ConfigError
 from .._tracks.track import ColumnMap, to_fixes
 
 if TYPE_CHECKING:
@@ -56,11 +53,15 @@ if TYPE_CHECKING:
 
 __all__ = [
     "BaselineRecipe",
-    "dataset_channel_grad",
+    "cache_dir",
     "dataset_cnn_kf",
     "dataset_kalman",
+    "dataset_waved",
     "dataset_window_model",
+    "inputs_for",
     "labelled_fixes",
+    "labelled_segments",
+    "splits",
     "train_window_model",
 ]
 
@@ -87,42 +88,85 @@ class BaselineRecipe:
     max_samples_per_epoch: int = 100_000
     window: int = WINDOW
     seed: int = 0
+    #: sensor-grid only: the row trained on (``mixed``: one model for all rows;
+    #: a row name: a per-row experiment), how ``constant`` faults are written
+    #: (:data:`gradgps._data.inject.CONSTANT_MODES`), and whether the speed
+    #: derived from the fixes is a second speed channel (input ``sensor-fix``).
+    row: str = "mixed"
+    constant: str = "stuck"
+    fix_speed: bool = False
 
 
-def _inputs(protocol: str) -> str:
+def inputs_for(protocol: str, recipe: BaselineRecipe | None = None) -> str:
+    """The input kind the baselines read under ``protocol`` (and the recipe's options)."""
     if protocol not in PROTOCOL_INPUTS:
         raise ConfigError(
             f"unknown protocol {protocol!r}; choose one of {', '.join(PROTOCOL_INPUTS)}"
         )
+    if protocol == "sensor-grid" and recipe is not None and recipe.fix_speed:
+        return "sensor-fix"
     return PROTOCOL_INPUTS[protocol]
 
 
+_inputs = inputs_for
+
+
+def sensor_channels(recipe: BaselineRecipe | None) -> list[str]:
+    """Extra fixes channels a sensor-grid detector reads (besides ``speed``)."""
+    fix = ["speed_fix_mps"] if recipe is not None and recipe.fix_speed else []
+    return [*fix, *SENSOR_EXTRA]
+
+
+def sensor_table(table: pd.DataFrame, recipe: BaselineRecipe | None) -> pd.DataFrame:
+    """``table`` with, under ``fix_speed``, the speed derived from the fixes (before injection)."""
+    return with_fix_speed(table) if recipe is not None and recipe.fix_speed else table
+
+
 def labelled_fixes(
-    table: pd.DataFrame, protocol: str, seed: int | None, scale: float = 1.0
+    table: pd.DataFrame,
+    protocol: str,
+    seed: int | None,
+    scale: float = 1.0,
+    recipe: BaselineRecipe | None = None,
+    row: str | None = None,
 ) -> tuple[pd.DataFrame, np.ndarray, pd.DataFrame]:
-    """``(fixes, label_anomaly per row, labelled table)``; ``seed=None`` gives the clean fixes."""
+    """``(fixes, label_anomaly per row, labelled table)``; ``seed=None`` gives the clean fixes.
+
+    Under ``sensor-grid`` the row is ``row`` (default: the recipe's, ``mixed``
+    without one), written with the recipe's ``constant`` mode and channels.
+    """
     cmap: ColumnMap = to_fixes(table).attrs["columns"]
-    channels = SENSOR_EXTRA if protocol == "sensor-grid" else []
+    grid = protocol == "sensor-grid"
+    channels = sensor_channels(recipe) if grid else []
+    source = sensor_table(table, recipe) if grid else table
     if seed is None:
-        clean = with_accel_mps2(table) if protocol == "sensor-grid" else table
+        clean = with_accel_mps2(source) if grid else source
         fixes = to_fixes(clean, cmap, channels=channels)
         return fixes, np.zeros(len(fixes), np.int64), clean
     if protocol == "grad":
         labelled = inject_grad(table, seed=seed, scale=scale, columns=cmap)
     else:
-        labelled = inject_sensor_grid(table, row="mixed", seed=seed, scale=scale, columns=cmap)
+        labelled = inject_sensor_grid(
+            source,
+            row=row or (recipe.row if recipe is not None else "mixed"),
+            seed=seed,
+            scale=scale,
+            columns=cmap,
+            constant=recipe.constant if recipe is not None else "stuck",
+        )
     fixes = to_fixes(labelled, cmap, channels=channels)
     return fixes, labelled["label_anomaly"].to_numpy(np.int64), labelled
 
 
-def _labelled_segments(
-    table: pd.DataFrame, protocol: str, seeds: Sequence[int]
+def labelled_segments(
+    table: pd.DataFrame, protocol: str, seeds: Sequence[int], recipe: BaselineRecipe | None = None
 ) -> tuple[list[Segment], list[np.ndarray]]:
+    """Segments and their 0/1 labels of ``table`` injected with every seed."""
     segs: list[Segment] = []
     labels: list[np.ndarray] = []
     for seed in seeds:
-        fixes, truth, _ = labelled_fixes(table, protocol, seed)
-        for seg in segments(fixes, _inputs(protocol))[0]:
+        fixes, truth, _ = labelled_fixes(table, protocol, seed, recipe=recipe)
+        for seg in segments(fixes, _inputs(protocol, recipe))[0]:
             segs.append(seg)
             labels.append(truth[seg.rows])
     return segs, labels
@@ -137,9 +181,9 @@ def fit_kalman(
     train: pd.DataFrame, val: pd.DataFrame, protocol: str, recipe: BaselineRecipe
 ) -> KalmanParams:
     """``q``, ``r`` on the clean train split; threshold on the injected validation split."""
-    clean, _, _ = labelled_fixes(train, protocol, None)
-    val_fixes, val_truth, _ = labelled_fixes(val, protocol, recipe.val_seed)
-    det = KalmanDetector(_inputs(protocol)).fit([clean], [val_fixes], [val_truth])
+    clean, _, _ = labelled_fixes(train, protocol, None, recipe=recipe)
+    val_fixes, val_truth, _ = labelled_fixes(val, protocol, recipe.val_seed, recipe=recipe)
+    det = KalmanDetector(_inputs(protocol, recipe)).fit([clean], [val_fixes], [val_truth])
     return det.params_
 
 
@@ -317,9 +361,15 @@ def train_window_model(
 # ----------------------------------------------------------------------------
 
 
-def _cache_dir(
-    kind: str, dataset: str, protocol: str, recipe: BaselineRecipe, data_dir: str | Path | None
+def cache_dir(
+    kind: str,
+    dataset: str,
+    protocol: str,
+    recipe: BaselineRecipe,
+    data_dir: str | Path | None,
+    extra: dict[str, Any] | None = None,
 ) -> Path:
+    """``$GRADGPS_CACHE/baselines/KIND-DATASET-PROTOCOL-HASH``: the hash covers everything that decides it."""
     from .._data.datasets import find_data_dir
     from .._version import __version__
 
@@ -329,6 +379,7 @@ def _cache_dir(
         "dataset": dataset,
         "protocol": protocol,
         "recipe": asdict(recipe),
+        **(extra or {}),
     }
     if dataset != "simulated":
         folder = find_data_dir(data_dir)
@@ -338,7 +389,8 @@ def _cache_dir(
     return cache / "baselines" / f"{kind}-{dataset}-{protocol}-{digest}"
 
 
-def _splits(dataset: str, data_dir: str | Path | None) -> tuple[pd.DataFrame, pd.DataFrame]:
+def splits(dataset: str, data_dir: str | Path | None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The data set's train and validation splits."""
     from .._data.datasets import load_dataset
 
     return (
@@ -355,9 +407,23 @@ def dataset_kalman(
 ) -> KalmanParams:
     """The ``kf`` filter fitted on ``dataset`` for ``protocol`` (cached as JSON)."""
     rec = recipe or BaselineRecipe()
-    target = _cache_dir("kf", dataset, protocol, rec, data_dir) / "kalman.json"
+    target = cache_dir("kf", dataset, protocol, rec, data_dir) / "kalman.json"
     if not target.is_file():
-        params = fit_kalman(*_splits(dataset, data_dir), protocol, rec)
+        inputs = _inputs(protocol, rec)
+        train, val = splits(dataset, data_dir)
+        # q and r come from the clean drives: one fit serves every row.
+        noise_rec = replace(rec, row="mixed", constant="stuck")
+        noise_file = cache_dir("kf-noise", dataset, protocol, noise_rec, data_dir) / "noise.json"
+        if not noise_file.is_file():
+            clean, _, _ = labelled_fixes(train, protocol, None, recipe=rec)
+            q, r = fit_noise(segments(clean, inputs)[0])
+            noise_file.parent.mkdir(parents=True, exist_ok=True)
+            noise_file.write_text(json.dumps({"q": q.tolist(), "r": r.tolist()}) + "\n")
+        noise = json.loads(noise_file.read_text())
+        q, r = np.asarray(noise["q"], np.float64), np.asarray(noise["r"], np.float64)
+        segs, labels = labelled_segments(val, protocol, (rec.val_seed,), rec)
+        threshold = tune_threshold(segs, labels, q, r, inputs == "position")
+        params = KalmanParams(inputs, tuple(q.tolist()), tuple(r.tolist()), threshold)
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(json.dumps(params.to_dict()) + "\n")
     return KalmanParams.from_dict(json.loads(target.read_text()))
@@ -372,16 +438,16 @@ def dataset_window_model(
 ) -> WindowModel:
     """``cnn`` or ``lstm-cnn`` trained on ``dataset`` for ``protocol`` (cached model directory)."""
     rec = recipe or BaselineRecipe()
-    target = _cache_dir(architecture, dataset, protocol, rec, data_dir)
+    target = cache_dir(architecture, dataset, protocol, rec, data_dir)
     if not (target / "config.json").is_file():
-        train, val = _splits(dataset, data_dir)
+        train, val = splits(dataset, data_dir)
         model = train_window_model(
             architecture,
-            _labelled_segments(train, protocol, rec.seeds),
-            _labelled_segments(val, protocol, (rec.val_seed,)),
-            _inputs(protocol),
+            labelled_segments(train, protocol, rec.seeds, rec),
+            labelled_segments(val, protocol, (rec.val_seed,), rec),
+            _inputs(protocol, rec),
             rec,
-            {"dataset": dataset, "protocol": protocol},
+            {"dataset": dataset, "protocol": protocol, "row": rec.row},
         )
         save_window_model(target, model)
     return load_window_model(target)
@@ -397,10 +463,10 @@ def dataset_cnn_kf(
     rec = recipe or BaselineRecipe()
     cnn = dataset_window_model("cnn", dataset, protocol, data_dir, rec)
     kf = dataset_kalman(dataset, protocol, data_dir, rec)
-    target = _cache_dir("cnn-kf", dataset, protocol, rec, data_dir) / "kalman.json"
+    target = cache_dir("cnn-kf", dataset, protocol, rec, data_dir) / "kalman.json"
     if not target.is_file():
-        _, val = _splits(dataset, data_dir)
-        segs, labels = _labelled_segments(val, protocol, (rec.val_seed,))
+        _, val = splits(dataset, data_dir)
+        segs, labels = labelled_segments(val, protocol, (rec.val_seed,), rec)
         forced = [cnn.segment_probability(s) >= cnn.threshold for s in segs]
         threshold = tune_threshold(segs, labels, np.array(kf.q), np.array(kf.r), kf.joint, forced)
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -408,97 +474,36 @@ def dataset_cnn_kf(
     return cnn, KalmanParams.from_dict(json.loads(target.read_text()))
 
 
-def _sequences(
-    table: pd.DataFrame, seeds: Sequence[int], features: FeatureParams, rema: RemaParams
-) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    index = {name: i for i, name in enumerate(SENSOR_BIAS_CLASSES)}
-    out = []
-    for seed in seeds:
-        fixes, truth, labelled = labelled_fixes(table, "sensor-grid", seed)
-        kinds = np.array([index[str(v)] for v in labelled["label_type"].to_numpy(object)])
-        for seg in segments(fixes, "sensor")[0]:
-            out.append(
-                (
-                    channel_features(seg, features, rema).astype(np.float32),
-                    truth[seg.rows],
-                    kinds[seg.rows],
-                )
-            )
-    return out
-
-
-def dataset_channel_grad(
-    dataset: str, data_dir: str | Path | None = None, recipe: Any = None
-) -> ChannelGradModel:
-    """Channel-wise GRAD trained on ``dataset`` under ``sensor-grid`` (cached; see module doc).
-
-    ``recipe`` is a :class:`gradgps._train.baselines.BaselineRecipe` (seeds, budget, stopping).
-    """
-    from .._data.datasets import find_data_dir
-    from .._version import __version__
+def dataset_waved(
+    dataset: str,
+    protocol: str,
+    data_dir: str | Path | None = None,
+    recipe: BaselineRecipe | None = None,
+) -> WavedModel:
+    """``waved``: the ``cnn`` and ``lstm-cnn`` models, weight and threshold tuned on validation."""
+    from .._baselines.waved import WAVED_WEIGHTS, ensemble_probability
+    from .torch_gru import _best_threshold, _f1
 
     rec = recipe or BaselineRecipe()
-    features, rema = FeatureParams(speed_heading=False), RemaParams()
-    key: dict[str, Any] = {
-        "version": __version__,
-        "recipe": asdict(rec),
-        "dataset": dataset,
-        "features": asdict(features),
-        "rema": asdict(rema),
-    }
-    if dataset != "simulated":
-        key["files"] = sorted(
-            (p.name, p.stat().st_size) for p in find_data_dir(data_dir).glob("*.csv")
+    cnn = dataset_window_model("cnn", dataset, protocol, data_dir, rec)
+    lstm = dataset_window_model("lstm-cnn", dataset, protocol, data_dir, rec)
+    target = cache_dir("waved", dataset, protocol, rec, data_dir) / "waved.json"
+    if not target.is_file():
+        _, val = splits(dataset, data_dir)
+        segs, labels = labelled_segments(val, protocol, (rec.val_seed,), rec)
+        truth = np.concatenate(labels).astype(bool)
+        p_cnn = np.concatenate([cnn.segment_probability(s) for s in segs])
+        p_lstm = np.concatenate([lstm.segment_probability(s) for s in segs])
+        best = (-1.0, 0.5, 0.5)
+        for w in WAVED_WEIGHTS:
+            p = ensemble_probability(p_cnn, p_lstm, w)
+            threshold = _best_threshold(truth, p)
+            f1 = _f1(truth, p >= threshold)
+            if f1 > best[0]:
+                best = (f1, float(w), threshold)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(
+            json.dumps({"weight": best[1], "threshold": best[2], "val_f1": best[0]}) + "\n"
         )
-    digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16]
-    cache = Path(os.environ.get("GRADGPS_CACHE", Path.home() / ".cache" / "gradgps"))
-    target = cache / "baselines" / f"channel-grad-{dataset}-{digest}"
-    if not (target / "config.json").is_file():
-        from .torch_gru import TrainConfig, train_model  # torch only when training
-
-        train, val = _splits(dataset, data_dir)
-        config = TrainConfig(
-            bias_classes=SENSOR_BIAS_CLASSES,
-            mode="stream",
-            time_budget_s=rec.time_budget_s,
-            seed=rec.seed,
-            progress=False,
-            early_stopping="f1",
-            patience=rec.patience,
-            learning_rate=rec.learning_rate,
-            max_epochs=rec.max_epochs,
-        )
-        trained = train_model(
-            _sequences(train, rec.seeds, features, rema),
-            _sequences(val, (rec.val_seed,), features, rema),
-            config,
-        )
-        target.mkdir(parents=True, exist_ok=True)
-        np.savez(target / "weights.npz", allow_pickle=False, **trained.weights())
-        cfg = {
-            "threshold": trained.anomaly_threshold,
-            "scaler": {
-                "mean": trained.network.scaler_mean.tolist(),
-                "std": trained.network.scaler_std.tolist(),
-            },
-            "best_epoch": trained.best_epoch,
-            "stop_reason": trained.stop_reason,
-        }
-        (target / "config.json").write_text(json.dumps(cfg) + "\n")
-    try:
-        cfg = json.loads((target / "config.json").read_text())
-        with np.load(target / "weights.npz", allow_pickle=False) as data:
-            weights = {k: data[k] for k in data.files}
-        gru = GRUModel(
-            weights,
-            np.asarray(cfg["scaler"]["mean"]),
-            np.asarray(cfg["scaler"]["std"]),
-            mode="stream",
-        )
-    except (OSError, KeyError, ValueError) as exc:
-        raise ModelError(
-            f"{target}: unusable channel-GRAD model ({exc}); delete it to retrain"
-        ) from exc
-    if not 0.0 < float(cfg["threshold"]) < 1.0:
-        raise ConfigError(f"{target}: threshold {cfg['threshold']} outside (0, 1)")
-    return ChannelGradModel(gru, float(cfg["threshold"]), features, rema)
+    cfg = json.loads(target.read_text())
+    return WavedModel(cnn, lstm, float(cfg["weight"]), float(cfg["threshold"]))

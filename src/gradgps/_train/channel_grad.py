@@ -1,0 +1,230 @@
+"""Training the channel GRAD of protocol ``sensor-grid`` (:mod:`gradgps._baselines.channel_grad`).
+
+Same data, seeds and budget as the comparison baselines
+(:class:`gradgps._train.baselines.BaselineRecipe`: the train split injected
+with the recipe's seeds and row, the validation split with the validation
+seed; the same wall-clock budget, patience and learning rate), in three steps:
+
+1. **REMA per channel**: a grid over ``alpha``, ``slide_size`` and
+   ``sensitivity`` (:data:`REMA_GRID`); for each channel the setting whose
+   REMA flags have the best F1 against that channel's labels on the
+   validation split (a channel that is never faulty keeps the defaults);
+2. the GRU (32, 16) in the paper's feed-sliding-window mode (W = 10
+   steps: trained on independent windows like the window baselines, which
+   fits more updates into the shared budget than stream mode), early stopping
+   on validation F1 (:func:`gradgps._train.torch_gru.train_model`);
+3. the anomaly threshold: the best validation F1 among thresholds that keep
+   validation normal recall at or above :data:`NORMAL_RECALL_FLOOR` (a
+   detector that flags normal readings wholesale is no use on a vehicle).
+
+Cached under ``$GRADGPS_CACHE/baselines/channel-grad-*``, keyed by
+everything that decides the model.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+from collections.abc import Sequence
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._baselines.base import input_names, segments
+from .._baselines.channel_grad import SENSOR_BIAS_CLASSES, ChannelGradModel, channel_features
+from .._exceptions import ConfigError, ModelError
+from .._grad.features import FeatureParams
+from .._grad.gru import GRUModel
+from .._grad.rema import RemaParams, rema_batch
+from .baselines import BaselineRecipe, cache_dir, inputs_for, labelled_fixes, splits
+
+__all__ = [
+    "GRU_WINDOW",
+    "NORMAL_RECALL_FLOOR",
+    "REMA_GRID",
+    "dataset_channel_grad",
+    "recall_floor_threshold",
+    "tune_channel_rema",
+]
+
+#: (alpha, slide_size, sensitivity) settings searched per channel.
+REMA_GRID = tuple(itertools.product((0.3, 0.5, 0.8), (5, 10, 20), (2.0, 3.0, 4.0, 6.0)))
+#: The paper's feed sliding window: each verdict from the GRU run over the last 10 steps.
+GRU_WINDOW = 10
+#: Validation normal recall the anomaly threshold must keep.
+NORMAL_RECALL_FLOOR = 0.995
+#: The fixes' channel name -> the injection's label column.
+_LABEL = {
+    "speed": "label_speed_mps",
+    "accel_x_mps2": "label_accel_x_mps2",
+    "gyro_z_dps": "label_gyro_z_dps",
+}
+
+
+def _f1(truth: np.ndarray, flagged: np.ndarray) -> float:
+    tp = int(np.sum(truth & flagged))
+    denominator = int(np.sum(truth)) + int(np.sum(flagged))
+    return 2.0 * tp / denominator if denominator else 0.0
+
+
+def tune_channel_rema(
+    values: Sequence[np.ndarray], labels: Sequence[np.ndarray]
+) -> tuple[RemaParams, float]:
+    """The :data:`REMA_GRID` setting with the best flag F1 on one channel's segments; and that F1.
+
+    ``values[i]`` are one segment's readings (missing ones carried forward),
+    ``labels[i]`` its 0/1 labels for this channel. No faulty reading: the
+    defaults, F1 0.
+    """
+    truth = np.concatenate(labels).astype(bool) if labels else np.zeros(0, bool)
+    if not truth.any():
+        return RemaParams(), 0.0
+    best, best_f1 = RemaParams(), -1.0
+    for alpha, slide, sensitivity in REMA_GRID:
+        params = RemaParams(alpha=alpha, slide_size=slide, sensitivity=sensitivity).checked()
+        flags = np.concatenate([rema_batch(v, params).flag for v in values]).astype(bool)
+        f1 = _f1(truth, flags)
+        if f1 > best_f1:
+            best, best_f1 = params, f1
+    return best, best_f1
+
+
+def recall_floor_threshold(
+    truth: np.ndarray, probability: np.ndarray, floor: float = NORMAL_RECALL_FLOOR
+) -> float:
+    """The threshold (grid 0.05..0.99) with the best F1 among those keeping normal recall >= ``floor``.
+
+    When none keeps it, the threshold with the highest normal recall (the
+    highest such threshold on ties).
+    """
+    grid = np.round(np.arange(0.05, 0.995, 0.01), 2)
+    truth = truth.astype(bool)
+    normal = ~truth
+    best_t, best_f1 = float(grid[-1]), -1.0
+    for t in grid:
+        flagged = probability >= t
+        recall = float(np.mean(~flagged[normal])) if normal.any() else 1.0
+        if recall < floor:
+            continue
+        f1 = _f1(truth, flagged)
+        if f1 > best_f1:
+            best_t, best_f1 = float(t), f1
+    return best_t
+
+
+def _sequences(
+    table: Any,
+    seeds: Sequence[int],
+    features: FeatureParams,
+    rema: Sequence[RemaParams],
+    recipe: BaselineRecipe,
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    index = {name: i for i, name in enumerate(SENSOR_BIAS_CLASSES)}
+    inputs = inputs_for("sensor-grid", recipe)
+    out = []
+    for seed in seeds:
+        fixes, truth, labelled = labelled_fixes(table, "sensor-grid", seed, recipe=recipe)
+        kinds = np.array([index[str(v)] for v in labelled["label_type"].to_numpy(object)])
+        for seg in segments(fixes, inputs)[0]:
+            feats = channel_features(seg, features, rema, inputs).astype(np.float32)
+            out.append((feats, truth[seg.rows], kinds[seg.rows]))
+    return out
+
+
+def _tuned_rema(val: Any, recipe: BaselineRecipe) -> tuple[tuple[RemaParams, ...], list[float]]:
+    inputs = inputs_for("sensor-grid", recipe)
+    fixes, _, labelled = labelled_fixes(val, "sensor-grid", recipe.val_seed, recipe=recipe)
+    segs = segments(fixes, inputs)[0]
+    chosen, scores = [], []
+    for k, name in enumerate(input_names(inputs)):
+        if name not in _LABEL:  # a clean reference channel (speed from the fixes)
+            chosen.append(RemaParams())
+            scores.append(0.0)
+            continue
+        column = labelled[_LABEL[name]].to_numpy(np.int64)
+        values = [np.nan_to_num(s.values[:, k]) for s in segs]
+        params, f1 = tune_channel_rema(values, [column[s.rows] for s in segs])
+        chosen.append(params)
+        scores.append(f1)
+    return tuple(chosen), scores
+
+
+def dataset_channel_grad(
+    dataset: str, data_dir: str | Path | None = None, recipe: BaselineRecipe | None = None
+) -> ChannelGradModel:
+    """Channel GRAD trained on ``dataset`` under ``sensor-grid`` with ``recipe`` (cached)."""
+    rec = recipe or BaselineRecipe()
+    features = FeatureParams(speed_heading=False)
+    inputs = inputs_for("sensor-grid", rec)
+    extra = {
+        "features": asdict(features),
+        "rema_grid": [list(g) for g in REMA_GRID],
+        "recall_floor": NORMAL_RECALL_FLOOR,
+        "design": "channel-grad-2",
+    }
+    target = cache_dir("channel-grad", dataset, "sensor-grid", rec, data_dir, extra)
+    if not (target / "config.json").is_file():
+        from .torch_gru import TrainConfig, train_model  # torch only when training
+
+        train, val = splits(dataset, data_dir)
+        rema, rema_f1 = _tuned_rema(val, rec)
+        config = TrainConfig(
+            bias_classes=SENSOR_BIAS_CLASSES,
+            mode="window",
+            window=GRU_WINDOW,
+            max_samples_per_epoch=rec.max_samples_per_epoch,
+            time_budget_s=rec.time_budget_s,
+            seed=rec.seed,
+            progress=False,
+            early_stopping="f1",
+            patience=rec.patience,
+            learning_rate=rec.learning_rate,
+            max_epochs=rec.max_epochs,
+        )
+        val_seqs = _sequences(val, (rec.val_seed,), features, rema, rec)
+        trained = train_model(_sequences(train, rec.seeds, features, rema, rec), val_seqs, config)
+        mean = trained.network.scaler_mean.detach().numpy().astype(np.float64)
+        std = trained.network.scaler_std.detach().numpy().astype(np.float64)
+        gru = GRUModel(trained.weights(), mean, std, mode="window", window=GRU_WINDOW)
+        probability = np.concatenate([gru.predict(f).anomaly for f, _, _ in val_seqs])
+        truth = np.concatenate([y for _, y, _ in val_seqs]).astype(bool)
+        threshold = recall_floor_threshold(truth, probability)
+        target.mkdir(parents=True, exist_ok=True)
+        np.savez(target / "weights.npz", allow_pickle=False, **trained.weights())
+        cfg = {
+            "threshold": threshold,
+            "inputs": inputs,
+            "mode": "window",
+            "window": GRU_WINDOW,
+            "rema": [asdict(p) for p in rema],
+            "rema_val_f1": rema_f1,
+            "scaler": {
+                "mean": mean.tolist(),
+                "std": std.tolist(),
+            },
+            "best_epoch": trained.best_epoch,
+            "stop_reason": trained.stop_reason,
+            "row": rec.row,
+        }
+        (target / "config.json").write_text(json.dumps(cfg) + "\n")
+    try:
+        cfg = json.loads((target / "config.json").read_text())
+        with np.load(target / "weights.npz", allow_pickle=False) as data:
+            weights = {k: data[k] for k in data.files}
+        gru = GRUModel(
+            weights,
+            np.asarray(cfg["scaler"]["mean"]),
+            np.asarray(cfg["scaler"]["std"]),
+            mode=str(cfg["mode"]),
+            window=int(cfg["window"]),
+        )
+        rema = tuple(replace(RemaParams(), **p).checked() for p in cfg["rema"])
+    except (OSError, KeyError, ValueError, TypeError) as exc:
+        raise ModelError(
+            f"{target}: unusable channel-GRAD model ({exc}); delete it to retrain"
+        ) from exc
+    if not 0.0 < float(cfg["threshold"]) < 1.0:
+        raise ConfigError(f"{target}: threshold {cfg['threshold']} outside (0, 1)")
+    return ChannelGradModel(gru, float(cfg["threshold"]), features, rema, str(cfg["inputs"]))
