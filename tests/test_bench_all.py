@@ -89,7 +89,7 @@ def test_quick_bench_writes_every_table(tmp_path: Path) -> None:
         for block in report[key]["results"].values():
             assert set(block["anomaly"]) == {"precision", "recall", "f1"}
     grid = report["sensor-grid"]["results"]
-    assert set(grid) == {"grad", "kf", "cnn", "cnn-kf", "lstm-cnn", "waved"}
+    assert set(grid) == {"grad", "grad-f1", "kf", "cnn", "cnn-kf", "lstm-cnn", "waved"}
     assert all(len(rows) == GRID_ROWS for rows in grid.values())
     assert report["sensor-grid"]["per_row"] is True
     for rows in grid.values():

@@ -20,25 +20,37 @@ class, batch ``detect`` only (the benchmark measures ``detect``).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import pandas as pd
 
-from .base import result_frame, segments
-from .window import WindowModel
+from .base import Segment, result_frame, segments
 
-__all__ = ["WAVED_WEIGHTS", "WavedDetector", "WavedModel", "ensemble_probability"]
+__all__ = ["WAVED_WEIGHTS", "Member", "WavedDetector", "WavedModel", "ensemble_probability"]
 
 #: The member weight grid searched on validation.
 WAVED_WEIGHTS = tuple(np.round(np.linspace(0.0, 1.0, 11), 2).tolist())
+
+
+class Member(Protocol):
+    """What the ensemble needs of a member: a :class:`gradgps._baselines.window.WindowModel`."""
+
+    @property
+    def inputs(self) -> str: ...
+
+    @property
+    def max_gap_s(self) -> float: ...
+
+    def segment_probability(self, segment: Segment) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
 class WavedModel:
     """The two members, the weight of the first, and the anomaly threshold."""
 
-    cnn: WindowModel
-    lstm_cnn: WindowModel
+    cnn: Member
+    lstm_cnn: Member
     weight: float
     threshold: float
 

@@ -38,7 +38,7 @@ from .._exceptions import ConfigError, ModelError
 from .._grad.features import FeatureParams
 from .._grad.gru import GRUModel
 from .._grad.rema import RemaParams, rema_batch
-from .baselines import BaselineRecipe, cache_dir, inputs_for, labelled_fixes, splits
+from .recipe import BaselineRecipe, cache_dir, inputs_for, labelled_fixes, splits
 
 __all__ = [
     "GRU_WINDOW",
@@ -94,14 +94,20 @@ def tune_channel_rema(
 def recall_floor_threshold(
     truth: np.ndarray, probability: np.ndarray, floor: float = NORMAL_RECALL_FLOOR
 ) -> float:
-    """The threshold (grid 0.05..0.99) with the best F1 among those keeping normal recall >= ``floor``.
+    """The threshold with the best F1 among those keeping normal recall >= ``floor``.
 
-    When none keeps it, the threshold with the highest normal recall (the
-    highest such threshold on ties).
+    Candidates: the grid 0.05..0.99 and the normal readings' probability
+    quantiles from ``floor`` to 1 (a class-weighted network bunches its
+    probabilities near 1, where a fixed grid is too coarse). When no
+    candidate keeps the floor, the highest one.
     """
-    grid = np.round(np.arange(0.05, 0.995, 0.01), 2)
     truth = truth.astype(bool)
     normal = ~truth
+    grid = np.round(np.arange(0.05, 0.995, 0.01), 2)
+    if normal.any():
+        upper = np.quantile(probability[normal], np.linspace(floor, 1.0, 51))
+        grid = np.unique(np.r_[grid, np.nextafter(upper, np.inf)])
+    grid = grid[(grid > 0.0) & (grid < 1.0)]
     best_t, best_f1 = float(grid[-1]), -1.0
     for t in grid:
         flagged = probability >= t
@@ -152,9 +158,20 @@ def _tuned_rema(val: Any, recipe: BaselineRecipe) -> tuple[tuple[RemaParams, ...
 
 
 def dataset_channel_grad(
-    dataset: str, data_dir: str | Path | None = None, recipe: BaselineRecipe | None = None
+    dataset: str,
+    data_dir: str | Path | None = None,
+    recipe: BaselineRecipe | None = None,
+    threshold: str = "floor",
 ) -> ChannelGradModel:
-    """Channel GRAD trained on ``dataset`` under ``sensor-grid`` with ``recipe`` (cached)."""
+    """Channel GRAD trained on ``dataset`` under ``sensor-grid`` with ``recipe`` (cached).
+
+    ``threshold="floor"``: GRAD's threshold (best validation F1 keeping
+    validation normal recall >= :data:`NORMAL_RECALL_FLOOR`); ``"f1"``: the
+    same model with the baselines' rule (best validation F1, no floor), for
+    comparison (detector ``grad-f1``).
+    """
+    if threshold not in ("floor", "f1"):
+        raise ConfigError(f"threshold must be 'floor' or 'f1', got {threshold!r}")
     rec = recipe or BaselineRecipe()
     features = FeatureParams(speed_heading=False)
     inputs = inputs_for("sensor-grid", rec)
@@ -162,11 +179,12 @@ def dataset_channel_grad(
         "features": asdict(features),
         "rema_grid": [list(g) for g in REMA_GRID],
         "recall_floor": NORMAL_RECALL_FLOOR,
-        "design": "channel-grad-2",
+        "design": "channel-grad-3",
     }
     target = cache_dir("channel-grad", dataset, "sensor-grid", rec, data_dir, extra)
     if not (target / "config.json").is_file():
-        from .torch_gru import TrainConfig, train_model  # torch only when training
+        # torch only when training
+        from .torch_gru import TrainConfig, _best_threshold, train_model
 
         train, val = splits(dataset, data_dir)
         rema, rema_f1 = _tuned_rema(val, rec)
@@ -190,11 +208,14 @@ def dataset_channel_grad(
         gru = GRUModel(trained.weights(), mean, std, mode="window", window=GRU_WINDOW)
         probability = np.concatenate([gru.predict(f).anomaly for f, _, _ in val_seqs])
         truth = np.concatenate([y for _, y, _ in val_seqs]).astype(bool)
-        threshold = recall_floor_threshold(truth, probability)
+        floor_threshold = recall_floor_threshold(truth, probability)
+        # The baselines' rule (best validation F1, no floor), kept for comparison (grad-f1).
+        threshold_f1 = _best_threshold(truth, probability)
         target.mkdir(parents=True, exist_ok=True)
         np.savez(target / "weights.npz", allow_pickle=False, **trained.weights())
         cfg = {
-            "threshold": threshold,
+            "threshold": floor_threshold,
+            "threshold_f1": threshold_f1,
             "inputs": inputs,
             "mode": "window",
             "window": GRU_WINDOW,
@@ -225,6 +246,7 @@ def dataset_channel_grad(
         raise ModelError(
             f"{target}: unusable channel-GRAD model ({exc}); delete it to retrain"
         ) from exc
-    if not 0.0 < float(cfg["threshold"]) < 1.0:
-        raise ConfigError(f"{target}: threshold {cfg['threshold']} outside (0, 1)")
-    return ChannelGradModel(gru, float(cfg["threshold"]), features, rema, str(cfg["inputs"]))
+    value = float(cfg["threshold" if threshold == "floor" else "threshold_f1"])
+    if not 0.0 < value < 1.0:
+        raise ConfigError(f"{target}: threshold {value} outside (0, 1)")
+    return ChannelGradModel(gru, value, features, rema, str(cfg["inputs"]))
