@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from gradgps import simulate_fleet
 
@@ -53,6 +54,7 @@ def _tiny_data(folder: Path) -> None:
     tuc.to_csv(folder / "tuc_urban_gt.csv", index=False)
 
 
+@pytest.mark.slow
 def test_quick_bench_writes_every_table(tmp_path: Path) -> None:
     data = tmp_path / "data"
     data.mkdir()

@@ -14,6 +14,8 @@ from gradgps._data.datasets import load_dataset
 
 BLOCK_KEYS = {
     "anomaly",
+    "window",
+    "window_steps",
     "normal",
     "event_recall",
     "detection_delay_median",
@@ -180,6 +182,28 @@ def test_bench_sensor_grid_has_a_block_per_row(shared_data: Path, tmp_path: Path
     assert len(rows) == 20
     assert {"instant-25", "bias-5-3", "drift-4-20", "mixed"} <= set(rows)
     assert all(set(b) == BLOCK_KEYS for b in rows.values())
+
+
+@pytest.mark.shared
+def test_bench_sensor_grid_options_rows_window_offset_and_fix_speed(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "out.json"
+    args = ["bench", "--protocol", "sensor-grid", "--dataset", "driveplotr"]
+    args += ["--split", "validation", "--detector", "speed-gate", "--data-dir", str(shared_data)]
+    args += ["--rows", "instant-25,constant-1-10", "--window", "5", "--constant", "offset"]
+    res = CliRunner().invoke(main, [*args, "--fix-speed", "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    report = json.loads(out.read_text())
+    assert (report["constant"], report["fix_speed"], report["window_steps"]) == ("offset", True, 5)
+    assert list(report["results"]["speed-gate"]) == ["instant-25", "constant-1-10"]
+    ref = report["reference"]["constant-1-10"]
+    share = ref["faulty_share"]
+    assert ref["flag_all_f1"] == pytest.approx(2 * share / (1 + share))
+    assert ref["flag_all_window_f1"] > ref["flag_all_f1"]  # windows of 5 catch more
+    res = CliRunner().invoke(main, [*args[:-4], "--rows", "nope", "--json", str(out)])
+    assert res.exit_code != 0
+    assert "unknown rows" in res.output
 
 
 def test_bench_unknown_detector_and_missing_data_fail_clearly(tmp_path: Path) -> None:

@@ -36,6 +36,13 @@ def _read_input(path: Path, fmt: str | None) -> Table:
     metavar="NAME",
     help="sensor-grid row, e.g. instant-25, bias-5-3, drift-4-20, or mixed (default)",
 )
+@click.option(
+    "--constant",
+    type=click.Choice(["stuck", "offset"]),
+    default="stuck",
+    show_default=True,
+    help="sensor-grid: a constant fault holds the reading at x(t0)+u (stuck) or adds u (offset)",
+)
 @click.option("--seed", type=int, required=True, help="random seed; same seed, same output bytes")
 @click.option(
     "--scale", type=float, default=1.0, show_default=True, help="multiplies every fault magnitude"
@@ -53,6 +60,7 @@ def inject(
     input_path: Path,
     protocol: str,
     row: str | None,
+    constant: str,
     seed: int,
     scale: float,
     output: Path,
@@ -81,7 +89,12 @@ def inject(
             rates = grad_rates(labelled)
         else:
             labelled = inject_sensor_grid(
-                table.frame, row=row or "mixed", seed=seed, scale=scale, columns=columns
+                table.frame,
+                row=row or "mixed",
+                seed=seed,
+                scale=scale,
+                columns=columns,
+                constant=constant,
             )
             rates = sensor_grid_rates(labelled)
     except GradGPSError as exc:

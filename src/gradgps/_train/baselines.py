@@ -2,17 +2,19 @@
 
 Same data as GRAD (:mod:`gradgps._train.grad`): the data set's *train*
 split injected with every seed of :class:`GradTrainingSet` (protocol
-``grad``) or with the ``mixed`` sensor-grid row and the same seeds (protocol
-``sensor-grid``); the *validation* split injected with the validation seed
+``grad``) or with the recipe's sensor-grid row (``mixed``, or one row for
+per-row experiments) and the recipe's seeds (protocol ``sensor-grid``);
+the *validation* split injected with the validation seed
 for early stopping and thresholds. Same budget and stopping as GRAD: Adam at
 3e-3, balanced class weights, up to 400 epochs of at most 100,000 windows,
 early stopping on validation anomaly F1 with patience 25, a 3-minute wall
 budget, one torch thread, seeded; then the anomaly threshold with the best
 validation F1 (:func:`gradgps._train.torch_gru.train_model` does the same for the
 GRU; its helpers are reused here, the loop differs because these networks
-judge windows, not sequences). The channel-wise GRAD of protocol
-``sensor-grid`` (:mod:`gradgps._baselines.channel_grad`) is trained with
-:func:`gradgps._train.torch_gru.train_model` itself (:func:`dataset_channel_grad`).
+judge windows, not sequences). ``waved`` (:func:`dataset_waved`) combines
+the trained ``cnn`` and ``lstm-cnn``. The recipe and the labelled data live
+in :mod:`gradgps._train.recipe`; the channel GRAD of protocol
+``sensor-grid`` is trained by :mod:`gradgps._train.channel_grad`.
 
 Torch is imported inside the functions that train, so fitting the Kalman
 filter and loading cached models never needs it.
