@@ -196,7 +196,7 @@ def bench(
             )
     out = Console()
     # A report table is read whole: never squeeze it below a readable width.
-    wide = Console(width=max(out.width, 140))
+    wide = Console(width=max(out.width, 170))
     wide.print(table)
     for name, res in report["results"].items():
         for kind in ("bias", "time"):
