@@ -17,11 +17,41 @@ from .._exceptions import ConfigError, DataNotFoundError
 
 __all__ = ["DATASETS", "SIMULATED_SPLITS", "SPLITS", "find_data_dir", "load_dataset"]
 
-DATASETS = ("driveplotr", "tuc", "simulated")
+DATASETS = (
+    "driveplotr",
+    "tuc",
+    "nl_motorway",
+    "nl_motorway_gopro",
+    "austin2006",
+    "nevada",
+    "ublox_f9k",
+    "munich",
+    "simulated",
+)
 SPLITS = ("train", "validation", "test")
 
-_FILES = {"driveplotr": "driveplotr_nds.csv", "tuc": "tuc_urban_gt.csv"}
-_TRACK_COLUMN = {"driveplotr": "drive", "tuc": "trace"}
+_FILES = {
+    "driveplotr": "driveplotr_nds.csv",
+    "tuc": "tuc_urban_gt.csv",
+    "nl_motorway": "nl_motorway_1hz.csv",
+    "nl_motorway_gopro": "nl_motorway_gopro_1hz.csv",
+    "austin2006": "austin2006_logger_1hz.csv",
+    "nevada": "garmin_nmea_nevada2005.csv",
+    "ublox_f9k": "ublox_f9k_mtv_1hz.csv",
+    "munich": "munich_bmw_1hz.csv",
+}
+_TRACK_COLUMN = {"driveplotr": "drive", "tuc": "trace"}  # the newer files use `track`
+# The newer files split by trip or household: track ids starting with these
+# prefixes (shared/data/README.md); "train" is every other track. ``None``:
+# the file is a test set only.
+_HELD_OUT_PREFIX: dict[str, dict[str, str] | None] = {
+    "nl_motorway": {"test": "trip03", "validation": "trip02"},
+    "nl_motorway_gopro": {"test": "trip03", "validation": "trip02"},
+    "austin2006": {"test": "austin_426309", "validation": "austin_425131"},
+    "nevada": {"test": "garmin_nv2005_s2_00", "validation": "garmin_nv2005_s1_01"},
+    "ublox_f9k": None,
+    "munich": None,
+}
 # Held-out tracks; "train" is every other track in the file.
 _HELD_OUT: dict[str, dict[str, tuple[object, ...]]] = {
     "driveplotr": {"test": (11, 14, 31), "validation": (9, 10, 12, 13, 15)},
@@ -94,12 +124,25 @@ def load_dataset(
             "(see shared/data/README.md), pass --data-dir DIR or set GRADGPS_DATA"
         )
     table = pd.read_csv(path)
-    track = table[_TRACK_COLUMN[name]]
-    held = _HELD_OUT[name]
-    if split == "train":
-        keep = ~track.isin([v for ids in held.values() for v in ids])
+    track = table[_TRACK_COLUMN.get(name, "track")]
+    if name in _HELD_OUT_PREFIX:
+        prefixes = _HELD_OUT_PREFIX[name]
+        if prefixes is None:
+            if split != "test":
+                raise ConfigError(f"data set {name!r} is a test set only (no {split} split)")
+            keep = pd.Series(True, index=table.index)
+        else:
+            ids = track.astype(str)
+            if split == "train":
+                keep = ~ids.str.startswith(tuple(prefixes.values()))
+            else:
+                keep = ids.str.startswith(prefixes[split])
     else:
-        keep = track.isin(list(held[split]))
+        held = _HELD_OUT[name]
+        if split == "train":
+            keep = ~track.isin([v for ids in held.values() for v in ids])
+        else:
+            keep = track.isin(list(held[split]))
     out = table[keep.to_numpy()].reset_index(drop=True)
     out.attrs["source"] = f"{path} [{split}]"
     return out
