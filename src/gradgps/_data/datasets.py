@@ -15,18 +15,25 @@ import pandas as pd
 
 from .._exceptions import ConfigError, DataNotFoundError
 
-__all__ = ["DATASETS", "SIMULATED_SPLITS", "SPLITS", "find_data_dir", "load_dataset"]
+__all__ = [
+    "DATASETS",
+    "SIMULATED_SPLITS",
+    "SPLITS",
+    "TEST_ONLY",
+    "find_data_dir",
+    "load_dataset",
+]
 
 DATASETS = (
     "driveplotr",
     "tuc",
+    "simulated",
     "nl_motorway",
     "nl_motorway_gopro",
     "austin2006",
     "nevada",
     "ublox_f9k",
     "munich",
-    "simulated",
 )
 SPLITS = ("train", "validation", "test")
 
@@ -40,23 +47,37 @@ _FILES = {
     "ublox_f9k": "ublox_f9k_mtv_1hz.csv",
     "munich": "munich_bmw_1hz.csv",
 }
-_TRACK_COLUMN = {"driveplotr": "drive", "tuc": "trace"}  # the newer files use `track`
-# The newer files split by trip or household: track ids starting with these
-# prefixes (shared/data/README.md); "train" is every other track. ``None``:
-# the file is a test set only.
-_HELD_OUT_PREFIX: dict[str, dict[str, str] | None] = {
-    "nl_motorway": {"test": "trip03", "validation": "trip02"},
-    "nl_motorway_gopro": {"test": "trip03", "validation": "trip02"},
-    "austin2006": {"test": "austin_426309", "validation": "austin_425131"},
-    "nevada": {"test": "garmin_nv2005_s2_00", "validation": "garmin_nv2005_s1_01"},
-    "ublox_f9k": None,
-    "munich": None,
-}
+_TRACK_COLUMN = {"driveplotr": "drive", "tuc": "trace"}  # the others: "track"
 # Held-out tracks; "train" is every other track in the file.
 _HELD_OUT: dict[str, dict[str, tuple[object, ...]]] = {
     "driveplotr": {"test": (11, 14, 31), "validation": (9, 10, 12, 13, 15)},
     "tuc": {"test": ("chemnitz_city",), "validation": ("frankfurt_westend_tower",)},
 }
+# The drives added on 2026-11-23: each split is the tracks whose id starts with one of
+# these prefixes (by trip or household, never by receiver: the NL receivers rode in
+# one car together).
+_NL: dict[str, tuple[str, ...]] = {
+    "train": ("trip01",),
+    "validation": ("trip02",),
+    "test": ("trip03",),
+}
+_BY_PREFIX: dict[str, dict[str, tuple[str, ...]]] = {
+    "nl_motorway": _NL,
+    "nl_motorway_gopro": _NL,
+    "austin2006": {
+        "train": ("austin_321180", "austin_425114"),
+        "validation": ("austin_425131",),
+        "test": ("austin_426309",),
+    },
+    "nevada": {
+        "train": ("garmin_nv2005_s1_00",),
+        "validation": ("garmin_nv2005_s1_01",),
+        "test": ("garmin_nv2005_s2_00",),
+    },
+}
+#: Data sets with a test split only (every row is test): too small or too unlike the
+#: others to train on, kept for measuring.
+TEST_ONLY = ("ublox_f9k", "munich")
 
 #: (n_tracks, minutes, rate_hz, seed) of the simulated fleet for each split; distinct
 #: seeds so no simulated drive appears in two splits.
@@ -93,14 +114,23 @@ def _check(name: str, split: str) -> None:
         raise ConfigError(f"unknown dataset {name!r}; choose one of {', '.join(DATASETS)}")
     if split not in SPLITS:
         raise ConfigError(f"unknown split {split!r}; choose one of {', '.join(SPLITS)}")
+    if name in TEST_ONLY and split != "test":
+        raise ConfigError(
+            f"data set {name!r} has a test split only (see shared/data/README.md): "
+            f"it is for measuring, not for {split}; use split 'test' or another data set"
+        )
 
 
 def load_dataset(
     name: str, split: str = "test", *, data_dir: str | Path | None = None
 ) -> pd.DataFrame:
-    """Rows of data set ``name`` (``driveplotr``, ``tuc`` or ``simulated``) in ``split``.
+    """Rows of data set ``name`` (one of :data:`DATASETS`) in ``split``.
 
-    Real data keeps the file's columns and row order (index 0..n-1).
+    Real data keeps the file's columns (``glitch`` included, where a file has
+    it) and row order (index 0..n-1). The drives added on 2026-11-23 have
+    their track id in ``track`` and time in ``t``; ``ublox_f9k`` and
+    ``munich`` have a test split only (:data:`TEST_ONLY`): other splits are a
+    :class:`ConfigError`.
     ``simulated`` calls the fleet simulator with the split's fixed settings
     (:data:`SIMULATED_SPLITS`) and names its sensor channels as in the
     DrivePlotR file (``accel_x`` -> ``accel_x_mps2``, ``yaw_rate`` ->
@@ -125,24 +155,15 @@ def load_dataset(
         )
     table = pd.read_csv(path)
     track = table[_TRACK_COLUMN.get(name, "track")]
-    if name in _HELD_OUT_PREFIX:
-        prefixes = _HELD_OUT_PREFIX[name]
-        if prefixes is None:
-            if split != "test":
-                raise ConfigError(f"data set {name!r} is a test set only (no {split} split)")
-            keep = pd.Series(True, index=table.index)
-        else:
-            ids = track.astype(str)
-            if split == "train":
-                keep = ~ids.str.startswith(tuple(prefixes.values()))
-            else:
-                keep = ids.str.startswith(prefixes[split])
+    if name in TEST_ONLY:
+        keep = pd.Series(True, index=table.index)
+    elif name in _BY_PREFIX:
+        ids = track.astype(str)
+        keep = ids.str.startswith(_BY_PREFIX[name][split])
+    elif split == "train":
+        keep = ~track.isin([v for ids in _HELD_OUT[name].values() for v in ids])
     else:
-        held = _HELD_OUT[name]
-        if split == "train":
-            keep = ~track.isin([v for ids in held.values() for v in ids])
-        else:
-            keep = track.isin(list(held[split]))
+        keep = track.isin(list(_HELD_OUT[name][split]))
     out = table[keep.to_numpy()].reset_index(drop=True)
     out.attrs["source"] = f"{path} [{split}]"
     return out

@@ -31,8 +31,9 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import InputError
-from .._grad.detector import RESULT_DTYPES, TrackStreams
+from .._grad.detector import RESULT_DTYPES, TrackStreams, load_grad_model
 from .._io.read import TableWriter, iter_csv_tables
+from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import ColumnMap, to_fixes
 
 __all__ = ["DetectSummary", "detect_csv_in_chunks"]
@@ -48,6 +49,9 @@ class DetectSummary:
     alerts: int
     tracks: int
     seconds: float
+    #: Where the input is outside what the model was validated on
+    #: (:class:`gradgps._tracks.input_checks.InputChecks`, fed chunk by chunk).
+    warnings: tuple[str, ...] = ()
 
     @property
     def rows_per_second(self) -> float:
@@ -86,9 +90,12 @@ def detect_csv_in_chunks(
     if on_start is not None:
         on_start(chunks.n_rows)
     counts = np.zeros(3, np.int64)
+    checks = InputChecks(*validated_rates(load_grad_model(model).config))
     with TableWriter(Path(output)) as writer:
         for table in chunks:
-            result = streams.update_fixes(to_fixes(table))
+            fixes = to_fixes(table)
+            checks.add(fixes)
+            result = streams.update_fixes(fixes)
             counts += (
                 int(result["anomaly"].sum()),
                 int((result["invalid_reason"] != "").sum()),
@@ -110,6 +117,7 @@ def detect_csv_in_chunks(
         alerts=int(counts[2]),
         tracks=len(streams.detectors),
         seconds=time.perf_counter() - started,
+        warnings=tuple(checks.warnings()),
     )
 
 
