@@ -116,3 +116,14 @@ def test_real_glitches_are_cut_out_and_split_the_track() -> None:
     out = _canonical(table, "d-")
     assert len(out) == 6
     assert out["track"].tolist() == ["d-x~0"] * 3 + ["d-x~2"] * 3
+
+
+def test_thinning_tolerates_jittered_stamps() -> None:
+    """A 1 Hz receiver with +-5 % jitter thinned to 1 Hz keeps every fix; to 2 s, every other."""
+    from gradgps._tracks.thin import thin_mask
+
+    t = np.arange(20.0) + np.tile([0.0, -0.05, 0.04, -0.03], 5)
+    tracks = np.full(20, "a", dtype=object)
+    assert thin_mask(tracks, t, 1.0).all()
+    assert thin_mask(tracks, t, 2.0).sum() == 10
+    assert not thin_mask(tracks, np.full(3, np.nan), 1.0).any()

@@ -56,6 +56,7 @@ import pandas as pd
 from .._data.datasets import DATASETS, load_dataset
 from .._data.inject import inject_grad
 from .._exceptions import ConfigError
+from .._tracks.thin import thin_mask
 from .._tracks.track import ColumnMap, to_fixes
 from .metrics import class_scores, event_recall, rmse_m
 
@@ -82,7 +83,6 @@ TARGETS: dict[str, dict[str, float | None]] = {
     "0.5 Hz": {"max_false_alarm_rate": 0.01, "min_anomaly_f1": 0.90, "min_normal_recall": None},
 }
 #: Slack on the decimation period: fixes 0.999 s apart count as 1 s apart.
-DECIMATION_SLACK_S = 1e-3
 SEED = 0
 
 
@@ -96,7 +96,7 @@ def decimate(table: pd.DataFrame, cmap: ColumnMap, period_s: float) -> pd.DataFr
     """Rows of ``table`` kept when each track is thinned to one fix per ``period_s``.
 
     Per track in time order: the first fix is kept, then every fix at least
-    ``period_s - 1 ms`` after the last kept one. Rows with no time are
+    ``period_s`` less 10 % after the last kept one (:func:`gradgps._tracks.thin.thin_mask`). Rows with no time are
     dropped. Row order of the kept rows is the input order; index 0..n-1.
     """
     assert cmap.time is not None
@@ -106,18 +106,7 @@ def decimate(table: pd.DataFrame, cmap: ColumnMap, period_s: float) -> pd.DataFr
         if cmap.track is not None
         else np.full(len(table), "0", dtype=object)
     )
-    keep = np.zeros(len(table), dtype=bool)
-    order = pd.DataFrame({"track": tracks, "t": t})
-    order = order[np.isfinite(t)].sort_values(["track", "t"], kind="stable")
-    limit = period_s - DECIMATION_SLACK_S
-    for _, part in order.groupby("track", sort=False):
-        rows = part.index.to_numpy()
-        times = part["t"].to_numpy()
-        last = -math.inf
-        for row, ti in zip(rows, times, strict=True):
-            if ti - last >= limit:
-                keep[row] = True
-                last = ti
+    keep = thin_mask(tracks, t, period_s)
     return table[keep].reset_index(drop=True)
 
 

@@ -75,9 +75,7 @@ MOTION_FEATURES = (
 )
 N_MOTION_FEATURES = len(MOTION_FEATURES)
 
-P_GATE, P_FLOOR, P_MEMORY, P_VEL_TAU, P_TURN_TAU, P_MAX_RUN, P_MAX_TURN, P_PERIOD, P_INIT = range(
-    9
-)
+P_GATE, P_FLOOR, P_MEMORY, P_VEL_TAU, P_TURN_TAU, P_MAX_RUN, P_MAX_TURN, P_PERIOD, P_INIT = range(9)
 N_MOTION_PARAMS = 9
 # State: count, p east/north, v east/north, turn rate, m2, run seconds,
 # previous observed east/north, and the velocity predicted for the newest fix
