@@ -1,0 +1,63 @@
+"""The command line speaks one language: -o/--output, defaults shown, one line per missing extra."""
+
+from __future__ import annotations
+
+import sys
+
+import pytest
+from click.testing import CliRunner
+
+from gradgps._cli import main
+
+
+@pytest.mark.parametrize(
+    ("args", "module", "extra"),
+    [
+        (["train", "--dataset", "simulated", "-o", "m"], "torch", "train"),
+        (["detect-fleet", "in.csv", "-o", "out.csv"], "dask", "fleet"),
+        (
+            [
+                "serve-redis",
+                "--url",
+                "redis://127.0.0.1:1/0",
+                "--input-stream",
+                "i",
+                "--output-stream",
+                "o",
+                "--group",
+                "g",
+                "--consumer",
+                "c",
+            ],
+            "redis",
+            "fleet",
+        ),
+    ],
+)
+def test_missing_extra_is_one_line_naming_it(
+    tmp_path: object, monkeypatch: pytest.MonkeyPatch, args: list[str], module: str, extra: str
+) -> None:
+    for name in list(sys.modules):
+        if name == module or name.startswith(module + "."):
+            monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, module, None)  # import raises ModuleNotFoundError
+    if args[0] == "detect-fleet":
+        folder = tmp_path / "in"  # type: ignore[operator]
+        folder.mkdir()
+        (folder / "a.csv").write_text("t,lat,lon\n0,1,2\n")
+        args = ["detect-fleet", str(folder), "-o", str(tmp_path / "out")]  # type: ignore[operator]
+    run = CliRunner().invoke(main, args)
+    assert run.exit_code == 1, run.output
+    assert f"pip install 'gradgps[{extra}]'" in run.output
+    assert "Traceback" not in run.output
+    assert run.output.strip().count("\n") == 0
+
+
+def test_output_options_and_defaults_are_consistent() -> None:
+    demo = CliRunner().invoke(main, ["demo", "--help"]).output
+    assert "-o, --output, --out" in demo
+    inject = CliRunner().invoke(main, ["inject", "--help"]).output
+    assert "--seed INTEGER" in inject
+    assert "[default: 0]" in inject
+    detect = CliRunner().invoke(main, ["detect", "--help"]).output
+    assert "default: the model's own" in " ".join(detect.split())
