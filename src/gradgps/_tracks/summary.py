@@ -5,9 +5,9 @@ tracks and fixes, at what rate, with which dropouts, where, how fast, and how
 much of it is unusable. :func:`summarize` computes that from canonical fixes.
 
 It works on :func:`gradgps.preprocess` points (one segment per track, no
-interpolation), so the rate and gaps are measured on time-ordered fixes with
-repeated timestamps merged, exactly what the detectors will see, and invalid
-rows are counted with the same reasons the detectors give them.
+interpolation) of the usable fixes, exactly what the detector uses: invalid
+rows are counted with the same reasons the detector gives them, a repeated or
+backward timestamp included (each track is read in row order).
 
 Definitions (per track; *steps* are the time differences between
 consecutive distinct timestamps of valid fixes):
@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from .geo import haversine_m
-from .preprocess import preprocess
+from .preprocess import MIN_STEP_S, preprocess, stream_reasons
 
 __all__ = ["GAP_FACTOR", "SpeedStats", "Summary", "TrackSummary", "summarize"]
 
@@ -188,11 +188,16 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
     """
     # One segment per track (no gap is too long) and no filling: the summary
     # measures the fixes as recorded and finds gaps itself.
-    prepared = preprocess(fixes, max_gap_s=sys.float_info.max, interpolate=False)
+    # Invalid rows by the rule every detection mode applies (rows in order per
+    # track; a repeated or backward timestamp is unusable), so info and detect agree.
+    row_reason = stream_reasons(fixes, min_step_s=MIN_STEP_S)
+    invalid_rows = row_reason != ""
+    prepared = preprocess(
+        fixes.iloc[np.flatnonzero(~invalid_rows)], max_gap_s=sys.float_info.max, interpolate=False
+    )
     points = prepared.points
     has_speed = "speed" in points.columns
     row_tracks = fixes["track"].astype(str).to_numpy(dtype=object)
-    invalid_rows = prepared.row_reason != ""
     track_of_point = points["track"].astype(str).to_numpy(dtype=object)
 
     summaries: list[TrackSummary] = []
@@ -236,7 +241,7 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
         _box(points),
         total_speed,
     )
-    reasons = Counter(str(r) for r in prepared.row_reason if r != "")
+    reasons = Counter(str(r) for r in row_reason if r != "")
     return Summary(
         source=str(fixes.attrs.get("source", "<data>")),
         tracks=summaries,
