@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 from click.testing import CliRunner
 
@@ -61,3 +64,18 @@ def test_output_options_and_defaults_are_consistent() -> None:
     assert "[default: 0]" in inject
     detect = CliRunner().invoke(main, ["detect", "--help"]).output
     assert "default: the model's own" in " ".join(detect.split())
+
+
+def test_info_fits_80_columns_with_start_end_and_warnings(tmp_path: Path) -> None:
+    path = tmp_path / "kmh.csv"
+    t = np.arange(0.0, 120.0) + 1795428000.0
+    frame = pd.DataFrame(
+        {"t": t, "lat": 48.1 + 3e-4 * np.arange(120), "lon": 11.5, "speed": 120.0}  # km/h
+    )
+    frame.to_csv(path, index=False)
+    run = CliRunner().invoke(main, ["info", str(path)], env={"COLUMNS": "80"})
+    assert run.exit_code == 0, run.output
+    assert max(len(line) for line in run.output.splitlines()) <= 80
+    assert "2026-11-23 10:00:00" in run.output
+    assert "2026-11-23 10:01:59" in run.output
+    assert "warning: track 0: reported speed up to 120 m/s" in run.output

@@ -16,7 +16,9 @@ same clean positions.
 
 from __future__ import annotations
 
+import contextlib
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -168,18 +170,24 @@ def detect(
         elapsed = summary.seconds
         rate = summary.rows_per_second
     else:
-        table = read_table(input_path, fmt, column_map(cols))
-        fixes = to_fixes(table)
-        time_column = _time_column(table.frame, fixes)
-        started = time.perf_counter()
-        result = detector.detect_fixes(fixes)
-        elapsed = time.perf_counter() - started
-        frame = table.frame.reset_index(drop=True)
-        clash = [c for c in result.columns if c in frame.columns]
-        if clash:
-            raise click.UsageError(f"{input_path} already has columns {clash}; rename them first")
-        if output is not None:
-            write_table(pd.concat([frame, result.reset_index(drop=True)], axis=1), output)
+        with _steps() as step:
+            step("read")
+            table = read_table(input_path, fmt, column_map(cols))
+            fixes = to_fixes(table)
+            time_column = _time_column(table.frame, fixes)
+            step(f"detect {len(fixes):,} fixes")
+            started = time.perf_counter()
+            result = detector.detect_fixes(fixes)
+            elapsed = time.perf_counter() - started
+            frame = table.frame.reset_index(drop=True)
+            clash = [c for c in result.columns if c in frame.columns]
+            if clash:
+                raise click.UsageError(
+                    f"{input_path} already has columns {clash}; rename them first"
+                )
+            if output is not None:
+                step("write")
+                write_table(pd.concat([frame, result.reset_index(drop=True)], axis=1), output)
         if events is not None:
             events.add(fixes, result)
         kept.append((fixes, result))
@@ -213,19 +221,39 @@ def detect(
         assert result_all is not None
         write_gpx(gpx_path, fixes_all, result_all)
         click.echo(f"gpx: {gpx_path} (the repaired track)")
-    if fixes_all is not None and result_all is not None:
+    if fixes_all is not None and result_all is not None and (report_path or plots_dir):
         from .report import write_report_outputs
 
-        write_report_outputs(
-            report_path,
-            plots_dir,
-            fixes_all,
-            result_all,
-            detector,
-            elapsed,
-            str(input_path),
-            events=table_events,
-        )
+        with _steps() as step:
+            step("draw the report")
+            write_report_outputs(
+                report_path,
+                plots_dir,
+                fixes_all,
+                result_all,
+                detector,
+                elapsed,
+                str(input_path),
+                events=table_events,
+            )
+
+
+@contextlib.contextmanager
+def _steps() -> Iterator[Callable[[str], None]]:
+    """A spinner with the current step and the elapsed time on stderr (whole-file runs)."""
+    from rich.console import Console
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    progress = Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    )
+    task = progress.add_task("start", total=None)
+    with progress:
+        yield lambda text: progress.update(task, description=text)
 
 
 def _need_matplotlib() -> None:

@@ -89,6 +89,37 @@ class TrackSummary:
     lon_min: float | None
     lon_max: float | None
     speed: SpeedStats | None
+    start_s: float | None = None
+    end_s: float | None = None
+
+
+#: Faster than this (m/s; 324 km/h) is no road vehicle: positions jump or the unit is wrong.
+IMPOSSIBLE_SPEED = 90.0
+#: Rates outside this band (Hz) are worth a second look.
+RATE_BAND = (0.01, 50.0)
+
+
+def warnings_of(tracks: list[TrackSummary], rows: int) -> list[str]:
+    """Plain-language warnings: impossible speeds, odd rates, many unusable rows."""
+    out = []
+    for s in tracks:
+        if s.speed is not None and s.speed.max > IMPOSSIBLE_SPEED:
+            what = "reported speed" if s.speed.source == "reported" else "speed between fixes"
+            out.append(
+                f"track {s.track}: {what} up to {s.speed.max:,.0f} m/s "
+                f"(over {IMPOSSIBLE_SPEED:.0f} m/s: position jumps"
+                + (", or speed not in m/s" if s.speed.source == "reported" else "")
+                + ")"
+            )
+        if s.rate_hz is not None and not (RATE_BAND[0] <= s.rate_hz <= RATE_BAND[1]):
+            out.append(f"track {s.track}: {s.rate_hz:g} Hz is an unusual rate (time unit right?)")
+    invalid = sum(s.invalid for s in tracks)
+    if rows and invalid > 0.1 * rows:
+        out.append(
+            f"{invalid:,} of {rows:,} rows ({100 * invalid / rows:.0f} %) are unusable "
+            "(see the reasons above)"
+        )
+    return out
 
 
 @dataclass(frozen=True)
@@ -101,6 +132,7 @@ class Summary:
     invalid_reasons: dict[str, int]
     rejected: int = 0
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, object]:
         """Plain JSON-able data (NaN never appears: missing values are ``None``)."""
@@ -113,6 +145,7 @@ class Summary:
             "invalid_reasons": dict(self.invalid_reasons),
             "rejected": self.rejected,
             "notes": list(self.notes),
+            "warnings": list(self.warnings),
         }
 
 
@@ -150,6 +183,7 @@ def _summary_of(
     steps: list[np.ndarray],
     box: tuple[float, float, float, float] | None,
     speed: SpeedStats | None,
+    span: tuple[float, float] | None = None,
 ) -> TrackSummary:
     """One summary from facts that may come from one track or many (``steps`` per track)."""
     all_steps = np.concatenate(steps) if steps else np.empty(0)
@@ -177,6 +211,8 @@ def _summary_of(
         lon_min=box[2] if box else None,
         lon_max=box[3] if box else None,
         speed=speed,
+        start_s=span[0] if span else None,
+        end_s=span[1] if span else None,
     )
 
 
@@ -220,6 +256,7 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
                 [facts.steps],
                 box,
                 speed,
+                (float(t[0]), float(t[-1])) if t.size else None,
             )
         )
         step_lists.append(facts.steps)
@@ -232,6 +269,8 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
         source = speed_sources.pop() if len(speed_sources) == 1 else "mixed"
         total_speed = SpeedStats.of(np.concatenate(speed_parts), source)
     durations = [s.duration_s for s in summaries if s.duration_s is not None]
+    starts = [s.start_s for s in summaries if s.start_s is not None]
+    ends = [s.end_s for s in summaries if s.end_s is not None]
     total = _summary_of(
         "total",
         len(fixes),
@@ -240,6 +279,7 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
         step_lists,
         _box(points),
         total_speed,
+        (min(starts), max(ends)) if starts else None,
     )
     reasons = Counter(str(r) for r in row_reason if r != "")
     return Summary(
@@ -249,6 +289,7 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
         invalid_reasons=dict(reasons.most_common()),
         rejected=rejected,
         notes=list(notes or []),
+        warnings=warnings_of(summaries, len(fixes)),
     )
 
 
