@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import sys
+import builtins
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -17,20 +18,11 @@ from gradgps._cli import main
     ("args", "module", "extra"),
     [
         (["train", "--dataset", "simulated", "-o", "m"], "torch", "train"),
-        (["detect-fleet", "in.csv", "-o", "out.csv"], "dask", "fleet"),
+        (["detect-fleet", "IN", "-o", "OUT"], "dask", "fleet"),
         (
             [
-                "serve-redis",
-                "--url",
-                "redis://127.0.0.1:1/0",
-                "--input-stream",
-                "i",
-                "--output-stream",
-                "o",
-                "--group",
-                "g",
-                "--consumer",
-                "c",
+                *("serve-redis", "--url", "redis://127.0.0.1:1/0", "--input-stream", "i"),
+                *("--output-stream", "o", "--group", "g", "--consumer", "c"),
             ],
             "redis",
             "fleet",
@@ -38,18 +30,25 @@ from gradgps._cli import main
     ],
 )
 def test_missing_extra_is_one_line_naming_it(
-    tmp_path: object, monkeypatch: pytest.MonkeyPatch, args: list[str], module: str, extra: str
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, args: list[str], module: str, extra: str
 ) -> None:
-    for name in list(sys.modules):
-        if name == module or name.startswith(module + "."):
-            monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, module, None)  # import raises ModuleNotFoundError
+    real_import = builtins.__import__
+    owners = {"torch": "_train", "dask": "fleet_dask", "redis": "fleet_redis"}
+
+    def without_extra(name: str, *rest: Any, **kw: Any) -> Any:
+        # As if the extra were not installed: its module, and gradgps' modules needing it.
+        if name.split(".")[0] == module or owners[module] in name:
+            raise ModuleNotFoundError(f"No module named '{module}'", name=module)
+        return real_import(name, *rest, **kw)
+
     if args[0] == "detect-fleet":
-        folder = tmp_path / "in"  # type: ignore[operator]
+        folder = tmp_path / "in"
         folder.mkdir()
         (folder / "a.csv").write_text("t,lat,lon\n0,1,2\n")
-        args = ["detect-fleet", str(folder), "-o", str(tmp_path / "out")]  # type: ignore[operator]
+        args = ["detect-fleet", str(folder), "-o", str(tmp_path / "out")]
+    monkeypatch.setattr(builtins, "__import__", without_extra)
     run = CliRunner().invoke(main, args)
+    monkeypatch.undo()
     assert run.exit_code == 1, run.output
     assert f"pip install 'gradgps[{extra}]'" in run.output
     assert "Traceback" not in run.output
