@@ -99,8 +99,16 @@ def test_every_row_gets_one_result_and_bad_values_are_flagged(fixes: pd.DataFram
         scores = out["score"].to_numpy()[~invalid]
         assert ((scores >= 0) & (scores <= 1)).all()
         assert np.isfinite(out["lat_clean"].to_numpy()[~invalid]).all()
-    # One semantics: batch reads each track in row order exactly as the stream does.
-    _assert_same(batch, streamed)
+    # One semantics: batch reads each track in row order exactly as the stream does: the
+    # same rows flagged, the same verdicts. Floats to a few ulps: the batch kernel and the
+    # per-fix step can round differently on degenerate tracks (main has this too: seven
+    # fixes at 0,0 then one with speed 19 give lat_clean 1 ulp apart).
+    for col in ("anomaly", "bias_type", "time_type", "alert", "invalid_reason"):
+        assert batch[col].tolist() == streamed[col].tolist(), col
+    for col in ("score", "lat_clean", "lon_clean"):
+        np.testing.assert_allclose(
+            batch[col].to_numpy(float), streamed[col].to_numpy(float), rtol=1e-12, atol=1e-15
+        )
 
 
 def test_empty_and_single_point_tracks() -> None:
