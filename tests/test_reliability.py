@@ -79,12 +79,8 @@ def test_mixed_bad_csv_in_batch_keeps_every_row(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     got = _read_output(out)
     assert len(got) == len(pd.read_csv(MIXED))
-    # Batch sorts and merges, so only order-related verdicts differ from streaming.
-    by_value = ~got["expected_stream_reason"].isin(["", "time not after the previous fix"])
-    assert (got["invalid_reason"] != "").tolist() == by_value.tolist()
-    assert (
-        got.loc[by_value, "invalid_reason"] == got.loc[by_value, "expected_stream_reason"]
-    ).all()
+    # One semantics: the whole file gives the verdicts of the chunked stream, row for row.
+    assert got["invalid_reason"].tolist() == got["expected_stream_reason"].tolist()
 
 
 @settings(max_examples=40, deadline=None)
@@ -103,8 +99,16 @@ def test_every_row_gets_one_result_and_bad_values_are_flagged(fixes: pd.DataFram
         scores = out["score"].to_numpy()[~invalid]
         assert ((scores >= 0) & (scores <= 1)).all()
         assert np.isfinite(out["lat_clean"].to_numpy()[~invalid]).all()
-    # batch sorts and merges: only value checks make a batch row invalid
-    assert ((batch["invalid_reason"] != "").to_numpy() == bad).all()
+    # One semantics: batch reads each track in row order exactly as the stream does: the
+    # same rows flagged, the same verdicts. Floats to a few ulps: the batch kernel and the
+    # per-fix step can round differently on degenerate tracks (main has this too: seven
+    # fixes at 0,0 then one with speed 19 give lat_clean 1 ulp apart).
+    for col in ("anomaly", "bias_type", "time_type", "alert", "invalid_reason"):
+        assert batch[col].tolist() == streamed[col].tolist(), col
+    for col in ("score", "lat_clean", "lon_clean"):
+        np.testing.assert_allclose(
+            batch[col].to_numpy(float), streamed[col].to_numpy(float), rtol=1e-12, atol=1e-15
+        )
 
 
 def test_empty_and_single_point_tracks() -> None:
@@ -284,7 +288,7 @@ def test_fixes_a_nanosecond_apart_do_not_blow_up_the_windows() -> None:
     streamed = TrackStreams().update_fixes(fixes)
     close = "time less than 1 ms after the previous fix"
     assert streamed["invalid_reason"].tolist() == ["", close, "", close, "", ""]
-    assert (batch["invalid_reason"] == "").all()  # batch merges them into one point instead
+    _assert_same(batch, streamed)  # one semantics: batch never merges them either
     keep = streamed["invalid_reason"] == ""
     _assert_same(Detector().detect(fixes[keep.to_numpy()]), streamed[keep])
 

@@ -16,6 +16,7 @@ from ._data.datasets import load_dataset
 from ._data.inject import inject_grad, inject_sensor_grid
 from ._data.simulator import SimulatorParams, simulate_drive, simulate_fleet
 from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
+from ._grad.api import clean, detect
 from ._grad.detector import Detector, TrackStreams
 from ._grad.rema import RemaParams
 from ._io.read import iter_csv_tables, read_fixes, read_table, write_table
@@ -43,6 +44,8 @@ __all__ = [
     "Table",
     "TrackStreams",
     "__version__",
+    "clean",
+    "detect",
     "inject_grad",
     "inject_sensor_grid",
     "iter_csv_tables",

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
-__all__ = ["RESULT_COLUMNS", "PointResult"]
+__all__ = ["RESULT_COLUMNS", "PointResult", "ResultCounts"]
 
 RESULT_COLUMNS = ("anomaly", "score", "bias_type", "time_type", "lat_clean", "lon_clean", "alert")
 
@@ -48,4 +49,43 @@ class PointResult:
             lon_clean=math.nan,
             alert=0,
             invalid_reason=reason,
+        )
+
+
+@dataclass(frozen=True)
+class ResultCounts:
+    """The counts every summary of a result shows (CLI line, report, follow), computed one way.
+
+    ``anomalies`` counts every row with ``anomaly=1``, the unusable fixes
+    (``invalid``) included, exactly as the output's ``anomaly`` column sums.
+    """
+
+    rows: int
+    anomalies: int
+    invalid: int
+    alerts: int
+
+    def __add__(self, other: ResultCounts) -> ResultCounts:
+        return ResultCounts(
+            self.rows + other.rows,
+            self.anomalies + other.anomalies,
+            self.invalid + other.invalid,
+            self.alerts + other.alerts,
+        )
+
+    def text(self) -> str:
+        """``"N rows, A anomalies (I invalid fixes), L alerts"``."""
+        return (
+            f"{self.rows:,} rows, {self.anomalies:,} anomalies "
+            f"({self.invalid:,} invalid fixes), {self.alerts:,} alerts"
+        )
+
+    @classmethod
+    def of(cls, result: Any) -> ResultCounts:
+        """Counts of a result frame (columns ``anomaly``, ``invalid_reason``, ``alert``)."""
+        return cls(
+            rows=len(result),
+            anomalies=int(result["anomaly"].sum()),
+            invalid=int((result["invalid_reason"] != "").sum()),
+            alerts=int(result["alert"].sum()),
         )

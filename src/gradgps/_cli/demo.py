@@ -31,6 +31,8 @@ __all__ = ["demo"]
     help="seed of the fault injection (the drives use the simulated test split's seed)",
 )
 @click.option(
+    "-o",
+    "--output",
     "--out",
     "out_dir",
     type=click.Path(file_okay=False, path_type=Path),

@@ -36,7 +36,13 @@ def _read_input(path: Path, fmt: str | None) -> Table:
     metavar="NAME",
     help="sensor-grid row, e.g. instant-25, bias-5-3, drift-4-20, or mixed (default)",
 )
-@click.option("--seed", type=int, required=True, help="random seed; same seed, same output bytes")
+@click.option(
+    "--seed",
+    type=int,
+    default=0,
+    show_default=True,
+    help="random seed; same seed, same output bytes",
+)
 @click.option(
     "--scale", type=float, default=1.0, show_default=True, help="multiplies every fault magnitude"
 )

@@ -40,8 +40,10 @@ def column_options(func: F) -> F:
         "--format",
         "fmt",
         default=None,
-        type=click.Choice(["csv", "parquet", "gpx", "nmea", "rosbag"], case_sensitive=False),
-        help="input format; by default from the file extension",
+        type=click.Choice(
+            ["csv", "parquet", "gpx", "nmea", "geojson", "rosbag"], case_sensitive=False
+        ),
+        help="input format; by default from the content (first bytes), then the extension",
     )(func)
     return func
 
@@ -57,7 +59,8 @@ def model_options(func: F) -> F:
         "--threshold",
         type=float,
         default=None,
-        help="anomaly threshold on the score, overriding the model's",
+        help="anomaly threshold on the score, in (0, 1)  [default: the model's own; "
+        "the shipped model's is in its config.json]",
     )(func)
     func = click.option(
         "--model",

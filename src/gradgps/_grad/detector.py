@@ -9,16 +9,15 @@ Two faces, one computation (:mod:`gradgps._grad.pipeline`):
 * batch: ``detect(frame)`` for any number of tracks returns one result row
   per input row, in input order.
 
-For time-ordered input whose time steps are all at least :data:`MIN_STEP_S`
-(1 ms), both give the same numbers bit for bit (tested): batch runs the same
-compiled per-fix step. Where they cannot agree, by nature: batch sorts each
-track by time and merges fixes less than 1 ms apart (repeated timestamps)
-first, while a stream cannot reorder the past, so a fix whose time is not at
-least 1 ms after the previous one is *invalid* there (flagged with a reason,
-never used).
+Both read each track in row order with one rule and give the same numbers
+bit for bit (tested), whatever the order of the input: batch runs the same
+compiled per-fix step on the fixes a stream would use. A fix whose time is
+not at least :data:`MIN_STEP_S` (1 ms) after the previous usable fix of its
+track (a repeated or backward timestamp) is *invalid* in both: flagged with a
+reason, never merged or averaged with its neighbours, never used.
 
 Invalid fixes (time, latitude or longitude missing, not finite or out of
-range; in a stream also not after the previous fix) come back with
+range; a repeated or backward time) come back with
 ``anomaly=1``, ``invalid_reason`` saying why, NaN score and clean position,
 and never touch the detector's state. Speed and heading are optional: a
 missing, non-numeric or infinite reading is treated as absent (NaN), and the
@@ -52,8 +51,8 @@ from numpy.typing import NDArray
 from .._exceptions import ConfigError, GradGPSError, ModelError
 from .._result import PointResult
 from .._tracks.geo import LocalFrame
-from .._tracks.preprocess import preprocess
-from .._tracks.track import CANONICAL_COLUMNS, to_fixes
+from .._tracks.preprocess import MIN_STEP_S, preprocess, stream_reasons
+from .events import fault_events
 from .model_io import gru_model, load_model
 from .pipeline import (
     N_POINT_OUT,
@@ -81,12 +80,11 @@ __all__ = [
     "load_grad_model",
 ]
 
-#: Shortest time step between two fixes of a track. A segment's sampling
-#: period is its first step and its windows hold ``window_s / period`` fixes,
-#: so a step of a nanosecond (clock jitter, a corrupted timestamp) would ask
-#: for billions of slots. No receiver reports faster than 1 kHz: closer fixes
-#: are one instant (merged in batch, invalid in a stream).
-MIN_STEP_S = 1e-3
+#: Shortest time step between two fixes of a track (from :mod:`gradgps._tracks.preprocess`).
+#: A segment's sampling period is its first step and its windows hold
+#: ``window_s / period`` fixes, so a step of a nanosecond (clock jitter, a
+#: corrupted timestamp) would ask for billions of slots. No receiver reports
+#: faster than 1 kHz: closer fixes are one instant, the later one invalid.
 
 #: Name of the model shipped inside the package, used by ``Detector()``.
 DEFAULT_MODEL = "default"
@@ -237,6 +235,21 @@ def _number(value: float | None) -> float:
         return math.nan
 
 
+def _time_number(value: Any) -> float:
+    """A fix time as seconds: numbers as they are; datetimes, Timestamps, ISO-8601 strings to unix."""
+    if isinstance(value, str | pd.Timestamp | np.datetime64) or hasattr(value, "isoformat"):
+        try:
+            stamp: Any = pd.Timestamp(value)
+        except (TypeError, ValueError):
+            return math.nan
+        if pd.isna(stamp):
+            return math.nan
+        if stamp.tzinfo is None:
+            stamp = stamp.tz_localize("UTC")
+        return float(stamp.value) / 1e9
+    return _number(value)
+
+
 def _reading(value: float | None) -> float:
     """An optional reading (speed, heading): a finite number, or NaN for missing/unusable."""
     number = _number(value)
@@ -315,7 +328,7 @@ class Detector:
 
     def update(
         self,
-        t: float,
+        t: Any,
         lat: float,
         lon: float,
         speed: float | None = None,
@@ -324,10 +337,13 @@ class Detector:
     ) -> PointResult:
         """Score one fix of this detector's track; returns at once, never raises on bad values.
 
+        ``t``: seconds (unix or relative), or a datetime, ``pandas.Timestamp``
+        or ISO-8601 string (naive ones read as UTC).
+
         ``channels`` (other sensor readings) are accepted for interface
         compatibility and ignored by the position model.
         """
-        t_f, lat_f, lon_f = _number(t), _number(lat), _number(lon)
+        t_f, lat_f, lon_f = _time_number(t), _number(lat), _number(lon)
         reason = _check_fix(t_f, lat_f, lon_f, self._last_t)
         if reason:
             return PointResult.invalid(reason)
@@ -435,22 +451,73 @@ class Detector:
 
     # -- batch -------------------------------------------------------------
 
-    def detect(self, frame: pd.DataFrame, *, threads: int = 1) -> pd.DataFrame:
-        """One result row per input row (same index order) for a table of one or many tracks.
+    def detect(
+        self,
+        data: Any,
+        *,
+        threads: int = 1,
+        time: str | None = None,
+        lat: str | None = None,
+        lon: str | None = None,
+        track: str | None = None,
+        speed: str | None = None,
+        heading: str | None = None,
+        alt: str | None = None,
+        hdop: str | None = None,
+    ) -> Any:
+        """Flag, classify and repair every fix of ``data``; one result row per input row.
 
-        ``frame``: canonical fixes (see :func:`gradgps.to_fixes`) or any table
-        whose columns can be auto-detected. Result columns: ``anomaly``,
-        ``score``, ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
-        ``alert``, ``invalid_reason``. ``threads`` > 1 spreads segments over
-        that many numba threads (same numbers; see ``grad_segments`` for the
-        threading-layer caveat when calling from several threads at once).
+        ``data``: a DataFrame of one or many tracks (canonical fixes, see
+        :func:`gradgps.to_fixes`, or any table whose columns are found by
+        name or named by keyword: ``time="ts"``, ``lat=``, ``lon=``,
+        ``track=``, ``speed=``, ``heading=``; a ``DatetimeIndex`` is the time
+        when no column is), a GeoPandas GeoDataFrame (point geometry, any
+        CRS), or a movingpandas Trajectory/TrajectoryCollection.
+
+        A DataFrame gives the result columns only (``anomaly``, ``score``,
+        ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``, ``alert``,
+        ``invalid_reason``) on the caller's index, so ``df.join(result)``
+        lines up; a GeoDataFrame or trajectory comes back as the same type
+        with those columns added (:func:`gradgps.detect` does that for a
+        DataFrame too).
+
+        Every track is read in row order, exactly as the streaming
+        :meth:`update` reads it: a fix whose time is not after the previous
+        usable fix of its track (a repeated or backward timestamp) is
+        unusable, flagged with its reason, and never merged or averaged, so
+        the whole file, chunks, ``--follow`` and this method give the same
+        rows flagged and the same clean positions. ``threads`` > 1 spreads
+        segments over that many numba threads (same numbers).
         """
-        fixes = frame if set(CANONICAL_COLUMNS[:4]) <= set(frame.columns) else to_fixes(frame)
-        if not set(CANONICAL_COLUMNS[:4]) <= set(fixes.columns):
-            fixes = to_fixes(fixes)
+        from .._tracks.objects import add_columns, as_track_input
+
+        columns = dict(
+            time=time,
+            lat=lat,
+            lon=lon,
+            track=track,
+            speed=speed,
+            heading=heading,
+            alt=alt,
+            hdop=hdop,
+        )
+        inp = as_track_input(data, columns)
+        result = self.detect_fixes(inp.fixes, threads=threads)
+        result.index = inp.index
+        if inp.kind == "frame":
+            return result
+        return add_columns(inp, result)
+
+    def detect_fixes(self, fixes: pd.DataFrame, *, threads: int = 1) -> pd.DataFrame:
+        """:meth:`detect` on canonical fixes; the result has ``fixes``' index."""
         m = self.model_
+        reason = stream_reasons(fixes, min_step_s=MIN_STEP_S)
+        usable = np.flatnonzero(reason == "")
         prepared = preprocess(
-            fixes, max_gap_s=m.params.max_gap_s, interpolate=False, min_step_s=MIN_STEP_S
+            fixes.iloc[usable],
+            max_gap_s=m.params.max_gap_s,
+            interpolate=False,
+            min_step_s=MIN_STEP_S,
         )
         pts = prepared.points
         n = len(pts)
@@ -479,7 +546,103 @@ class Detector:
                 heading,
                 threads=threads,
             )
-        return self._rows(prepared.to_rows(out), prepared.row_reason, fixes.index)
+        rows = np.full((len(fixes), N_POINT_OUT), np.nan)
+        rows[usable] = prepared.to_rows(out)
+        return self._rows(rows, reason, fixes.index)
+
+    def clean(
+        self,
+        data: Any,
+        *,
+        keep_invalid: bool = False,
+        time: str | None = None,
+        lat: str | None = None,
+        lon: str | None = None,
+        track: str | None = None,
+        speed: str | None = None,
+        heading: str | None = None,
+        alt: str | None = None,
+        hdop: str | None = None,
+    ) -> Any:
+        """``data`` with every position replaced by the repaired one, in the same type.
+
+        Like movingpandas' cleaners: the rows come back in order with
+        ``lat_clean``/``lon_clean`` as their position (the geometry, in the
+        caller's CRS, for a GeoDataFrame or trajectory). Unusable fixes
+        (``invalid_reason`` set: no time, a repeated timestamp...) have no
+        repaired position and are dropped unless ``keep_invalid`` (then
+        their position is missing). Columns by keyword as in :meth:`detect`.
+        """
+        from .._tracks.objects import as_track_input, replace_positions
+
+        columns = dict(
+            time=time,
+            lat=lat,
+            lon=lon,
+            track=track,
+            speed=speed,
+            heading=heading,
+            alt=alt,
+            hdop=hdop,
+        )
+        inp = as_track_input(data, columns)
+        result = self.detect_fixes(inp.fixes)
+        keep = (result["invalid_reason"].to_numpy() == "") | keep_invalid
+        return replace_positions(
+            inp,
+            result["lat_clean"].to_numpy(np.float64),
+            result["lon_clean"].to_numpy(np.float64),
+            keep,
+        )
+
+    def events(
+        self,
+        result: Any,
+        *,
+        time: str | None = None,
+        lat: str | None = None,
+        lon: str | None = None,
+        track: str | None = None,
+        speed: str | None = None,
+        heading: str | None = None,
+        alt: str | None = None,
+        hdop: str | None = None,
+    ) -> pd.DataFrame:
+        """Fault events of a result (see :mod:`gradgps._grad.events`), one row per event.
+
+        ``result``: what :func:`gradgps.detect` (or :meth:`detect` on a
+        GeoDataFrame/trajectory) returned, i.e. the input with the result
+        columns added. Columns: ``track``, ``start``, ``end`` (in the input's
+        own time form: Timestamps for datetime input, else seconds),
+        ``duration_s``, ``fixes``, ``bias_type``, ``time_type``,
+        ``peak_offset_m``, ``peak_score``, ``alert``, ``first_row``,
+        ``last_row`` (0-based positions of the rows in ``result``).
+        """
+        from .._tracks.objects import as_track_input, time_values
+
+        columns = dict(
+            time=time,
+            lat=lat,
+            lon=lon,
+            track=track,
+            speed=speed,
+            heading=heading,
+            alt=alt,
+            hdop=hdop,
+        )
+        inp = as_track_input(result, columns)
+        missing = [c for c in RESULT_DTYPES if c not in inp.flat.columns]
+        if missing:
+            raise ConfigError(
+                f"events() needs a detection result with the input's columns; {missing} "
+                "are missing: pass what gradgps.detect(data) returned"
+            )
+        res = pd.DataFrame({c: inp.flat[c].to_numpy() for c in RESULT_DTYPES})
+        events = fault_events(inp.fixes, res)
+        form = time_values(inp)
+        events["start"] = form(events["start"].to_numpy(np.float64))
+        events["end"] = form(events["end"].to_numpy(np.float64))
+        return events
 
     def _rows(
         self, out: NDArray[np.float64], reason: NDArray[Any], index: pd.Index

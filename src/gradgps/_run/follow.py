@@ -76,7 +76,8 @@ def _text(value: float | int | str | None) -> str:
     if value is None:
         return ""
     if isinstance(value, float):
-        return "" if math.isnan(value) else f"{value:.10g}"
+        # Shortest exact form, as the file outputs write floats: the same numbers in every mode.
+        return "" if math.isnan(value) else repr(value)
     return str(value)
 
 
