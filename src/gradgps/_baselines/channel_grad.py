@@ -35,7 +35,8 @@ import pandas as pd
 from .._grad.features import N_CHANNEL, FeatureParams, features_batch_kernel
 from .._grad.gru import GRUModel
 from .._grad.rema import RemaParams
-from .base import Segment, result_frame, segments
+from .._result import result_frame
+from .base import BatchBaseline, Segment, segments
 
 __all__ = ["SENSOR_BIAS_CLASSES", "ChannelGradDetector", "ChannelGradModel", "channel_features"]
 
@@ -80,13 +81,13 @@ class ChannelGradModel:
     max_gap_s: float = 5.0
 
 
-class ChannelGradDetector:
+class ChannelGradDetector(BatchBaseline):
     """Batch channel-wise GRAD detector over fixes carrying the three sensor channels."""
 
     def __init__(self, model: ChannelGradModel) -> None:
         self.model = model
 
-    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
+    def _detect_core(self, fixes: pd.DataFrame) -> pd.DataFrame:
         m = self.model
         segs, reason = segments(fixes, "sensor", m.max_gap_s)
         n = len(fixes)
@@ -101,11 +102,11 @@ class ChannelGradDetector:
         bias = np.where(anomaly, bias, "none")
         bias[reason != ""] = None
         return result_frame(
-            fixes,
+            fixes.index,
             reason,
-            anomaly,
-            score,
-            fixes["lat"].to_numpy(np.float64),
-            fixes["lon"].to_numpy(np.float64),
-            bias,
+            anomaly=anomaly,
+            score=score,
+            lat_clean=fixes["lat"].to_numpy(np.float64),
+            lon_clean=fixes["lon"].to_numpy(np.float64),
+            bias_type=bias,
         )

@@ -31,8 +31,9 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import InputError
-from .._grad.detector import RESULT_DTYPES, TrackStreams
+from .._grad.detector import MultiTrackDetector
 from .._io.read import TableWriter, iter_csv_tables
+from .._result import RESULT_DTYPES
 from .._tracks.track import ColumnMap, to_fixes
 
 __all__ = ["DetectSummary", "detect_csv_in_chunks"]
@@ -74,7 +75,7 @@ def detect_csv_in_chunks(
     ``on_chunk(rows)`` after each chunk (for progress bars).
     """
     started = time.perf_counter()
-    streams = TrackStreams(model, threshold=threshold)
+    streams = MultiTrackDetector(model, threshold=threshold)
     chunks = iter_csv_tables(Path(input_path), chunk_size, columns)
     clash = [c for c in RESULT_DTYPES if c in chunks.header]
     if clash:
