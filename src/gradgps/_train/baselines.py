@@ -46,6 +46,7 @@ from .._baselines.window import (
 )
 from .._data.inject import inject_grad, inject_sensor_grid, with_accel_mps2
 from .._exceptions import ConfigError, ModelError
+from .._result import f1_score
 from .._grad.features import FeatureParams
 from .._grad.gru import GRUModel
 from .._grad.rema import RemaParams
@@ -222,7 +223,7 @@ def train_window_model(
     import torch
     from torch import nn
 
-    from .torch_gru import _best_threshold, _class_weights, _f1, _fit_scaler, _optimise
+    from .torch_gru import _best_threshold, _class_weights, _fit_scaler, _optimise
 
     if architecture not in NETS:
         raise ConfigError(
@@ -275,7 +276,7 @@ def train_window_model(
                     if time.perf_counter() - began > recipe.time_budget_s:
                         out_of_time = True
                         break
-                val_f1 = _f1(val_truth, val_probability() >= 0.5)
+                val_f1 = f1_score(val_truth, val_probability() >= 0.5)
                 history.append(
                     {
                         "epoch": epoch,
