@@ -60,8 +60,8 @@ from .._result import (
     results_frame,
 )
 from .._tracks.geo import LocalFrame
-from .._tracks.preprocess import preprocess
 from .._tracks.track import CANONICAL_COLUMNS, to_fixes
+from .defaults import MIN_STEP_S, grad_points
 from .model_io import gru_model, load_model
 from .pipeline import (
     N_POINT_OUT,
@@ -89,13 +89,6 @@ __all__ = [
     "MultiTrackDetector",
     "load_grad_model",
 ]
-
-#: Shortest time step between two fixes of a track. A segment's sampling
-#: period is its first step and its windows hold ``window_s / period`` fixes,
-#: so a step of a nanosecond (clock jitter, a corrupted timestamp) would ask
-#: for billions of slots. No receiver reports faster than 1 kHz: closer fixes
-#: are one instant (merged in batch, invalid in a stream).
-MIN_STEP_S = 1e-3
 
 #: Name of the model shipped inside the package, used by ``Detector()``.
 DEFAULT_MODEL = "default"
@@ -400,9 +393,7 @@ class Detector:
         if not set(CANONICAL_COLUMNS[:4]) <= set(fixes.columns):
             fixes = to_fixes(fixes)
         m = self.model_
-        prepared = preprocess(
-            fixes, max_gap_s=m.params.max_gap_s, interpolate=False, min_step_s=MIN_STEP_S
-        )
+        prepared = grad_points(fixes, m.params.max_gap_s)
         pts = prepared.points
         n = len(pts)
         out = np.zeros((n, N_POINT_OUT))

@@ -44,10 +44,11 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from .._grad.core import N_RESULT, core_new_state, core_step
+from .._grad.defaults import grad_points
 from .._grad.pipeline import PipelineParams, segment_period
 from .._grad.rema import N_OUT, O_LOWER, O_UPPER
 from .._tracks.geo import LocalFrame
-from .._tracks.preprocess import Prepared, preprocess
+from .._tracks.preprocess import Prepared
 
 __all__ = ["ChannelBounds", "ReportInputs", "figures", "rema_bounds", "write_plots", "write_report"]
 
@@ -268,7 +269,7 @@ def figures(inputs: ReportInputs) -> list[tuple[str, str, Any]]:
     import matplotlib
 
     matplotlib.use("Agg")  # no display needed, and no GUI toolkit imported
-    prepared = preprocess(inputs.fixes, max_gap_s=inputs.params.max_gap_s, interpolate=False)
+    prepared = grad_points(inputs.fixes, inputs.params.max_gap_s)
     flags = _point_flags(prepared, inputs.result)
     per_segment = pd.Series(flags).groupby(prepared.points["segment"].to_numpy()).sum()
     sizes = prepared.points.groupby("segment").size()

@@ -46,10 +46,10 @@ from .._baselines.window import (
 )
 from .._data.inject import inject_grad, inject_sensor_grid, with_accel_mps2
 from .._exceptions import ConfigError, ModelError
-from .._result import f1_score
 from .._grad.features import FeatureParams
 from .._grad.gru import GRUModel
 from .._grad.rema import RemaParams
+from .._result import f1_score
 from .._tracks.track import ColumnMap, to_fixes
 
 if TYPE_CHECKING:

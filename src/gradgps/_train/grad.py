@@ -25,9 +25,9 @@ import pandas as pd
 
 from .._data.inject import inject_grad
 from .._exceptions import ConfigError
+from .._grad.defaults import grad_points
 from .._grad.model_io import save_model
 from .._grad.pipeline import PipelineParams, grad_features, pipeline_feature_names
-from .._tracks.preprocess import preprocess
 from .._tracks.track import ColumnMap, to_fixes
 
 __all__ = ["GradTrainingSet", "labelled_sequences", "train_grad"]
@@ -54,7 +54,7 @@ def labelled_sequences(
                 f"labelled table lacks {col!r}; produce it with an injection protocol"
             )
     fixes = to_fixes(labelled, columns)
-    prepared = preprocess(fixes, max_gap_s=params.max_gap_s, interpolate=False)
+    prepared = grad_points(fixes, params.max_gap_s)
     n_pts = len(prepared.points)
     ok = prepared.row_point >= 0
     anomaly = np.zeros(n_pts, np.int64)

@@ -43,9 +43,9 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from torch import nn
 
 from .._exceptions import ConfigError
-from .._result import f1_score
 from .._grad.gru import MODES
 from .._grad.model_io import export_torch
+from .._result import f1_score
 
 __all__ = ["EpochMetrics", "GRADNet", "TrainConfig", "TrainedModel", "train_model"]
 

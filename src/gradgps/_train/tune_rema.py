@@ -38,9 +38,9 @@ import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
 from .._exceptions import ConfigError
-from .._result import f1_score
 from .._grad.rema import REMA_MODES, RemaParams, rema_batch
 from .._grad.time_classifier import TIME_TYPES, TimeParams, classify_time
+from .._result import f1_score
 
 __all__ = [
     "DEFAULT_GRID",
