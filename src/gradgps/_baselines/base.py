@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -46,6 +46,7 @@ from .._result import (
     fix_reason,
     invalid_reasons,
     reading,
+    result_frame,
 )
 from .._tracks.geo import LocalFrame
 from .._tracks.track import track_rows
@@ -54,6 +55,7 @@ __all__ = [
     "INPUTS",
     "SENSOR_CHANNELS",
     "BatchBaseline",
+    "Reading",
     "Segment",
     "StreamingBaseline",
     "input_names",
@@ -63,6 +65,23 @@ __all__ = [
 INPUTS = ("position", "sensor")
 SENSOR_CHANNELS = ("speed", "accel_x_mps2", "gyro_z_dps")
 _REQUIRED = ("track", "t", "lat", "lon")
+
+
+@dataclass(frozen=True)
+class Reading:
+    """A usable fix as a baseline's stream sees it: optional readings NaN when absent."""
+
+    t: float
+    lat: float
+    lon: float
+    speed: float = np.nan
+    heading: float = np.nan
+    channels: Mapping[str, float] = field(default_factory=dict)
+
+    def sensor_values(self) -> list[float]:
+        """The sensor channels in :data:`SENSOR_CHANNELS` order (NaN if absent)."""
+        readings = {"speed": self.speed, **self.channels}
+        return [float(readings.get(c, np.nan)) for c in SENSOR_CHANNELS]
 
 
 class BatchBaseline(ABC):
@@ -122,19 +141,13 @@ class StreamingBaseline(BatchBaseline):
         if reason:
             return PointResult.invalid(reason, classifies=False)
         extra = {name: reading(value) for name, value in channels.items()}
-        return self._update_valid(t_f, lat_f, lon_f, reading(speed), reading(heading), extra)
+        return self._update_valid(
+            Reading(t_f, lat_f, lon_f, reading(speed), reading(heading), extra)
+        )
 
     @abstractmethod
-    def _update_valid(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float,
-        heading: float,
-        channels: Mapping[str, float],
-    ) -> PointResult:
-        """Judge a usable fix (finite, in range, in time order); readings NaN when absent."""
+    def _update_valid(self, fix: Reading) -> PointResult:
+        """Judge a usable fix (finite, in range, in time order)."""
 
     @abstractmethod
     def get_state(self) -> dict[str, Any]:
@@ -145,10 +158,24 @@ class StreamingBaseline(BatchBaseline):
         """Restore :meth:`get_state` output (``ConfigError`` if it is not one); returns self."""
 
 
-def sensor_values(speed: float, channels: Mapping[str, float]) -> list[float]:
-    """One streamed reading's sensor channels in :data:`SENSOR_CHANNELS` order (NaN if absent)."""
-    readings = {"speed": speed, **channels}
-    return [float(readings.get(c, np.nan)) for c in SENSOR_CHANNELS]
+def flags_frame(
+    fixes: pd.DataFrame,
+    reason: np.ndarray,
+    score: np.ndarray,
+    threshold: float,
+    bias_type: np.ndarray | None = None,
+) -> pd.DataFrame:
+    """The result of a classifier that repairs nothing: anomaly where ``score`` reaches
+    ``threshold``, the input position as the clean one."""
+    return result_frame(
+        fixes.index,
+        reason,
+        anomaly=np.nan_to_num(score) >= threshold,
+        score=score,
+        lat_clean=fixes["lat"].to_numpy(np.float64),
+        lon_clean=fixes["lon"].to_numpy(np.float64),
+        bias_type=bias_type,
+    )
 
 
 def load_time(value: Any) -> float | None:

@@ -35,8 +35,7 @@ import pandas as pd
 from .._grad.features import N_CHANNEL, FeatureParams, features_batch_kernel
 from .._grad.gru import GRUModel
 from .._grad.rema import RemaParams
-from .._result import result_frame
-from .base import BatchBaseline, Segment, segments
+from .base import BatchBaseline, Segment, flags_frame, segments
 
 __all__ = ["SENSOR_BIAS_CLASSES", "ChannelGradDetector", "ChannelGradModel", "channel_features"]
 
@@ -101,12 +100,4 @@ class ChannelGradDetector(BatchBaseline):
         anomaly = np.nan_to_num(score) >= m.threshold
         bias = np.where(anomaly, bias, "none")
         bias[reason != ""] = None
-        return result_frame(
-            fixes.index,
-            reason,
-            anomaly=anomaly,
-            score=score,
-            lat_clean=fixes["lat"].to_numpy(np.float64),
-            lon_clean=fixes["lon"].to_numpy(np.float64),
-            bias_type=bias,
-        )
+        return flags_frame(fixes, reason, score, m.threshold, bias)

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from .._result import PointResult
-from .base import StreamingBaseline, state_error
+from .base import Reading, StreamingBaseline, state_error
 from .kalman import KalmanDetector, KalmanParams, filter_result, kf_segment
 from .window import WindowClassifier, WindowModel
 
@@ -59,18 +59,10 @@ class CnnKalmanDetector(StreamingBaseline):
     def _stream_last_t(self) -> float | None:
         return self._cnn_stream._stream_last_t()
 
-    def _update_valid(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float,
-        heading: float,
-        channels: Mapping[str, float],
-    ) -> PointResult:
+    def _update_valid(self, fix: Reading) -> PointResult:
         """One usable reading of this detector's track: CNN verdict, then the filter with it forced."""
-        c = self._cnn_stream._update_valid(t, lat, lon, speed, heading, channels)
-        k = self._kf_stream.step_valid(t, lat, lon, speed, channels, forced=bool(c.anomaly))
+        c = self._cnn_stream._update_valid(fix)
+        k = self._kf_stream.step_valid(fix, forced=bool(c.anomaly))
         return replace(k, score=max(k.score, c.score))
 
     def get_state(self) -> dict[str, Any]:

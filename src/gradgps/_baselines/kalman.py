@@ -45,13 +45,13 @@ from .._exceptions import ConfigError
 from .._result import PointResult, decode_floats, encode_floats, f1_score, result_frame
 from .._tracks.geo import LocalFrame
 from .base import (
+    Reading,
     Segment,
     StreamingBaseline,
     input_names,
     load_frame,
     load_time,
     segments,
-    sensor_values,
     state_error,
 )
 
@@ -486,29 +486,13 @@ class KalmanDetector(StreamingBaseline):
         self._last_t: float | None = None
         self._state: FloatArray | None = None
 
-    def _update_valid(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float,
-        heading: float,
-        channels: Mapping[str, float],
-    ) -> PointResult:
+    def _update_valid(self, fix: Reading) -> PointResult:
         """Judge one usable reading of this detector's track, as :meth:`detect` would."""
-        return self.step_valid(t, lat, lon, speed, channels, forced=False)
+        return self.step_valid(fix, forced=False)
 
-    def step_valid(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float,
-        channels: Mapping[str, float],
-        *,
-        forced: bool,
-    ) -> PointResult:
+    def step_valid(self, fix: Reading, *, forced: bool) -> PointResult:
         """:meth:`_update_valid` with ``forced``: flag the reading and never use it (``cnn-kf``)."""
+        t, lat, lon = fix.t, fix.lat, fix.lon
         params = self._fitted()
         if self._frame is None:
             self._frame = LocalFrame(float(lat), float(lon))
@@ -516,7 +500,7 @@ class KalmanDetector(StreamingBaseline):
             east, north = self._frame.to_local(lat, lon)
             z = np.array([float(east), float(north)])
         else:
-            z = np.array(sensor_values(speed, channels))
+            z = np.array(fix.sensor_values())
         gap = self._last_t is None or t - self._last_t > params.max_gap_s
         if gap or self._state is None:
             self._state = np.zeros((z.size, N_CHANNEL_STATE))

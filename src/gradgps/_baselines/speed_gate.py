@@ -36,7 +36,7 @@ import pandas as pd
 from .._exceptions import ConfigError
 from .._result import PointResult, decode_floats, invalid_reasons, results_frame
 from .._tracks.track import track_rows
-from .base import StreamingBaseline, load_time, state_error
+from .base import Reading, StreamingBaseline, load_time, state_error
 
 __all__ = ["SpeedGate"]
 
@@ -97,31 +97,24 @@ class SpeedGate(StreamingBaseline):
         self._streak = 0
         self._last_t: float | None = None
 
-    def _update_valid(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float,
-        heading: float,
-        channels: Mapping[str, float],
-    ) -> PointResult:
+    def _update_valid(self, fix: Reading) -> PointResult:
         """Judge one usable fix (time order)."""
-        fix = [t, lat, lon]
+        t, lat, lon = fix.t, fix.lat, fix.lon
+        point = [t, lat, lon]
         gap = self._last_t is not None and t - self._last_t > self.max_gap_s
         self._last_t = t
         if self._anchor is None or gap:
-            return self._accept(fix, 0.0, alert=0)
+            return self._accept(point, 0.0, alert=0)
         v = _speed(self._anchor, t, lat, lon)
         if v <= self.max_speed_mps:
-            return self._accept(fix, v, alert=0)
+            return self._accept(point, v, alert=0)
         consistent = (
             self._rejected is not None and _speed(self._rejected, t, lat, lon) <= self.max_speed_mps
         )
         self._streak = self._streak + 1 if consistent else 1
-        self._rejected = fix
+        self._rejected = point
         if self._streak > self.reanchor_after:
-            return self._accept(fix, v, alert=1)
+            return self._accept(point, v, alert=1)
         return PointResult(1, self._score(v), None, None, self._anchor[1], self._anchor[2], 0)
 
     def _score(self, v: float) -> float:
@@ -170,7 +163,5 @@ class SpeedGate(StreamingBaseline):
         for rows in track_rows(fixes, reason == ""):
             gate = SpeedGate(self.max_speed_mps, self.reanchor_after, self.max_gap_s)
             for i in rows.tolist():
-                results[i] = gate._update_valid(
-                    float(t[i]), float(lat[i]), float(lon[i]), math.nan, math.nan, {}
-                )
+                results[i] = gate._update_valid(Reading(float(t[i]), float(lat[i]), float(lon[i])))
         return results_frame(results, fixes.index)  # type: ignore[arg-type]

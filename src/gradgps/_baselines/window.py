@@ -34,16 +34,17 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import ModelError
-from .._result import PointResult, decode_floats, encode_floats, result_frame
+from .._result import PointResult, decode_floats, encode_floats
 from .._tracks.geo import LocalFrame
 from .base import (
+    Reading,
     Segment,
     StreamingBaseline,
+    flags_frame,
     input_names,
     load_frame,
     load_time,
     segments,
-    sensor_values,
     state_error,
 )
 from .cnn import CNN_WEIGHTS, cnn_forward
@@ -203,15 +204,7 @@ class WindowClassifier(StreamingBaseline):
         score = np.full(n, np.nan)
         for seg, p in zip(segs, probs, strict=True):
             score[seg.rows] = p
-        anomaly = np.nan_to_num(score) >= self.model.threshold
-        return result_frame(
-            fixes.index,
-            reason,
-            anomaly=anomaly,
-            score=score,
-            lat_clean=fixes["lat"].to_numpy(np.float64),
-            lon_clean=fixes["lon"].to_numpy(np.float64),
-        )
+        return flags_frame(fixes, reason, score, self.model.threshold)
 
     # -- streaming (one track) ---------------------------------------------
 
@@ -221,17 +214,9 @@ class WindowClassifier(StreamingBaseline):
         self._recent: list[tuple[float, list[float]]] = []  # (t, values) of the last two readings
         self._rows = np.zeros((self.model.window, len(self.model.mean)), np.float32)
 
-    def _update_valid(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float,
-        heading: float,
-        channels: Mapping[str, float],
-    ) -> PointResult:
+    def _update_valid(self, fix: Reading) -> PointResult:
         """Judge one usable reading of this detector's track (time order), as :meth:`detect` would."""
-        m = self.model
+        m, t, lat, lon = self.model, fix.t, fix.lat, fix.lon
         if self._frame is None:
             self._frame = LocalFrame(float(lat), float(lon))
         if self._last_t is not None and t - self._last_t > m.max_gap_s:
@@ -243,7 +228,7 @@ class WindowClassifier(StreamingBaseline):
             east, north = self._frame.to_local(lat, lon)
             values = [float(east), float(north)]
         else:
-            values = sensor_values(speed, channels)
+            values = fix.sensor_values()
         self._recent = ([*self._recent, (float(t), values)])[-3:]
         recent = Segment(
             "",

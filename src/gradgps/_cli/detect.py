@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .options import column_map, column_options, model_options
+from .options import column_map, column_options, model_options, option
 
 if TYPE_CHECKING:
     from .._tracks.track import ColumnMap
@@ -34,40 +34,36 @@ __all__ = ["detect"]
 @click.argument(
     "input_path", metavar="INPUT", type=click.Path(exists=True, allow_dash=True, path_type=Path)
 )
-@click.option(
+@option(
     "-o",
     "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
+    path="file",
     help="output file: .csv, .csv.gz or .parquet (with --follow: CSV lines, "
     "default standard output)",
 )
 @model_options
-@click.option(
+@option(
     "--follow",
     is_flag=True,
     help="live mode: read INPUT ('-' = standard input) line by line as it arrives "
     "(CSV with a header, or NMEA) and print one result line per line at once",
 )
-@click.option(
+@option(
     "--report",
     "report_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
+    path="file",
     help="also write a self-contained HTML report (track, bounds, summary)",
 )
-@click.option(
+@option(
     "--plots",
     "plots_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
+    path="dir",
     help="also write the report's figures as PNG files into this folder",
 )
-@click.option(
+@option(
     "--chunk-size",
-    type=click.IntRange(min=0),
+    minimum=0,
     default=200_000,
-    show_default=True,
     help="CSV rows per chunk (bounded memory, file order per track); "
     "0 = whole file, batch (sorts each track by time); --report/--plots read "
     "the whole file",
