@@ -45,3 +45,18 @@ def test_report_draws_the_points_detection_scored() -> None:
 
         for _, _, fig in drawn:
             plt.close(fig)
+
+
+def test_the_detector_does_not_interpolate_short_gaps_and_the_docs_say_so() -> None:
+    from pathlib import Path
+
+    fixes = _fixes()
+    fixes.loc[30:, "t"] += 2.0  # a short gap (below max_gap_s): one segment, nothing filled in
+    params = PipelineParams()
+    assert params.max_gap_s > 3.0
+    points = grad_points(fixes, params.max_gap_s).points
+    assert not points["interpolated"].any()
+    assert points["segment"].nunique() == 1
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "architecture.md").read_text()
+    assert "short gaps interpolated" not in doc
+    assert "short gaps **not**\n  interpolated" in doc
