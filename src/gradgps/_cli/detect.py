@@ -12,11 +12,18 @@ fix of its track is flagged invalid. ``--chunk-size 0`` and the other
 formats read the whole file and run batch detection, which sorts each track
 by time and merges repeated timestamps first. For time-ordered tracks
 without repeated timestamps both give the same numbers.
+
+Where the input is outside what the model was validated on (sampling
+slower or faster than its ``validated`` rates, repeated timestamps,
+implausible speeds, irregular sampling; :mod:`gradgps._tracks.input_checks`),
+one ``warning: ...`` line per problem goes to standard error, and into the
+report's summary with ``--report``.
 """
 
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -105,6 +112,7 @@ def detect(
 
     from .._grad.detector import Detector
     from .._io.read import read_table, resolve_format, write_table
+    from .._tracks.input_checks import input_warnings, validated_rates
     from .._tracks.track import to_fixes
 
     whole_file = report_path is not None or plots_dir is not None
@@ -114,6 +122,8 @@ def detect(
     table = read_table(input_path, fmt, column_map(cols))
     fixes = to_fixes(table)
     detector = Detector(model_dir, threshold=threshold)
+    lowest, highest = validated_rates(detector.model_.config)
+    warnings = input_warnings(fixes, min_rate_hz=lowest, max_rate_hz=highest)
     started = time.perf_counter()
     result = detector.detect(fixes)
     elapsed = time.perf_counter() - started
@@ -132,9 +142,25 @@ def detect(
         f"wrote {output}: {n:,} rows, {flagged:,} anomalies ({invalid:,} invalid fixes), "
         f"{alerts:,} alerts; {rate:,.0f} fixes/s"
     )
+    _warn(warnings)
     from .report import write_report_outputs
 
-    write_report_outputs(report_path, plots_dir, fixes, result, detector, elapsed, str(input_path))
+    write_report_outputs(
+        report_path,
+        plots_dir,
+        fixes,
+        result,
+        detector,
+        elapsed,
+        str(input_path),
+        warnings=warnings,
+    )
+
+
+def _warn(warnings: Sequence[str]) -> None:
+    """Say once, on standard error, where the input is outside what the model was validated on."""
+    for warning in warnings:
+        click.echo(f"warning: {warning}", err=True)
 
 
 def _detect_in_chunks(
@@ -190,6 +216,7 @@ def _detect_in_chunks(
         f"({summary.invalid:,} invalid fixes), {summary.alerts:,} alerts; "
         f"{summary.rows_per_second:,.0f} fixes/s"
     )
+    _warn(summary.warnings)
 
 
 def _run_follow(

@@ -124,3 +124,5 @@ def _print(console: Console, summary: Summary) -> None:
     console.print(table)
     for note in summary.notes:
         console.print(f"note: {note}")
+    for warning in summary.warnings:
+        console.print(f"warning: {warning}")

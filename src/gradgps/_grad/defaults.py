@@ -37,7 +37,8 @@ def grad_rema_params() -> RemaParams:
         min_margin=8.0,
         mode="trend",
         run_growth=0.5,
-        reacquire_after=0,
+        reacquire_after=3,
+        max_run=20,
     )
 
 

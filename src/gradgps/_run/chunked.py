@@ -31,9 +31,10 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import InputError
-from .._grad.detector import MultiTrackDetector
+from .._grad.detector import MultiTrackDetector, load_grad_model
 from .._io.read import TableWriter, iter_csv_tables
 from .._result import RESULT_DTYPES
+from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import ColumnMap, to_fixes
 
 __all__ = ["DetectSummary", "detect_csv_in_chunks"]
@@ -49,6 +50,9 @@ class DetectSummary:
     alerts: int
     tracks: int
     seconds: float
+    #: Where the input is outside what the model was validated on
+    #: (:class:`gradgps._tracks.input_checks.InputChecks`, fed chunk by chunk).
+    warnings: tuple[str, ...] = ()
 
     @property
     def rows_per_second(self) -> float:
@@ -87,9 +91,12 @@ def detect_csv_in_chunks(
     if on_start is not None:
         on_start(chunks.n_rows)
     counts = np.zeros(3, np.int64)
+    checks = InputChecks(*validated_rates(load_grad_model(model).config))
     with TableWriter(Path(output)) as writer:
         for table in chunks:
-            result = streams.update_fixes(to_fixes(table))
+            fixes = to_fixes(table)
+            checks.add(fixes)
+            result = streams.update_fixes(fixes)
             counts += (
                 int(result["anomaly"].sum()),
                 int((result["invalid_reason"] != "").sum()),
@@ -111,6 +118,7 @@ def detect_csv_in_chunks(
         alerts=int(counts[2]),
         tracks=len(streams.detectors),
         seconds=time.perf_counter() - started,
+        warnings=tuple(checks.warnings()),
     )
 
 

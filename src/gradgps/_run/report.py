@@ -93,6 +93,8 @@ class ReportInputs:
     model: str = ""
     elapsed_s: float = math.nan
     extra_summary: Mapping[str, str] = field(default_factory=dict)
+    #: Where the input is outside what the model was validated on (one sentence each).
+    warnings: Sequence[str] = ()
 
 
 def rema_bounds(
@@ -347,6 +349,7 @@ def summary_rows(inputs: ReportInputs) -> list[tuple[str, str]]:
         rows.append(("model", inputs.model))
     rows.append(("anomaly threshold", f"{inputs.params.threshold:g}"))
     rows.extend(inputs.extra_summary.items())
+    rows.extend(("warning", w) for w in inputs.warnings)
     return rows
 
 

@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from .geo import haversine_m
+from .input_checks import VALIDATED_DEFAULT, input_warnings
 from .preprocess import preprocess
 
 __all__ = ["GAP_FACTOR", "SpeedStats", "Summary", "TrackSummary", "summarize"]
@@ -101,6 +102,9 @@ class Summary:
     invalid_reasons: dict[str, int]
     rejected: int = 0
     notes: list[str] = field(default_factory=list)
+    #: Where the input is outside what the model was validated on
+    #: (:func:`gradgps._tracks.input_checks.input_warnings`).
+    warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, object]:
         """Plain JSON-able data (NaN never appears: missing values are ``None``)."""
@@ -113,6 +117,7 @@ class Summary:
             "invalid_reasons": dict(self.invalid_reasons),
             "rejected": self.rejected,
             "notes": list(self.notes),
+            "warnings": list(self.warnings),
         }
 
 
@@ -180,11 +185,20 @@ def _summary_of(
     )
 
 
-def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None = None) -> Summary:
+def summarize(
+    fixes: pd.DataFrame,
+    *,
+    rejected: int = 0,
+    notes: list[str] | None = None,
+    min_rate_hz: float = VALIDATED_DEFAULT["min_rate_hz"],
+    max_rate_hz: float = VALIDATED_DEFAULT["max_rate_hz"],
+) -> Summary:
     """Summarise canonical fixes (see the module docstring for every definition).
 
     ``rejected``/``notes`` pass on what a lenient reader skipped (NMEA
     sentences), from :attr:`gradgps.Table.rejected` and ``Table.notes``.
+    ``warnings`` say where the fixes are outside the rates a model was
+    validated on (``min_rate_hz``..``max_rate_hz``) or otherwise unusual.
     """
     # One segment per track (no gap is too long) and no filling: the summary
     # measures the fixes as recorded and finds gaps itself.
@@ -244,6 +258,7 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
         invalid_reasons=dict(reasons.most_common()),
         rejected=rejected,
         notes=list(notes or []),
+        warnings=input_warnings(fixes, min_rate_hz=min_rate_hz, max_rate_hz=max_rate_hz),
     )
 
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .._data.inject import inject_grad
+from .._data.inject import inject_freeze, inject_grad
 from .._exceptions import ConfigError
 from .._grad.defaults import grad_points
 from .._grad.model_io import save_model
@@ -34,7 +34,7 @@ from .cache import cached_path
 __all__ = ["GradTrainingSet", "labelled_sequences", "train_grad"]
 
 LabelledSequence = tuple[np.ndarray, np.ndarray, np.ndarray]
-GRAD_BIAS_CLASSES = ("none", "noise", "jump")
+GRAD_BIAS_CLASSES = ("none", "noise", "jump", "freeze")
 
 
 def labelled_sequences(
@@ -103,6 +103,10 @@ class GradTrainingSet:
     seeds: tuple[int, ...] = tuple(range(101, 111))
     scales: tuple[float, ...] = (1.0,)
     val_seed: int = 7
+    freeze_share: float = 0.0
+    """Share of fixes frozen on top of protocol ``grad`` (:func:`inject_freeze`); 0 = none."""
+    stale_start: float = 0.0
+    """Probability that a track starts with stale, repeated fixes (:func:`inject_freeze`)."""
 
 
 @dataclass(frozen=True)
@@ -122,6 +126,7 @@ def _sequences(
     params: PipelineParams,
     seeds: Sequence[int],
     scales: Sequence[float],
+    spec: GradTrainingSet,
 ) -> list[LabelledSequence]:
     out: list[LabelledSequence] = []
     for table in tables:
@@ -129,6 +134,14 @@ def _sequences(
         for seed in seeds:
             for scale in scales:
                 labelled = inject_grad(table, seed=seed, scale=scale, columns=cmap)
+                if spec.freeze_share > 0 or spec.stale_start > 0:
+                    labelled = inject_freeze(
+                        labelled,
+                        seed=seed,
+                        share=spec.freeze_share,
+                        stale_start=spec.stale_start,
+                        columns=cmap,
+                    )
                 out += labelled_sequences(labelled, params, cmap)
     return out
 
@@ -151,6 +164,7 @@ def train_grad(
     max_epochs: int = 400,
     early_stopping: str = "loss",
     batch_size: int = 32,
+    validated: dict[str, Any] | None = None,
 ) -> TrainReport:
     """Train on clean tables with injected ``grad`` faults and write a model directory.
 
@@ -177,8 +191,8 @@ def train_grad(
 
     prm = params or PipelineParams()
     spec = data or GradTrainingSet()
-    train = _sequences(train_tables, prm, spec.seeds, spec.scales)
-    val = _sequences(val_tables, prm, (spec.val_seed,), (1.0,))
+    train = _sequences(train_tables, prm, spec.seeds, spec.scales, spec)
+    val = _sequences(val_tables, prm, (spec.val_seed,), (1.0,), spec)
     if not train or not val:
         raise ConfigError("training needs at least one training and one validation segment")
     config = TrainConfig(
@@ -207,6 +221,10 @@ def train_grad(
         "val_seed": spec.val_seed,
         **(notes or {}),
     }
+    if validated is not None:
+        # What the model was trained and validated on (rates, columns), so
+        # callers can warn when a file is outside it (issue 13, honest inputs).
+        cfg["validated"] = validated
     save_model(Path(directory), export_torch(trained.network), cfg)
     return TrainReport(
         n_train_points=sum(len(s[1]) for s in train),
