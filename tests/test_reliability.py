@@ -22,7 +22,8 @@ from hypothesis import strategies as st
 from _track_strategies import expected_reasons, messy_tracks
 from gradgps import InputError, simulate_fleet, to_fixes
 from gradgps._cli import main
-from gradgps._grad.detector import RESULT_DTYPES, Detector, TrackStreams
+from gradgps._grad.detector import Detector, MultiTrackDetector
+from gradgps._result import RESULT_DTYPES
 from gradgps._run.chunked import detect_csv_in_chunks
 
 REPO = Path(__file__).resolve().parents[1]
@@ -88,7 +89,7 @@ def test_mixed_bad_csv_in_batch_keeps_every_row(tmp_path: Path) -> None:
 def test_every_row_gets_one_result_and_bad_values_are_flagged(fixes: pd.DataFrame) -> None:
     det = Detector()
     batch = det.detect(fixes)
-    streamed = TrackStreams().update_fixes(fixes)
+    streamed = MultiTrackDetector().update_fixes(fixes)
     bad = expected_reasons(fixes)
     for out in (batch, streamed):
         assert list(out.index) == list(fixes.index)
@@ -114,11 +115,11 @@ def test_every_row_gets_one_result_and_bad_values_are_flagged(fixes: pd.DataFram
 def test_empty_and_single_point_tracks() -> None:
     empty = to_fixes(pd.DataFrame({"t": [], "lat": [], "lon": []}))
     assert len(Detector().detect(empty)) == 0
-    assert len(TrackStreams().update_fixes(empty)) == 0
+    assert len(MultiTrackDetector().update_fixes(empty)) == 0
     one = to_fixes(pd.DataFrame({"t": [5.0], "lat": [10.0], "lon": [20.0]}))
     out = Detector().detect(one)
     assert out["invalid_reason"].tolist() == [""]
-    _assert_same(out, TrackStreams().update_fixes(one))
+    _assert_same(out, MultiTrackDetector().update_fixes(one))
 
 
 def test_streaming_update_treats_unusable_readings_as_missing() -> None:
@@ -139,11 +140,11 @@ def test_checkpoint_as_strict_json_at_any_row_continues_identically(
     fixes: pd.DataFrame, cut_fraction: float
 ) -> None:
     cut = round(cut_fraction * len(fixes))
-    whole = TrackStreams().update_fixes(fixes)
-    first = TrackStreams()
+    whole = MultiTrackDetector().update_fixes(fixes)
+    first = MultiTrackDetector()
     head = first.update_fixes(fixes.iloc[:cut])
     text = json.dumps(first.get_state(), allow_nan=False)  # strict JSON: no NaN/Infinity tokens
-    rest = TrackStreams().set_state(json.loads(text)).update_fixes(fixes.iloc[cut:])
+    rest = MultiTrackDetector().set_state(json.loads(text)).update_fixes(fixes.iloc[cut:])
     _assert_same(whole, pd.concat([head, rest]))
 
 
@@ -285,7 +286,7 @@ def test_fixes_a_nanosecond_apart_do_not_blow_up_the_windows() -> None:
         pd.DataFrame({"t": t, "lat": 41.0, "lon": [-96.0 + 1e-5 * i for i in range(6)]})
     )
     batch = Detector().detect(fixes)
-    streamed = TrackStreams().update_fixes(fixes)
+    streamed = MultiTrackDetector().update_fixes(fixes)
     close = "time less than 1 ms after the previous fix"
     assert streamed["invalid_reason"].tolist() == ["", close, "", close, "", ""]
     _assert_same(batch, streamed)  # one semantics: batch never merges them either

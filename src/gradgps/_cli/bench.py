@@ -7,6 +7,8 @@ from pathlib import Path
 
 import click
 
+from .options import option
+
 __all__ = ["bench"]
 
 
@@ -64,68 +66,51 @@ def _fmt(value: object) -> str:
 
 
 @click.command()
-@click.option(
+@option(
     "--suite",
     type=click.Choice(["robustness"]),
-    default=None,
     help="run a whole suite instead of one protocol on one data set: 'robustness' = every "
     "real data set's test split x column variants x rates (see gradgps._eval.robustness); "
     "--dataset then names where detectors that need training are trained (default driveplotr)",
 )
-@click.option(
+@option(
     "--protocol",
     type=click.Choice(["grad", "sensor-grid"]),
-    default=None,
     help="fault protocol (docs/protocols.md); required without --suite",
 )
-@click.option(
+@option(
     "--dataset",
     type=click.Choice(["driveplotr", "tuc", "simulated"]),
-    default=None,
     help="data set; required without --suite",
 )
-@click.option(
-    "--split", type=click.Choice(["train", "validation", "test"]), default="test", show_default=True
-)
-@click.option("--seed", type=int, default=0, show_default=True, help="injection seed")
-@click.option(
-    "--scale", type=float, default=1.0, show_default=True, help="multiplies every fault magnitude"
-)
-@click.option(
+@option("--split", type=click.Choice(["train", "validation", "test"]), default="test")
+@option("--seed", type=int, default=0, help="injection seed")
+@option("--scale", type=float, default=1.0, help="multiplies every fault magnitude")
+@option(
     "--detector",
     "detectors",
-    default=None,
     metavar="NAME[,NAME...]",
     help="detectors to score, comma-separated: speed-gate, rema, rema-paper, grad "
     "(GRAD trained on the dataset's train split), grad-default (the shipped model); "
     "required without --suite, one name with --suite (default grad-default)",
 )
-@click.option(
+@option(
     "--data-dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
+    path="dir",
     help="folder with the shared drives; default $GRADGPS_DATA, then ../shared/data",
 )
-@click.option(
+@option(
     "--rema-params",
-    type=click.Path(dir_okay=False, exists=True, path_type=Path),
-    default=None,
+    path="existing file",
     help="settings for detector 'rema' written by gradgps tune-rema (default: built-in)",
 )
-@click.option(
+@option(
     "--model",
-    type=click.Path(file_okay=False, exists=True, path_type=Path),
-    default=None,
+    path="existing dir",
     help="model directory for detector 'grad' (default: trained on the train split and "
     "cached); with --suite also for 'grad-default' (a model to measure instead of the shipped one)",
 )
-@click.option(
-    "--json",
-    "json_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="write the full report here",
-)
+@option("--json", "json_path", path="file", help="write the full report here")
 def bench(
     suite: str | None,
     protocol: str | None,

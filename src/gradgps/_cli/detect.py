@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .options import column_map, column_options, model_options
+from .options import column_map, column_options, model_options, option
 
 if TYPE_CHECKING:
     from .._tracks.track import ColumnMap
@@ -36,64 +36,52 @@ __all__ = ["detect"]
 @click.argument(
     "input_path", metavar="INPUT", type=click.Path(exists=True, allow_dash=True, path_type=Path)
 )
-@click.option(
+@option(
     "-o",
     "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
+    path="file",
     help="output table: .csv, .csv.gz or .parquet (with --follow: CSV lines, "
     "default standard output); optional when --report, --plots, --events, "
     "--geojson or --gpx is given",
 )
 @model_options
-@click.option(
+@option(
     "--follow",
     is_flag=True,
     help="live mode: read INPUT ('-' = standard input) line by line as it arrives "
     "(CSV with a header, or NMEA) and print one result line per line at once",
 )
-@click.option(
+@option(
     "--report",
     "report_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
+    path="file",
     help="also write a self-contained HTML report (track, bounds, summary, events)",
 )
-@click.option(
+@option(
     "--plots",
     "plots_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
+    path="dir",
     help="also write the report's figures as PNG files into this folder",
 )
-@click.option(
+@option(
     "--events",
     "events_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
+    path="file",
     help="also write the fault events (track, start, end, duration, bias type, "
     "time type, peak offset, alert) as a table (.csv, .csv.gz, .parquet)",
 )
-@click.option(
+@option(
     "--geojson",
     "geojson_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
+    path="file",
     help="also write GeoJSON: flagged fixes with their verdicts, the repaired "
     "track as lines, the events",
 )
-@click.option(
-    "--gpx",
-    "gpx_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="also write the repaired track as GPX",
-)
-@click.option(
+@option("--gpx", "gpx_path", path="file", help="also write the repaired track as GPX")
+@option(
     "--chunk-size",
-    type=click.IntRange(min=0),
+    minimum=0,
     default=200_000,
-    show_default=True,
     help="CSV rows per chunk (bounded memory); 0 = read the whole file at once. "
     "Same results either way",
 )

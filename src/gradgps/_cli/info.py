@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .options import column_map, column_options
+from .options import column_map, column_options, option
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -30,7 +30,7 @@ __all__ = ["info"]
 @click.command()
 @click.argument("path", metavar="FILE", type=click.Path(dir_okay=False, path_type=Path))
 @column_options
-@click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
+@option("--json", "as_json", is_flag=True, help="print the summary as JSON")
 def info(path: Path, fmt: str | None, as_json: bool, **kwargs: Any) -> None:
     """Summarise FILE: tracks, points, rate, gaps, extent, speeds, unusable rows."""
     import json

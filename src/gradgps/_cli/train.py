@@ -16,7 +16,7 @@ from typing import Any
 
 import click
 
-from .options import column_map, column_options
+from .options import column_map, column_options, option
 
 __all__ = ["train"]
 
@@ -25,65 +25,49 @@ RECIPE_SEEDS = (101, 102, 103)
 
 
 @click.command()
-@click.option(
+@option(
     "--data",
     "data_paths",
+    path="existing file",
     multiple=True,
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
     help="clean track file(s) to train on (repeatable)",
 )
-@click.option(
+@option(
     "--val-data",
     "val_paths",
+    path="existing file",
     multiple=True,
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
     help="clean track file(s) for validation (repeatable)",
 )
-@click.option(
+@option(
     "--dataset",
     type=click.Choice(["driveplotr", "tuc", "simulated", "recipe"]),
-    default=None,
     help="train on a named data set's train split, validate on its validation split; "
     "`recipe` is the shipped model's mix (simulated drives at 0.5-10 Hz, the real data "
     "sets' train splits, columns withheld at random, dropouts, frozen fixes; "
     "docs/model-card.md)",
 )
-@click.option(
+@option(
     "--data-dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
+    path="dir",
     help="folder of the real data sets (default $GRADGPS_DATA, then ../shared/data)",
 )
-@click.option(
+@option(
     "--protocol",
     type=click.Choice(["grad"]),
     default="grad",
-    show_default=True,
     help="fault injection protocol for the labels (position faults)",
 )
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(file_okay=False, path_type=Path),
-    required=True,
-    help="model directory to write",
-)
-@click.option(
-    "--time-budget",
-    type=float,
-    default=180.0,
-    show_default=True,
-    help="seconds of training at most",
-)
-@click.option(
+@option("-o", "--output", path="dir", required=True, help="model directory to write")
+@option("--time-budget", type=float, default=180.0, help="seconds of training at most")
+@option(
     "--max-epochs",
     type=int,
     default=400,
-    show_default=True,
     help="epochs at most (a fixed count, with a large --time-budget, makes the run "
     "reproducible byte for byte)",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="training seed")
+@option("--seed", type=int, default=0, help="training seed")
 @column_options
 def train(
     data_paths: tuple[Path, ...],

@@ -29,9 +29,9 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
+from .._result import invalid_reasons
 from .._tracks.geo import LocalFrame
-from .._tracks.preprocess import invalid_reasons
-from .._tracks.track import ColumnMap, to_fixes
+from .._tracks.track import ColumnMap, to_fixes, track_rows
 
 __all__ = [
     "BIAS_TYPES",
@@ -208,17 +208,6 @@ def _check_scale(scale: float) -> None:
         raise ConfigError(f"scale must be a positive finite number, got {scale}")
 
 
-def _track_order(fixes: pd.DataFrame, usable: np.ndarray) -> list[np.ndarray]:
-    """Row numbers of each track's usable fixes in time order, tracks in order of appearance."""
-    tracks = fixes["track"].to_numpy(dtype=object)
-    t = fixes["t"].to_numpy(dtype=np.float64)
-    out = []
-    for track in pd.unique(pd.Series(tracks[usable], dtype=object)):
-        rows = np.flatnonzero(usable & (tracks == track))
-        out.append(rows[np.argsort(t[rows], kind="stable")])
-    return out
-
-
 def inject_grad(
     table: pd.DataFrame, *, seed: int, scale: float = 1.0, columns: ColumnMap | None = None
 ) -> pd.DataFrame:
@@ -249,7 +238,7 @@ def inject_grad(
     lon = lon_true.copy()
     labels = {name: _Channel.empty(n) for name in ("lat", "lon")}
     scheduler = _GradScheduler(np.random.default_rng(seed), scale)
-    for rows in _track_order(fixes, invalid_reasons(fixes) == ""):
+    for rows in track_rows(fixes, invalid_reasons(fixes) == ""):
         frame = LocalFrame(float(lat_true[rows[0]]), float(lon_true[rows[0]]))
         east, north = frame.to_local(lat_true[rows], lon_true[rows])
         for name in ("lat", "lon"):
@@ -461,7 +450,7 @@ def inject_sensor_grid(
     rng = np.random.default_rng(seed)
     usable = np.isfinite(fixes["t"].to_numpy(dtype=np.float64))
     next_id = 0
-    for rows in _track_order(fixes, usable):
+    for rows in track_rows(fixes, usable):
         step = 0
         while True:
             step += int(rng.geometric(SENSOR_START_PROBABILITY)) - 1
@@ -558,7 +547,7 @@ def inject_freeze(
     bias = result["label_bias"].to_numpy(dtype=object).copy()
     time_type = result["label_time"].to_numpy(dtype=object).copy()
     t_all = fixes["t"].to_numpy(dtype=np.float64)
-    for rows in _track_order(fixes, invalid_reasons(fixes) == ""):
+    for rows in track_rows(fixes, invalid_reasons(fixes) == ""):
         if rows.size < 10:
             continue
         t = t_all[rows]

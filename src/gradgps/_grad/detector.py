@@ -30,7 +30,7 @@ the second fix arrives the segment is rebuilt with the period (its first time
 step) and the first fix replayed. The first fix's own verdict cannot change
 by this: with one point, no feature depends on the period.
 
-``gradgps.TrackStreams`` (below) keeps one streaming Detector per track id.
+``gradgps.MultiTrackDetector`` (below) keeps one streaming Detector per track id.
 """
 
 from __future__ import annotations
@@ -49,9 +49,20 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from .._exceptions import ConfigError, GradGPSError, ModelError
-from .._result import PointResult
+from .._result import (
+    RESULT_DTYPES,
+    PointResult,
+    as_number,
+    decode_floats,
+    encode_floats,
+    fix_reason,
+    reading,
+    result_frame,
+    results_frame,
+)
 from .._tracks.geo import LocalFrame
-from .._tracks.preprocess import MIN_STEP_S, preprocess, stream_reasons
+from .._tracks.preprocess import stream_reasons
+from .defaults import MIN_STEP_S, grad_points
 from .events import fault_events
 from .model_io import gru_model, load_model
 from .pipeline import (
@@ -67,6 +78,7 @@ from .pipeline import (
     grad_segments,
     grad_step,
     new_state,
+    new_work,
     pipeline_feature_names,
 )
 from .time_classifier import TIME_TYPES
@@ -76,28 +88,12 @@ __all__ = [
     "MIN_STEP_S",
     "Detector",
     "GradModel",
-    "TrackStreams",
+    "MultiTrackDetector",
     "load_grad_model",
 ]
 
-#: Shortest time step between two fixes of a track (from :mod:`gradgps._tracks.preprocess`).
-#: A segment's sampling period is its first step and its windows hold
-#: ``window_s / period`` fixes, so a step of a nanosecond (clock jitter, a
-#: corrupted timestamp) would ask for billions of slots. No receiver reports
-#: faster than 1 kHz: closer fixes are one instant, the later one invalid.
-
 #: Name of the model shipped inside the package, used by ``Detector()``.
 DEFAULT_MODEL = "default"
-RESULT_DTYPES = {
-    "anomaly": "int8",
-    "score": "float64",
-    "bias_type": "object",
-    "time_type": "object",
-    "lat_clean": "float64",
-    "lon_clean": "float64",
-    "alert": "int8",
-    "invalid_reason": "object",
-}
 
 
 @dataclass(frozen=True)
@@ -188,51 +184,7 @@ def load_grad_model(model: str | os.PathLike[str] | None = None) -> GradModel:
     return _load_cached(resolved, stamp)
 
 
-def _check_fix(t: float, lat: float, lon: float, last_t: float | None) -> str:
-    if not math.isfinite(t):
-        return "time missing or not finite"
-    if not math.isfinite(lat):
-        return "latitude missing or not finite"
-    if abs(lat) > 90.0:
-        return "latitude outside +-90"
-    if not math.isfinite(lon):
-        return "longitude missing or not finite"
-    if abs(lon) > 180.0:
-        return "longitude outside +-180"
-    if last_t is not None and t <= last_t:
-        return "time not after the previous fix"
-    if last_t is not None and t - last_t < MIN_STEP_S:
-        return "time less than 1 ms after the previous fix"
-    return ""
-
-
 _STATE_FORMAT = 2
-_NON_FINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
-
-
-def _encode_float(value: float) -> float | str:
-    if math.isfinite(value):
-        return value
-    return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
-
-
-def _decode_float(value: float | str) -> float:
-    if isinstance(value, str):
-        if value not in _NON_FINITE:
-            raise ValueError(f"{value!r} is not a number")
-        return _NON_FINITE[value]
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise TypeError(f"{value!r} is not a number")
-    return float(value)
-
-
-def _number(value: float | None) -> float:
-    if value is None:
-        return math.nan
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def _time_number(value: Any) -> float:
@@ -247,17 +199,11 @@ def _time_number(value: Any) -> float:
         if stamp.tzinfo is None:
             stamp = stamp.tz_localize("UTC")
         return float(stamp.value) / 1e9
-    return _number(value)
-
-
-def _reading(value: float | None) -> float:
-    """An optional reading (speed, heading): a finite number, or NaN for missing/unusable."""
-    number = _number(value)
-    return number if math.isfinite(number) else math.nan
+    return as_number(value)
 
 
 def _readings(values: NDArray[np.float64]) -> NDArray[np.float64]:
-    """:func:`_reading` for a whole column."""
+    """:func:`gradgps._result.reading` for a whole column."""
     return np.where(np.isfinite(values), values, np.nan)
 
 
@@ -300,6 +246,7 @@ class Detector:
         self._P: NDArray[np.float64] | None = None
         self._S: NDArray[np.float64] | None = None
         self._H: NDArray[np.float32] | None = None
+        self._work: Any = None
         self._seg_count = 0
         self._first: tuple[float, float, float, float, float] | None = None
 
@@ -309,15 +256,19 @@ class Detector:
         self._P = m.params.array(period, self._frame, m.dims)
         self._S = new_state(self._P)
         self._H = np.zeros(int(m.dims[1] + m.dims[2]), np.float32)
+        self._work = new_work(self._P)
 
     def _step(self, dt: float, lat: float, lon: float, speed: float, heading: float) -> None:
         assert self._P is not None
         assert self._S is not None
+        if self._work is None:  # restored by set_state: made on the first step
+            self._work = new_work(self._P)
         grad_step(
             self._P,
             self._S,
             self._H,
             self.model_.gru_params,
+            self._work,
             dt,
             lat,
             lon,
@@ -343,11 +294,11 @@ class Detector:
         ``channels`` (other sensor readings) are accepted for interface
         compatibility and ignored by the position model.
         """
-        t_f, lat_f, lon_f = _time_number(t), _number(lat), _number(lon)
-        reason = _check_fix(t_f, lat_f, lon_f, self._last_t)
+        t_f, lat_f, lon_f = _time_number(t), as_number(lat), as_number(lon)
+        reason = fix_reason(t_f, lat_f, lon_f, self._last_t, MIN_STEP_S)
         if reason:
             return PointResult.invalid(reason)
-        sp, hd = _reading(speed), _reading(heading)
+        sp, hd = reading(speed), reading(heading)
         if self._frame is None:
             self._frame = LocalFrame(lat_f, lon_f)
         dt = 0.0 if self._last_t is None else t_f - self._last_t
@@ -391,9 +342,6 @@ class Detector:
         exactly through JSON).
         """
 
-        def floats(values: Any) -> list[float | str] | None:
-            return None if values is None else [_encode_float(float(v)) for v in values]
-
         return {
             "format": _STATE_FORMAT,
             "model_checksum": self.model_.checksum,
@@ -401,10 +349,10 @@ class Detector:
             "frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
             "last_t": self._last_t,
             "segment_count": self._seg_count,
-            "first": floats(self._first),
-            "P": floats(self._P),
-            "S": floats(self._S),
-            "H": floats(self._H),
+            "first": encode_floats(self._first),
+            "P": encode_floats(self._P),
+            "S": encode_floats(self._S),
+            "H": encode_floats(self._H),
         }
 
     def set_state(self, state: Mapping[str, Any]) -> Detector:
@@ -424,16 +372,15 @@ class Detector:
                 raise ConfigError("detector state was saved with another threshold")
 
             def arr(values: Any, dtype: Any) -> Any:
-                if values is None:
-                    return None
-                return np.array([_decode_float(v) for v in values], dtype=dtype)
+                decoded = decode_floats(values)
+                return None if decoded is None else np.array(decoded, dtype=dtype)
 
             frame = state["frame"]
             new_frame = None if frame is None else LocalFrame(float(frame[0]), float(frame[1]))
             last_t = None if state["last_t"] is None else float(state["last_t"])
             seg_count = int(state["segment_count"])
             first = state["first"]
-            new_first = None if first is None else tuple(_decode_float(v) for v in first)
+            new_first = None if first is None else tuple(decode_floats(first) or ())
             if new_first is not None and len(new_first) != 5:
                 raise ValueError(f"'first' holds {len(new_first)} values, expected 5")
             P, S, H = (
@@ -447,6 +394,7 @@ class Detector:
         self._frame, self._last_t, self._seg_count = new_frame, last_t, seg_count
         self._first = new_first
         self._P, self._S, self._H = P, S, H
+        self._work = None
         return self
 
     # -- batch -------------------------------------------------------------
@@ -513,12 +461,7 @@ class Detector:
         m = self.model_
         reason = stream_reasons(fixes, min_step_s=MIN_STEP_S)
         usable = np.flatnonzero(reason == "")
-        prepared = preprocess(
-            fixes.iloc[usable],
-            max_gap_s=m.params.max_gap_s,
-            interpolate=False,
-            min_step_s=MIN_STEP_S,
-        )
+        prepared = grad_points(fixes.iloc[usable], m.params.max_gap_s)
         pts = prepared.points
         n = len(pts)
         out = np.zeros((n, N_POINT_OUT))
@@ -652,24 +595,24 @@ class Detector:
         time_names = np.array(TIME_TYPES, dtype=object)
         codes_b = np.where(invalid, 0, np.nan_to_num(out[:, O_BIAS])).astype(np.int64)
         codes_t = np.where(invalid, 0, np.nan_to_num(out[:, O_TIME])).astype(np.int64)
-        return pd.DataFrame(
-            {
-                "anomaly": np.where(invalid, 1, np.nan_to_num(out[:, O_FLAG])).astype(np.int8),
-                "score": out[:, O_SCORE],
-                "bias_type": bias_names[codes_b],
-                "time_type": time_names[codes_t],
-                "lat_clean": out[:, O_LAT],
-                "lon_clean": out[:, O_LON],
-                "alert": np.where(invalid, 0, np.nan_to_num(out[:, O_ALERT])).astype(np.int8),
-                "invalid_reason": reason.astype(object),
-            },
-            index=index,
+        return result_frame(
+            index,
+            reason,
+            anomaly=out[:, O_FLAG],
+            score=out[:, O_SCORE],
+            bias_type=bias_names[codes_b],
+            time_type=time_names[codes_t],
+            lat_clean=out[:, O_LAT],
+            lon_clean=out[:, O_LON],
+            alert=np.nan_to_num(out[:, O_ALERT]),
         )
 
 
-class TrackStreams:
-    """One streaming :class:`Detector` per track id, made on first sight, kept across calls.
+class MultiTrackDetector:
+    """GRAD for many vehicles at once: one streaming :class:`Detector` per track id.
 
+    The one registry of per-track detectors (chunked files, follow mode): a
+    track's Detector is made on first sight and kept across calls.
     ``model`` and ``threshold`` are passed to every Detector.
     """
 
@@ -680,7 +623,8 @@ class TrackStreams:
         self.threshold = threshold
         self.detectors: dict[str, Detector] = {}
 
-    def _detector(self, track: str) -> Detector:
+    def detector(self, track: str) -> Detector:
+        """The streaming Detector of ``track`` (made on first sight)."""
         det = self.detectors.get(track)
         if det is None:
             det = Detector(self.model, threshold=self.threshold)
@@ -691,12 +635,12 @@ class TrackStreams:
         """Every track's detector state, as plain JSON-able data (see :meth:`Detector.get_state`)."""
         return {"tracks": {track: det.get_state() for track, det in self.detectors.items()}}
 
-    def set_state(self, state: Mapping[str, Any]) -> TrackStreams:
+    def set_state(self, state: Mapping[str, Any]) -> MultiTrackDetector:
         """Restore :meth:`get_state` output (same model and threshold); returns self."""
         try:
             tracks = dict(state["tracks"])
         except (KeyError, TypeError, ValueError) as exc:
-            raise ConfigError(f"not a track streams state: {exc}") from exc
+            raise ConfigError(f"not a multi-track detector state: {exc}") from exc
         self.detectors = {
             str(track): Detector(self.model, threshold=self.threshold).set_state(s)
             for track, s in tracks.items()
@@ -717,28 +661,12 @@ class TrackStreams:
         lon = fixes["lon"].to_numpy(np.float64).tolist()
         speed = fixes["speed"].to_numpy(np.float64).tolist() if "speed" in fixes else nan
         heading = fixes["heading"].to_numpy(np.float64).tolist() if "heading" in fixes else nan
-        columns: dict[str, list[object]] = {name: [] for name in RESULT_DTYPES}
-        values = list(columns.values())
-        for i in range(n):
-            r = self._detector(str(tracks[i])).update(t[i], lat[i], lon[i], speed[i], heading[i])
-            for column, value in zip(
-                values,
-                (
-                    r.anomaly,
-                    r.score,
-                    r.bias_type,
-                    r.time_type,
-                    r.lat_clean,
-                    r.lon_clean,
-                    r.alert,
-                    r.invalid_reason,
-                ),
-                strict=True,
-            ):
-                column.append(value)
-        return pd.DataFrame(
-            {
-                name: pd.Series(v, dtype=RESULT_DTYPES[name], index=fixes.index)
-                for name, v in columns.items()
-            }
+        results = (
+            self.detector(str(tracks[i])).update(t[i], lat[i], lon[i], speed[i], heading[i])
+            for i in range(n)
         )
+        return results_frame(results, fixes.index)
+
+
+#: Deprecated name of :class:`MultiTrackDetector` (kept so old code still imports).
+TrackStreams = MultiTrackDetector

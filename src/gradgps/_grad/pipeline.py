@@ -82,6 +82,7 @@ __all__ = [
     "grad_segments",
     "grad_step",
     "new_state",
+    "new_work",
     "pipeline_feature_names",
 ]
 
@@ -339,11 +340,31 @@ def _core_width(P: FloatArray) -> int:
 
 
 @numba.njit(cache=True)
+def new_work(P: FloatArray) -> Any:
+    """The work arrays of one segment's per-fix step (``dims`` and six scratch arrays).
+
+    Made once per segment (the Detector keeps them with the segment's state),
+    so a streamed fix allocates nothing.
+    """
+    dims = _dims(P)
+    return (
+        dims,
+        np.empty(_core_width(P)),
+        np.empty(_N_OFF_OUT),
+        np.empty(3),
+        np.empty(dims[0], np.float32),
+        np.empty(_scratch_size(dims), np.float32),
+        np.empty(1 + dims[3], np.float32),
+    )
+
+
+@numba.njit(cache=True)
 def grad_step(
     P: FloatArray,
     S: FloatArray,
     H: Any,
     gp: Any,
+    work: Any,
     dt: float,
     lat: float,
     lon: float,
@@ -351,14 +372,11 @@ def grad_step(
     heading: float,
     out: FloatArray,
 ) -> None:
-    """One fix of one segment: advance ``S`` and ``H`` and write the 7 outputs into ``out``."""
-    dims = _dims(P)
-    core_out = np.empty(_core_width(P))
-    off_out = np.empty(_N_OFF_OUT)
-    rec_out = np.empty(3)
-    x = np.empty(dims[0], np.float32)
-    scratch = np.empty(_scratch_size(dims), np.float32)
-    gru_out = np.empty(1 + dims[3], np.float32)
+    """One fix of one segment: advance ``S`` and ``H`` and write the 7 outputs into ``out``.
+
+    ``work``: :func:`new_work` of this segment's ``P``.
+    """
+    dims, core_out, off_out, rec_out, x, scratch, gru_out = work
     east, north = _features_point(P, S, core_out, off_out, dt, lat, lon, speed, heading, x)
     _decide_point(
         P,
@@ -391,35 +409,10 @@ def _segment_kernel(
     speed: FloatArray,
     heading: FloatArray,
 ) -> FloatArray:
-    dims = _dims(P)
-    core_out = np.empty(_core_width(P))
-    off_out = np.empty(_N_OFF_OUT)
-    rec_out = np.empty(3)
-    x = np.empty(dims[0], np.float32)
-    scratch = np.empty(_scratch_size(dims), np.float32)
-    gru_out = np.empty(1 + dims[3], np.float32)
+    work = new_work(P)
     out = np.empty((lat.size, N_POINT_OUT))
     for i in range(lat.size):
-        east, north = _features_point(
-            P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i], x
-        )
-        _decide_point(
-            P,
-            S,
-            H,
-            gp,
-            dims,
-            x,
-            scratch,
-            gru_out,
-            core_out,
-            rec_out,
-            east,
-            north,
-            off_out[_SH],
-            off_out[_SH + 1],
-            out[i],
-        )
+        grad_step(P, S, H, gp, work, dt[i], lat[i], lon[i], speed[i], heading[i], out[i])
     return out
 
 

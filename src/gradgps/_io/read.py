@@ -318,22 +318,31 @@ class CsvChunks(Iterator[Table]):
         return next(self.chunks)
 
 
+def _pandas_csv(
+    path: Path, layout: _CsvLayout, columns: ColumnMap | None, source: str, **options: Any
+) -> Any:
+    """``pd.read_csv`` as every CSV reader here calls it (``options``: e.g. ``chunksize``).
+
+    Each frame or chunk is typed as a whole (``low_memory=False``: no
+    mixed-type columns, no DtypeWarning); label columns stay text.
+    """
+    return pd.read_csv(
+        path,
+        sep=layout.delimiter,
+        encoding="utf-8",
+        low_memory=False,
+        dtype=_label_dtypes(layout, columns, source),
+        **options,
+    )
+
+
 def _csv_chunks(
     path: Path, layout: _CsvLayout, chunksize: int, columns: ColumnMap
 ) -> Iterator[Table]:
     source = str(path)
     offset = 0
     with _pandas_errors(source):
-        reader = pd.read_csv(
-            path,
-            sep=layout.delimiter,
-            encoding="utf-8",
-            skiprows=layout.skip,
-            chunksize=chunksize,
-            # Type each chunk as a whole: no mixed-type columns, no DtypeWarning.
-            low_memory=False,
-            dtype=_label_dtypes(layout, columns, source),
-        )
+        reader = _pandas_csv(path, layout, columns, source, chunksize=chunksize)
         with reader:
             for chunk in reader:
                 first_line = layout.first_line + offset if layout.lines_regular else None
@@ -508,14 +517,7 @@ def _read_csv(path: Path, columns: ColumnMap | None) -> Table:
     source = str(path)
     layout = _scan_csv(path)
     with _pandas_errors(source):
-        frame = pd.read_csv(
-            path,
-            sep=layout.delimiter,
-            encoding="utf-8",
-            skiprows=layout.skip,
-            low_memory=False,
-            dtype=_label_dtypes(layout, columns, source),
-        )
+        frame = _pandas_csv(path, layout, columns, source)
     regular = layout.lines_regular and len(frame) == layout.n_rows
     return Table(frame=frame, source=source, first_line=layout.first_line if regular else None)
 

@@ -32,8 +32,9 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import InputError
-from .._grad.detector import RESULT_DTYPES, TrackStreams, load_grad_model
+from .._grad.detector import MultiTrackDetector, load_grad_model
 from .._io.read import TableWriter, iter_csv_tables
+from .._result import RESULT_DTYPES
 from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import ColumnMap, to_fixes
 
@@ -82,7 +83,7 @@ def detect_csv_in_chunks(
     report or exports). ``output`` ``None`` writes no table.
     """
     started = time.perf_counter()
-    streams = TrackStreams(model, threshold=threshold)
+    streams = MultiTrackDetector(model, threshold=threshold)
     chunks = iter_csv_tables(Path(input_path), chunk_size, columns)
     clash = [c for c in RESULT_DTYPES if c in chunks.header]
     if clash:

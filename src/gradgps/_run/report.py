@@ -44,11 +44,12 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from .._grad.core import N_RESULT, core_new_state, core_step
+from .._grad.defaults import grad_points
 from .._grad.pipeline import PipelineParams, segment_period
 from .._grad.rema import N_OUT, O_LOWER, O_UPPER
 from .._result import ResultCounts
 from .._tracks.geo import LocalFrame
-from .._tracks.preprocess import MIN_STEP_S, Prepared, preprocess
+from .._tracks.preprocess import Prepared
 from .explore import SCRIPT, track_explorer
 
 __all__ = ["ChannelBounds", "ReportInputs", "figures", "rema_bounds", "write_plots", "write_report"]
@@ -275,11 +276,8 @@ def figures(inputs: ReportInputs) -> list[tuple[str, str, Any]]:
     matplotlib.use("Agg")  # no display needed, and no GUI toolkit imported
     # The rows the detector used, exactly: nothing merged, nothing sorted.
     usable = np.flatnonzero(inputs.result["invalid_reason"].to_numpy() == "")
-    prepared = preprocess(
-        inputs.fixes.iloc[usable].reset_index(drop=True),
-        max_gap_s=inputs.params.max_gap_s,
-        interpolate=False,
-        min_step_s=MIN_STEP_S,
+    prepared = grad_points(
+        inputs.fixes.iloc[usable].reset_index(drop=True), inputs.params.max_gap_s
     )
     flags = _point_flags(prepared, inputs.result.iloc[usable].reset_index(drop=True))
     per_segment = pd.Series(flags).groupby(prepared.points["segment"].to_numpy()).sum()

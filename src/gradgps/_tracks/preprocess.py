@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError
+from .._result import invalid_reasons
 from .geo import LocalFrame
 
 __all__ = ["MIN_STEP_S", "Prepared", "invalid_reasons", "preprocess", "stream_reasons"]
@@ -87,26 +88,6 @@ class Prepared:
         out[...] = fill
         out[ok] = values[self.row_point[ok]]
         return out
-
-
-def invalid_reasons(fixes: pd.DataFrame) -> np.ndarray:
-    """Per row: ``""`` for a usable fix, else why it cannot be used (first problem found)."""
-    n = len(fixes)
-    reason = np.full(n, "", dtype=object)
-    t = fixes["t"].to_numpy(dtype=np.float64)
-    lat = fixes["lat"].to_numpy(dtype=np.float64)
-    lon = fixes["lon"].to_numpy(dtype=np.float64)
-    checks = (
-        (~np.isfinite(lon), "longitude missing or not finite"),
-        (np.isfinite(lon) & (np.abs(lon) > 180.0), "longitude outside +-180"),
-        (~np.isfinite(lat), "latitude missing or not finite"),
-        (np.isfinite(lat) & (np.abs(lat) > 90.0), "latitude outside +-90"),
-        (~np.isfinite(t), "time missing or not finite"),
-    )
-    # Later checks overwrite earlier ones, so the most basic problem (time) wins.
-    for mask, text in checks:
-        reason[mask] = text
-    return reason
 
 
 #: Shortest time step between two usable fixes of a track (1 kHz): closer is one instant.

@@ -44,6 +44,7 @@ __all__ = [
     "Table",
     "resolve_columns",
     "to_fixes",
+    "track_rows",
 ]
 
 OPTIONAL_CHANNELS = ("speed", "heading", "alt", "hdop")
@@ -519,3 +520,20 @@ def _check_degrees(lat: object, lon: object, cmap: ColumnMap, table: Table) -> N
 def with_columns(table: Table, columns: Mapping[str, str | None]) -> Table:
     """A copy of ``table`` whose column map has the given roles set."""
     return replace(table, columns=replace(table.columns, **columns))
+
+
+def track_rows(fixes: pd.DataFrame, usable: np.ndarray | None = None) -> list[np.ndarray]:
+    """Row positions of each track's (``usable``) fixes in time order; tracks in order of appearance.
+
+    The one place where canonical fixes are split by track: ties in time keep
+    their input order (a stable sort).
+    """
+    rows = np.arange(len(fixes)) if usable is None else np.flatnonzero(usable)
+    if rows.size == 0:
+        return []
+    tracks = fixes["track"].to_numpy(dtype=object)[rows]
+    t = fixes["t"].to_numpy(dtype=np.float64)[rows]
+    codes = pd.factorize(pd.Series(tracks, dtype=object), sort=False)[0]
+    order = np.lexsort((t, codes))
+    cuts = np.flatnonzero(np.diff(codes[order])) + 1
+    return np.split(rows[order], cuts)

@@ -25,10 +25,11 @@ import pandas as pd
 
 from .._data.inject import inject_freeze, inject_grad
 from .._exceptions import ConfigError
+from .._grad.defaults import grad_points
 from .._grad.model_io import save_model
 from .._grad.pipeline import PipelineParams, grad_features, pipeline_feature_names
-from .._tracks.preprocess import preprocess
 from .._tracks.track import ColumnMap, to_fixes
+from .cache import cached_path
 
 __all__ = ["GradTrainingSet", "labelled_sequences", "train_grad"]
 
@@ -54,7 +55,7 @@ def labelled_sequences(
                 f"labelled table lacks {col!r}; produce it with an injection protocol"
             )
     fixes = to_fixes(labelled, columns)
-    prepared = preprocess(fixes, max_gap_s=params.max_gap_s, interpolate=False)
+    prepared = grad_points(fixes, params.max_gap_s)
     n_pts = len(prepared.points)
     ok = prepared.row_point >= 0
     anomaly = np.zeros(n_pts, np.int64)
@@ -244,25 +245,12 @@ def dataset_model(dataset: str, data_dir: str | Path | None = None) -> Path:
     its file size. ``gradgps bench --detector grad`` uses it, so benchmarks
     re-run in seconds after the first time.
     """
-    import hashlib
-    import json
-
-    from .._data.datasets import find_data_dir
-    from .._version import __version__
-
-    params = PipelineParams()
-    recipe: dict[str, Any] = {
-        "version": __version__,
-        "pipeline": params.to_dict(),
+    settings = {
+        "pipeline": PipelineParams().to_dict(),
         "data": GradTrainingSet().__dict__,
         "dataset": dataset,
     }
-    if dataset != "simulated":
-        folder = find_data_dir(data_dir)
-        recipe["files"] = sorted((p.name, p.stat().st_size) for p in folder.glob("*.csv"))
-    key = hashlib.sha256(json.dumps(recipe, sort_keys=True, default=str).encode()).hexdigest()[:16]
-    cache = Path(os.environ.get("GRADGPS_CACHE", Path.home() / ".cache" / "gradgps"))
-    target = cache / "models" / f"{dataset}-{key}"
+    target = cached_path("models", dataset, settings, dataset, data_dir)
     if not (target / "config.json").is_file():
         from .._data.datasets import load_dataset
 
