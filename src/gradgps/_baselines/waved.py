@@ -25,7 +25,7 @@ from typing import Protocol
 import numpy as np
 import pandas as pd
 
-from .base import Segment, result_frame, segments
+from .base import BatchBaseline, Segment, flags_frame, segments
 
 __all__ = ["WAVED_WEIGHTS", "Member", "WavedDetector", "WavedModel", "ensemble_probability"]
 
@@ -63,13 +63,13 @@ def ensemble_probability(p_cnn: np.ndarray, p_lstm_cnn: np.ndarray, weight: floa
     return out
 
 
-class WavedDetector:
+class WavedDetector(BatchBaseline):
     """Batch WAVED detector: both members judge every reading, the weighted mean decides."""
 
     def __init__(self, model: WavedModel) -> None:
         self.model = model
 
-    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
+    def _detect_core(self, fixes: pd.DataFrame) -> pd.DataFrame:
         m = self.model
         segs, reason = segments(fixes, m.cnn.inputs, m.cnn.max_gap_s)
         score = np.full(len(fixes), np.nan)
@@ -77,12 +77,4 @@ class WavedDetector:
             score[seg.rows] = ensemble_probability(
                 m.cnn.segment_probability(seg), m.lstm_cnn.segment_probability(seg), m.weight
             )
-        anomaly = np.nan_to_num(score) >= m.threshold
-        return result_frame(
-            fixes,
-            reason,
-            anomaly,
-            score,
-            fixes["lat"].to_numpy(np.float64),
-            fixes["lon"].to_numpy(np.float64),
-        )
+        return flags_frame(fixes, reason, score, m.threshold)

@@ -13,7 +13,7 @@ validation F1 (:func:`gradgps._train.torch_gru.train_model` does the same for th
 GRU; its helpers are reused here, the loop differs because these networks
 judge windows, not sequences). ``waved`` (:func:`dataset_waved`) combines
 the trained ``cnn`` and ``lstm-cnn``. The recipe and the labelled data live
-in :mod:`gradgps._train.recipe`; the channel GRAD of protocol
+in :mod:`gradgps._train.baseline_recipe`; the channel GRAD of protocol
 ``sensor-grid`` is trained by :mod:`gradgps._train.channel_grad`.
 
 Torch is imported inside the functions that train, so fitting the Kalman
@@ -45,21 +45,21 @@ from .._baselines.window import (
     windows,
 )
 from .._exceptions import ConfigError
-from .recipe import (
+from .._result import f1_score
+from .baseline_recipe import (
     BaselineRecipe,
-    cache_dir,
     inputs_for,
     labelled_fixes,
     labelled_segments,
     splits,
 )
+from .cache import baseline_dir
 
 if TYPE_CHECKING:
     from torch import nn
 
 __all__ = [
     "BaselineRecipe",
-    "cache_dir",
     "dataset_cnn_kf",
     "dataset_kalman",
     "dataset_waved",
@@ -165,7 +165,7 @@ def train_window_model(
     import torch
     from torch import nn
 
-    from .torch_gru import _best_threshold, _class_weights, _f1, _fit_scaler, _optimise
+    from .torch_gru import _best_threshold, _class_weights, _fit_scaler, _optimise
 
     if architecture not in NETS:
         raise ConfigError(
@@ -218,7 +218,7 @@ def train_window_model(
                     if time.perf_counter() - began > recipe.time_budget_s:
                         out_of_time = True
                         break
-                val_f1 = _f1(val_truth, val_probability() >= 0.5)
+                val_f1 = f1_score(val_truth, val_probability() >= 0.5)
                 history.append(
                     {
                         "epoch": epoch,
@@ -268,13 +268,13 @@ def dataset_kalman(
 ) -> KalmanParams:
     """The ``kf`` filter fitted on ``dataset`` for ``protocol`` (cached as JSON)."""
     rec = recipe or BaselineRecipe()
-    target = cache_dir("kf", dataset, protocol, rec, data_dir) / "kalman.json"
+    target = baseline_dir("kf", dataset, protocol, rec, data_dir) / "kalman.json"
     if not target.is_file():
         inputs = inputs_for(protocol, rec)
         train, val = splits(dataset, data_dir)
         # q and r come from the clean drives: one fit serves every row.
         noise_rec = replace(rec, row="mixed", constant="stuck")
-        noise_file = cache_dir("kf-noise", dataset, protocol, noise_rec, data_dir) / "noise.json"
+        noise_file = baseline_dir("kf-noise", dataset, protocol, noise_rec, data_dir) / "noise.json"
         if not noise_file.is_file():
             clean, _, _ = labelled_fixes(train, protocol, None, recipe=rec)
             q, r = fit_noise(segments(clean, inputs)[0])
@@ -299,7 +299,7 @@ def dataset_window_model(
 ) -> WindowModel:
     """``cnn`` or ``lstm-cnn`` trained on ``dataset`` for ``protocol`` (cached model directory)."""
     rec = recipe or BaselineRecipe()
-    target = cache_dir(architecture, dataset, protocol, rec, data_dir)
+    target = baseline_dir(architecture, dataset, protocol, rec, data_dir)
     if not (target / "config.json").is_file():
         train, val = splits(dataset, data_dir)
         model = train_window_model(
@@ -324,7 +324,7 @@ def dataset_cnn_kf(
     rec = recipe or BaselineRecipe()
     cnn = dataset_window_model("cnn", dataset, protocol, data_dir, rec)
     kf = dataset_kalman(dataset, protocol, data_dir, rec)
-    target = cache_dir("cnn-kf", dataset, protocol, rec, data_dir) / "kalman.json"
+    target = baseline_dir("cnn-kf", dataset, protocol, rec, data_dir) / "kalman.json"
     if not target.is_file():
         _, val = splits(dataset, data_dir)
         segs, labels = labelled_segments(val, protocol, (rec.val_seed,), rec)
@@ -343,12 +343,12 @@ def dataset_waved(
 ) -> WavedModel:
     """``waved``: the ``cnn`` and ``lstm-cnn`` models, weight and threshold tuned on validation."""
     from .._baselines.waved import WAVED_WEIGHTS, ensemble_probability
-    from .torch_gru import _best_threshold, _f1
+    from .torch_gru import _best_threshold
 
     rec = recipe or BaselineRecipe()
     cnn = dataset_window_model("cnn", dataset, protocol, data_dir, rec)
     lstm = dataset_window_model("lstm-cnn", dataset, protocol, data_dir, rec)
-    target = cache_dir("waved", dataset, protocol, rec, data_dir) / "waved.json"
+    target = baseline_dir("waved", dataset, protocol, rec, data_dir) / "waved.json"
     if not target.is_file():
         _, val = splits(dataset, data_dir)
         segs, labels = labelled_segments(val, protocol, (rec.val_seed,), rec)
@@ -359,7 +359,7 @@ def dataset_waved(
         for w in WAVED_WEIGHTS:
             p = ensemble_probability(p_cnn, p_lstm, w)
             threshold = _best_threshold(truth, p)
-            f1 = _f1(truth, p >= threshold)
+            f1 = f1_score(truth, p >= threshold)
             if f1 > best[0]:
                 best = (f1, float(w), threshold)
         target.parent.mkdir(parents=True, exist_ok=True)

@@ -38,7 +38,9 @@ from .._exceptions import ConfigError, ModelError
 from .._grad.features import FeatureParams
 from .._grad.gru import GRUModel
 from .._grad.rema import RemaParams, rema_batch
-from .recipe import BaselineRecipe, cache_dir, inputs_for, labelled_fixes, splits
+from .._result import f1_score
+from .baseline_recipe import BaselineRecipe, inputs_for, labelled_fixes, splits
+from .cache import baseline_dir
 
 __all__ = [
     "GRU_WINDOW",
@@ -63,12 +65,6 @@ _LABEL = {
 }
 
 
-def _f1(truth: np.ndarray, flagged: np.ndarray) -> float:
-    tp = int(np.sum(truth & flagged))
-    denominator = int(np.sum(truth)) + int(np.sum(flagged))
-    return 2.0 * tp / denominator if denominator else 0.0
-
-
 def tune_channel_rema(
     values: Sequence[np.ndarray], labels: Sequence[np.ndarray]
 ) -> tuple[RemaParams, float]:
@@ -85,7 +81,7 @@ def tune_channel_rema(
     for alpha, slide, sensitivity in REMA_GRID:
         params = RemaParams(alpha=alpha, slide_size=slide, sensitivity=sensitivity).checked()
         flags = np.concatenate([rema_batch(v, params).flag for v in values]).astype(bool)
-        f1 = _f1(truth, flags)
+        f1 = f1_score(truth, flags)
         if f1 > best_f1:
             best, best_f1 = params, f1
     return best, best_f1
@@ -114,7 +110,7 @@ def recall_floor_threshold(
         recall = float(np.mean(~flagged[normal])) if normal.any() else 1.0
         if recall < floor:
             continue
-        f1 = _f1(truth, flagged)
+        f1 = f1_score(truth, flagged)
         if f1 > best_f1:
             best_t, best_f1 = float(t), f1
     return best_t
@@ -181,7 +177,7 @@ def dataset_channel_grad(
         "recall_floor": NORMAL_RECALL_FLOOR,
         "design": "channel-grad-3",
     }
-    target = cache_dir("channel-grad", dataset, "sensor-grid", rec, data_dir, extra)
+    target = baseline_dir("channel-grad", dataset, "sensor-grid", rec, data_dir, extra)
     if not (target / "config.json").is_file():
         # torch only when training
         from .torch_gru import TrainConfig, _best_threshold, train_model
