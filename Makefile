@@ -20,7 +20,7 @@ $(VENV)/.stamp-demo: pyproject.toml | $(PY)
 	touch $@
 
 $(VENV)/.stamp-test: pyproject.toml | $(PY)
-	$(PY) -m pip install -q -e ".[io,train,dev,report,onnx,ros,fleet]"
+	$(PY) -m pip install -q -e ".[io,train,dev,report,onnx,ros,fleet,peers]"
 	touch $@ $(VENV)/.stamp-demo
 
 demo: $(VENV)/.stamp-demo
