@@ -10,7 +10,8 @@ torch threads pinned to 1 before anything is imported):
 * ``sensor-grid``: the 19 rows of the paper's comparison table plus
   ``mixed`` on DrivePlotR, anomaly F1 per method;
 * ``sweep``: protocol ``grad`` on DrivePlotR at ``--scale`` 0.25, 0.5, 1, 2;
-* ``speed``: µs per point, batch ``detect`` and streaming ``update``.
+* ``speed``: µs per point, batch ``detect`` and streaming ``update``;
+* then ``benchmarks/peers.py``: GRAD next to the tools users would pick instead.
 
 Every trained method (GRAD and the baselines) is trained on the data set's
 train split with the same recipe and cached (``$GRADGPS_CACHE``), so a second
@@ -489,6 +490,21 @@ def main() -> None:
         + "\n"
     )
     print(f"[bench] wrote {args.markdown} and {args.results}", flush=True)
+    _peers_table(args)
+
+
+def _peers_table(args: argparse.Namespace) -> None:
+    """The peers section (benchmarks/peers.py, its own markers in BENCHMARKS.md).
+
+    Not in quick mode: tests/test_peers.py runs its own quick mode.
+    """
+    if args.quick:
+        return
+    cmd = [sys.executable, str(Path(__file__).with_name("peers.py"))]
+    cmd += ["--results", str(args.results), "--markdown", str(args.markdown)]
+    cmd += ["--data-dir", args.data_dir] if args.data_dir else []
+    print("[bench] peers ...", flush=True)
+    subprocess.run(cmd, check=True)
 
 
 if __name__ == "__main__":

@@ -18,8 +18,15 @@ def _fmt(value: object) -> str:
 @click.option(
     "--protocol",
     type=click.Choice(["grad", "sensor-grid"]),
-    required=True,
-    help="fault protocol (docs/protocols.md)",
+    default=None,
+    help="fault protocol (docs/protocols.md); required unless --suite",
+)
+@click.option(
+    "--suite",
+    type=click.Choice(["peers"]),
+    default=None,
+    help="peers: GRAD next to the tools users would pick instead (extra 'peers'), "
+    "the table of benchmarks/peers.py on --dataset's test split",
 )
 @click.option("--dataset", type=click.Choice(["driveplotr", "tuc", "simulated"]), required=True)
 @click.option(
@@ -32,10 +39,11 @@ def _fmt(value: object) -> str:
 @click.option(
     "--detector",
     "detectors",
-    required=True,
+    default=None,
     metavar="NAME[,NAME...]",
     help="detectors to score, comma-separated: speed-gate, rema, rema-paper, grad "
-    "(GRAD trained on the dataset's train split), grad-default (the shipped model)",
+    "(GRAD trained on the dataset's train split), grad-default (the shipped model), "
+    "the peers (gradgps bench --suite peers lists them); required unless --suite",
 )
 @click.option(
     "--data-dir",
@@ -63,12 +71,13 @@ def _fmt(value: object) -> str:
     help="write the full report here",
 )
 def bench(
-    protocol: str,
+    protocol: str | None,
+    suite: str | None,
     dataset: str,
     split: str,
     seed: int,
     scale: float,
-    detectors: str,
+    detectors: str | None,
     data_dir: Path | None,
     rema_params: Path | None,
     model: Path | None,
@@ -81,6 +90,14 @@ def bench(
 
     from .._eval.bench import bench_units, run_bench
     from .._exceptions import GradGPSError
+
+    if suite == "peers":
+        from .peers import peers_suite
+
+        peers_suite(dataset, data_dir, json_path)
+        return
+    if protocol is None or detectors is None:
+        raise click.UsageError("--protocol and --detector are required unless --suite is given")
 
     names = [d.strip() for d in detectors.split(",") if d.strip()]
     console = Console(stderr=True)
