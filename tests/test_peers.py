@@ -156,11 +156,8 @@ def test_bench_cli_runs_a_peer_and_needs_protocol_without_suite(tmp_path: Path) 
     res = runner.invoke(main, ["bench", "--dataset", "tuc", "--data-dir", str(tmp_path)])
     assert res.exit_code != 0
     assert "--protocol and --detector are required unless --suite" in res.output
-    res = runner.invoke(
-        main,
-        ["bench", "--protocol", "grad", "--dataset", "tuc", "--detector", "hampel,kalman-chi2"]
-        + ["--data-dir", str(tmp_path)],
-    )
+    args = ["bench", "--protocol", "grad", "--dataset", "tuc", "--detector", "hampel,kalman-chi2"]
+    res = runner.invoke(main, [*args, "--data-dir", str(tmp_path)])
     assert res.exit_code == 0, res.output
     assert "hampel" in res.output
     assert "kalman-chi2" in res.output
