@@ -241,7 +241,8 @@ def main(argv: list[str] | None = None) -> None:
     args.results.mkdir(parents=True, exist_ok=True)
     out = args.results / f"bench_peers{'_quick' if args.quick else ''}.json"
     out.write_text(json.dumps(report, indent=1) + "\n")
-    command = "python benchmarks/peers.py" + (" --quick" if args.quick else "")
+    command = "python benchmarks/peers.py" + (" --tune" if args.tune else "")
+    command += " --quick" if args.quick else ""
     write_markdown(section(report, command), args.markdown)
     _log(f"wrote {out} and {args.markdown}")
 
