@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 import pandas as pd
 
+from .._baselines.peers import PEER_NAMES
 from .._data.datasets import load_dataset
 from .._data.inject import SENSOR_GRID_ROWS, inject_grad, inject_sensor_grid, with_accel_mps2
 from .._exceptions import ConfigError
@@ -48,6 +49,7 @@ DETECTOR_NAMES = (
     "cnn",
     "cnn-kf",
     "lstm-cnn",
+    *PEER_NAMES,
 )
 _SENSOR_CHANNELS = ["accel_x_mps2", "gyro_z_dps"]
 GRAD_BIAS = ("noise", "jump")
@@ -87,7 +89,9 @@ def make_detector(
     ``kf``, ``cnn``, ``cnn-kf`` and ``lstm-cnn`` are fitted on ``dataset``'s
     train split (validation split for stopping and thresholds) with
     ``recipe`` (default: GRAD's data, budget and stopping) and cached, see
-    :mod:`gradgps._train.baselines`.
+    :mod:`gradgps._train.baselines`. The peers (:data:`PEER_NAMES`, extra
+    ``peers``) use the settings tuned on ``dataset``'s validation split
+    (:func:`gradgps._baselines.peers.tuned_settings`).
     """
     if name in ("kf", "cnn", "cnn-kf", "lstm-cnn") or (
         name == "grad" and protocol == "sensor-grid"
@@ -109,6 +113,10 @@ def make_detector(
 
             model = dataset_model(dataset, data_dir)
         return GradDetector(model)
+    if name in PEER_NAMES:
+        from .._baselines.peers import PeerDetector, tuned_settings
+
+        return PeerDetector(name, tuned_settings(name, dataset))
     if name == "speed-gate":
         from .._baselines.speed_gate import SpeedGate
 
