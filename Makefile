@@ -22,7 +22,7 @@ $(VENV)/.stamp-demo: pyproject.toml | $(PY)
 	touch $@
 
 $(VENV)/.stamp-test: pyproject.toml | $(PY)
-	$(PY) -m pip install -q -e ".[io,train,dev,report,onnx,ros,fleet,geo]"
+	$(PY) -m pip install -q -e ".[io,train,dev,report,onnx,ros,fleet,geo,peers]"
 	touch $@ $(VENV)/.stamp-demo
 
 demo: $(VENV)/.stamp-demo

@@ -18,6 +18,7 @@ torch threads pinned to 1 before anything is imported):
   ``<!-- robustness:end -->``) by the process that runs it, so
   ``python benchmarks/run_all.py --table robustness --json FILE`` alone
   refreshes that block.
+* then ``benchmarks/peers.py``: GRAD next to the tools users would pick instead.
 
 Every trained method (GRAD and the baselines) is trained on the data set's
 train split with the same recipe and cached (``$GRADGPS_CACHE``), so a second
@@ -666,6 +667,21 @@ def main() -> None:
         + "\n"
     )
     print(f"[bench] wrote {args.markdown} and {args.results}", flush=True)
+    _peers_table(args)
+
+
+def _peers_table(args: argparse.Namespace) -> None:
+    """The peers section (benchmarks/peers.py, its own markers in BENCHMARKS.md).
+
+    Not in quick mode: tests/test_peers.py runs its own quick mode.
+    """
+    if args.quick:
+        return
+    cmd = [sys.executable, str(Path(__file__).with_name("peers.py"))]
+    cmd += ["--results", str(args.results), "--markdown", str(args.markdown)]
+    cmd += ["--data-dir", args.data_dir] if args.data_dir else []
+    print("[bench] peers ...", flush=True)
+    subprocess.run(cmd, check=True)
 
 
 if __name__ == "__main__":

@@ -68,10 +68,12 @@ def _fmt(value: object) -> str:
 @click.command()
 @option(
     "--suite",
-    type=click.Choice(["robustness"]),
+    type=click.Choice(["robustness", "peers"]),
     help="run a whole suite instead of one protocol on one data set: 'robustness' = every "
     "real data set's test split x column variants x rates (see gradgps._eval.robustness); "
-    "--dataset then names where detectors that need training are trained (default driveplotr)",
+    "--dataset then names where detectors that need training are trained (default "
+    "driveplotr); 'peers' = GRAD next to the tools users would pick instead (extra "
+    "'peers'), the table of benchmarks/peers.py on --dataset's test split",
 )
 @option(
     "--protocol",
@@ -92,8 +94,9 @@ def _fmt(value: object) -> str:
     metavar="NAME[,NAME...]",
     help="detectors to score, comma-separated: speed-gate, rema, rema-paper, grad "
     "(GRAD trained on the dataset's train split), grad-default (the shipped model), "
-    "kf, cnn, cnn-kf, lstm-cnn, waved (trained baselines); "
-    "required without --suite, one name with --suite (default grad-default)",
+    "kf, cnn, cnn-kf, lstm-cnn, waved (trained baselines), "
+    "the peers (see --suite peers); required without --suite, one name with "
+    "--suite robustness (default grad-default)",
 )
 @option(
     "--data-dir",
@@ -169,6 +172,13 @@ def bench(
 
     if suite == "robustness":
         _robustness(detectors or "grad-default", dataset, data_dir, model, json_path)
+        return
+    if suite == "peers":
+        from .peers import peers_suite
+
+        if dataset is None:
+            raise click.UsageError("--suite peers needs --dataset")
+        peers_suite(dataset, data_dir, json_path)
         return
     for value, flag in (
         (protocol, "--protocol"),

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 import pandas as pd
 
+from .._baselines.peers import PEER_NAMES
 from .._data.datasets import load_dataset
 from .._data.inject import (
     SENSOR_GRID_ROWS,
@@ -58,6 +59,7 @@ DETECTOR_NAMES = (
     "lstm-cnn",
     "waved",
     "grad-f1",
+    *PEER_NAMES,
 )
 _SENSOR_CHANNELS = ["accel_x_mps2", "gyro_z_dps"]
 GRAD_BIAS = ("noise", "jump")
@@ -101,7 +103,9 @@ def make_detector(
     ``kf``, ``cnn``, ``cnn-kf``, ``lstm-cnn`` and ``waved`` are fitted on ``dataset``'s
     train split (validation split for stopping and thresholds) with
     ``recipe`` (default: GRAD's data, budget and stopping) and cached, see
-    :mod:`gradgps._train.baselines`.
+    :mod:`gradgps._train.baselines`. The peers (:data:`PEER_NAMES`, extra
+    ``peers``) use the settings tuned on ``dataset``'s validation split
+    (:func:`gradgps._baselines.peers.tuned_settings`).
     """
     if name == "grad-f1" and protocol != "sensor-grid":
         raise ConfigError("detector 'grad-f1' exists under protocol sensor-grid only")
@@ -125,6 +129,10 @@ def make_detector(
 
             model = dataset_model(dataset, data_dir)
         return GradDetector(model)
+    if name in PEER_NAMES:
+        from .._baselines.peers import PeerDetector, tuned_settings
+
+        return PeerDetector(name, tuned_settings(name, dataset))
     if name == "speed-gate":
         from .._baselines.speed_gate import SpeedGate
 

@@ -10,7 +10,7 @@ split, in a matrix of
 * column variants: ``positions`` (track, t, lat, lon only), ``+speed``,
   ``+speed+heading`` (where the file has those columns);
 * rates: ``native``, ``1 Hz``, ``0.5 Hz``. Each track is decimated by
-  keeping a fix when at least (period - 1 ms) has passed since the last
+  keeping a fix when at least 90 % of the period has passed since the last
   kept one (:func:`decimate`). A decimation that keeps every row is not run
   again: the cell says ``= native`` (``same_as`` in the JSON).
 
@@ -364,7 +364,7 @@ def robustness_markdown(report: dict[str, Any], command: str) -> list[str]:
         + (f" Model: `{report['model']}`." if report["model"] else ""),
         "",
         "Protocol `grad`, seed 0, on each cell's own table; `positions` = t, lat, lon only; "
-        "rates decimate each track (a fix kept when at least period - 1 ms has passed since the "
+        "rates decimate each track (a fix kept when at least 90 % of the period has passed since the "
         "last kept one); `= native` where that keeps every row. Targets (issue 13): native and "
         "1 Hz false alarms <= 0.5 %, anomaly F1 >= 0.95, normal recall >= 0.99; 0.5 Hz false "
         "alarms <= 1 %, anomaly F1 >= 0.90; every cell recovery RMSE < corrupted RMSE. "

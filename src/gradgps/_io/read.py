@@ -330,6 +330,7 @@ def _pandas_csv(
         path,
         sep=layout.delimiter,
         encoding="utf-8",
+        skiprows=layout.skip,
         low_memory=False,
         dtype=_label_dtypes(layout, columns, source),
         **options,
