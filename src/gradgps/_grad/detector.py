@@ -51,6 +51,7 @@ damaged or foreign state is refused (``ConfigError``), never run.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import math
 import os
@@ -556,7 +557,7 @@ class Detector:
                 raise ValueError("a kept fix lies outside the segment's frame")
         if warm:
             times = [w[0] for w in warm]
-            steps = [b - a for a, b in zip(times[:-1], times[1:], strict=True)]
+            steps = [b - a for a, b in itertools.pairwise(times)]
             if any(not (_MIN_STEP <= d <= m.params.max_gap_s) for d in steps):
                 raise ValueError("the kept fixes are not one segment in time order")
             if times[-1] != last_t or (warm[0][1], warm[0][2]) != (frame.lat0, frame.lon0):

@@ -49,6 +49,7 @@ Layout of ``S``: core state, offset state, time state, recovery state.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -613,7 +614,7 @@ def warmup_periods(t: FloatArray | list[float]) -> list[float]:
     """The period in force at each of a segment's first fixes ``t`` (at most
     ``PERIOD_STEPS + 1`` are used): 1 s at the first, then the median of the steps so far."""
     times = [float(x) for x in t[: PERIOD_STEPS + 1]]
-    steps = [b - a for a, b in zip(times[:-1], times[1:], strict=True)]
+    steps = [b - a for a, b in itertools.pairwise(times)]
     return [1.0] + [_median(steps[:j]) for j in range(1, len(steps) + 1)]
 
 

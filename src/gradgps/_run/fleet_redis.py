@@ -347,7 +347,7 @@ class RedisStreamWorker:
         self.cache_size = cache_size
         self.key_prefix = f"gradgps:{input_stream}:{group}:" if key_prefix is None else key_prefix
         self._check()
-        self._tracks: OrderedDict[str, _VehicleTrack] = OrderedDict()
+        self._tracks: OrderedDict[bytes, _VehicleTrack] = OrderedDict()
         self._route = client.register_script(ROUTE_SCRIPT)
         self._read = client.register_script(READ_SCRIPT)
         self._dead: list[dict[str, str]] = []

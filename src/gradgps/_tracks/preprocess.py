@@ -29,6 +29,7 @@ input rows with :meth:`Prepared.to_rows`.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -139,7 +140,7 @@ def _group_mean_lon(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     mean = _group_mean(wrapped, starts) + first
     single = np.diff(np.r_[starts, values.size]) == 1
     mean = np.where(mean > 180.0, mean - 360.0, np.where(mean < -180.0, mean + 360.0, mean))
-    return np.where(single, first, mean)
+    return np.asarray(np.where(single, first, mean), dtype=np.float64)
 
 
 def _group_mean(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -241,7 +242,7 @@ def preprocess(
             east_u, north_u = np.empty(t_u.size), np.empty(t_u.size)
             seg_frames = []
             bounds_u = np.r_[0, np.flatnonzero(split) + 1, t_u.size]
-            for a, b in zip(bounds_u[:-1], bounds_u[1:], strict=True):
+            for a, b in itertools.pairwise(bounds_u):
                 seg_frame = LocalFrame(float(lat_u[a]), float(lon_u[a]))
                 seg_frames.append(seg_frame)
                 east_u[a:b], north_u[a:b] = seg_frame.to_local(lat_u[a:b], lon_u[a:b])
