@@ -72,6 +72,8 @@ _EXTENSIONS: Final = {
 
 # Delimiters tried on the header line; the most frequent one wins.
 _DELIMITERS: Final = (",", ";", "\t", "|")
+#: Most cells (rows x columns) of one CSV chunk: a chunk of a very wide file has fewer rows.
+MAX_CHUNK_CELLS: Final = 4_000_000
 
 
 def resolve_format(path: str | Path, fmt: str | None = None) -> str:
@@ -310,6 +312,8 @@ def _csv_chunks(
 ) -> Iterator[Table]:
     source = str(path)
     offset = 0
+    # Memory is rows x columns: a very wide file is read in fewer rows at a time.
+    chunksize = max(1, min(chunksize, MAX_CHUNK_CELLS // max(1, len(layout.header))))
     with _pandas_errors(source):
         reader = pd.read_csv(
             path,
