@@ -72,7 +72,7 @@ from .._tracks.geo import LocalFrame, far_apart_scalar
 from .._tracks.preprocess import NULL_ISLAND, preprocess
 from .._tracks.track import CANONICAL_COLUMNS, to_fixes
 from .core import N_CORE_PARAMS, _layout
-from .model_io import gru_model, load_model
+from .model_io import CONFIG_FILE, WEIGHTS_FILE, gru_model, load_model
 from .motion import N_MOTION_STATE
 from .offset import N_OFFSET_STATE
 from .pipeline import (
@@ -220,8 +220,15 @@ def load_grad_model(model: str | os.PathLike[str] | None = None) -> GradModel:
             "'gradgps train' (or nothing, for the default model)"
         )
     resolved = str(path.resolve())
-    stamp = max((p.stat().st_mtime_ns for p in path.iterdir()), default=0)
-    return _load_cached(resolved, stamp)
+    # Only the model's own files count: an editor's lock file (a dangling symlink) or an
+    # unreadable stray file in the folder must not stop the load.
+    stamps = []
+    for name in (CONFIG_FILE, WEIGHTS_FILE):
+        try:
+            stamps.append((path / name).stat().st_mtime_ns)
+        except OSError:
+            stamps.append(0)
+    return _load_cached(resolved, max(stamps))
 
 
 def _check_fix(t: float, lat: float, lon: float, last_t: float | None) -> str:

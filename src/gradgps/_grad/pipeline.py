@@ -434,7 +434,7 @@ def _batch_segment(
     k: int,
     Ps: FloatArray,
     Ss: FloatArray,
-    s_len: NDArray[np.int64],
+    s_off: NDArray[np.int64],
     gp: Any,
     Hs: Any,
     begin: NDArray[np.int64],
@@ -446,12 +446,13 @@ def _batch_segment(
     heading: FloatArray,
     out: FloatArray,
 ) -> None:
-    """Rows ``begin[k]:end[k]`` of segment ``k`` from its state ``Ss[k]``/``Hs[k]``, exactly as
+    """Rows ``begin[k]:end[k]`` of segment ``k`` from its state (``Ss[s_off[k]:s_off[k+1]]``:
+    the states lie end to end, never padded to the largest) and ``Hs[k]``, exactly as
     :func:`_segment_kernel`, into ``out``."""
     a, b = begin[k], end[k]
     if b <= a:
         return
-    S = Ss[k, : s_len[k]].copy()
+    S = Ss[s_off[k] : s_off[k + 1]].copy()
     H = Hs[k].copy()
     out[a:b] = _segment_kernel(
         Ps[k], S, H, gp, dt[a:b], lat[a:b], lon[a:b], speed[a:b], heading[a:b]
@@ -467,7 +468,7 @@ def _batch_segment(
 def _batch_serial(
     Ps: FloatArray,
     Ss: FloatArray,
-    s_len: NDArray[np.int64],
+    s_off: NDArray[np.int64],
     gp: Any,
     Hs: Any,
     begin: NDArray[np.int64],
@@ -480,14 +481,14 @@ def _batch_serial(
     out: FloatArray,
 ) -> None:
     for k in range(begin.size):
-        _batch_segment(k, Ps, Ss, s_len, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
+        _batch_segment(k, Ps, Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
 
 
 @numba.njit(cache=True, parallel=True)
 def _batch_parallel(
     Ps: FloatArray,
     Ss: FloatArray,
-    s_len: NDArray[np.int64],
+    s_off: NDArray[np.int64],
     gp: Any,
     Hs: Any,
     begin: NDArray[np.int64],
@@ -500,7 +501,7 @@ def _batch_parallel(
     out: FloatArray,
 ) -> None:
     for k in numba.prange(begin.size):
-        _batch_segment(k, Ps, Ss, s_len, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
+        _batch_segment(k, Ps, Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
 
 
 def grad_segments(
@@ -549,11 +550,9 @@ def grad_segments(
             Hs[k] = H
             begin[k] = a + len(periods)
         Ps.append(P)
-    s_len = np.array([len(x) for x in states], np.int64)
-    Ss = np.zeros((n_seg, int(s_len.max())))
-    for k, x in enumerate(states):
-        Ss[k, : x.size] = x
-    args = (np.array(Ps), Ss, s_len, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
+    s_off = np.r_[0, np.cumsum([x.size for x in states])].astype(np.int64)
+    Ss = np.concatenate(states)
+    args = (np.array(Ps), Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
     if threads <= 1:
         _batch_serial(*args)
         return out
