@@ -150,7 +150,7 @@ def test_hostile_model_configs_are_model_errors(tmp_path: Path, config_text: str
 
     folder = _model_copy(tmp_path)
     (folder / "config.json").write_text(config_text)
-    with pytest.raises(ModelError, match="config.json"):
+    with pytest.raises(ModelError, match=r"config\.json"):
         Detector(folder)
 
 
@@ -165,19 +165,15 @@ def test_an_extra_array_in_the_weights_is_refused_before_it_is_loaded(tmp_path: 
     folder = _model_copy(tmp_path)
     data = (folder / "weights.npz").read_bytes()
     buffer = io.BytesIO(data)
-    with zipfile.ZipFile(buffer, "a", compression=zipfile.ZIP_DEFLATED) as archive:
-        # 256 MiB of zeros (the was 8 GiB), a few hundred KB compressed
-        with archive.open("extra.npy", "w", force_zip64=True) as member:
-            header = io.BytesIO()
-            import numpy as np
-
-            np.lib.format.write_array_header_1_0(
-                header, {"descr": "<f4", "fortran_order": False, "shape": (2**26,)}
-            )
-            member.write(b"\x93NUMPY\x01\x00" + header.getvalue()[8:])
-            zeros = bytes(2**20)
-            for _ in range(256):
-                member.write(zeros)
+    # 256 MiB of zeros (the was 8 GiB), a few hundred KB compressed
+    with (
+        zipfile.ZipFile(buffer, "a", compression=zipfile.ZIP_DEFLATED) as archive,
+        archive.open("extra.npy", "w", force_zip64=True) as member,
+    ):
+        member.write(b"\x93NUMPY\x01\x00v\x00{'descr': '<f4', 'fortran_order': False, }")
+        zeros = bytes(2**20)
+        for _ in range(256):
+            member.write(zeros)
     data = buffer.getvalue()
     (folder / "weights.npz").write_bytes(data)
     config = json.loads((folder / "config.json").read_text())
