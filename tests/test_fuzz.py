@@ -9,7 +9,8 @@ pytest turns into an error) is a bug. When no error is raised, every input
 row must come back as exactly one result row.
 
 ``make test`` runs a few dozen cases per test; ``make fuzz`` sets
-``GRADGPS_FUZZ_EXAMPLES`` (2,500 per test, 15,000 in all).
+``GRADGPS_FUZZ_EXAMPLES`` (2,500 per test, 22,500 in all). Beyond files, ROS bags,
+Redis messages and checkpoint states are fuzzed too.
 """
 
 from __future__ import annotations

@@ -187,3 +187,13 @@ def test_an_extra_array_in_the_weights_is_refused_before_it_is_loaded(tmp_path: 
     finally:
         tracemalloc.stop()
     assert peak < 64 * 2**20
+
+
+def test_a_header_only_file_with_repeated_column_names_is_written(tmp_path: Path) -> None:
+    """On main: 'chunk columns ... differ from the first chunk's' (item 8)."""
+    path = tmp_path / "header.csv"
+    path.write_text("t,lat,lon,x,x\n")
+    out = tmp_path / "o.csv"
+    result = CliRunner().invoke(main, ["detect", str(path), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert out.read_text().splitlines()[0].startswith("t,lat,lon,x,x.1,anomaly")

@@ -207,6 +207,11 @@ class TableWriter:
         else:
             self.partial.unlink(missing_ok=True)
 
+    @property
+    def started(self) -> bool:
+        """Whether a frame (perhaps an empty one, fixing the columns) was written."""
+        return self._columns is not None
+
     def write(self, frame: pd.DataFrame) -> None:
         """Append ``frame``'s rows (without its index)."""
         columns = [str(c) for c in frame.columns]

@@ -100,8 +100,8 @@ def detect_csv_in_chunks(
             writer.write(out)
             if on_chunk is not None:
                 on_chunk(len(out))
-        if writer.rows == 0:  # a header-only file: still write the header, with our columns
-            empty = pd.DataFrame({name: pd.Series(dtype=object) for name in chunks.header})
+        if not writer.started:  # no chunk at all: still write the header, with our columns
+            empty = pd.DataFrame([], columns=list(chunks.header), dtype=object)
             writer.write(pd.concat([empty, streams.update_fixes(_no_fixes())], axis=1))
     return DetectSummary(
         rows=writer.rows,
