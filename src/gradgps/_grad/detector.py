@@ -578,15 +578,16 @@ class Detector:
             raise ValueError("'period' does not follow from the kept fixes")
         P = m.params.array(period, frame, m.dims)
         S = np.array([_decode_float(v) for v in state["S"]], np.float64)
-        H = np.array([_decode_float(v) for v in state["H"]], np.float32)
+        H64 = np.array([_decode_float(v) for v in state["H"]], np.float64)
         expected = new_state(P).size
         if S.shape != (expected,):
             raise ValueError(f"'S' holds {S.size} values, this model's state has {expected}")
         h_len = int(m.dims[1] + m.dims[2])
-        if H.shape != (h_len,):
-            raise ValueError(f"'H' holds {H.size} values, this model's GRU has {h_len}")
-        if not np.all(np.abs(H) <= 1.0):
+        if H64.shape != (h_len,):
+            raise ValueError(f"'H' holds {H64.size} values, this model's GRU has {h_len}")
+        if not np.all(np.abs(H64) <= 1.0):  # NaN compares False
             raise ValueError("'H' is not a GRU hidden state (values outside [-1, 1])")
+        H = H64.astype(np.float32)
         _check_counters(P, S, seg_count)
         return frame, last_t, seg_count, period, warm, P, S, H
 
