@@ -10,7 +10,14 @@ torch threads pinned to 1 before anything is imported):
 * ``sensor-grid``: the 19 rows of the paper's comparison table plus
   ``mixed`` on DrivePlotR, anomaly F1 per method;
 * ``sweep``: protocol ``grad`` on DrivePlotR at ``--scale`` 0.25, 0.5, 1, 2;
-* ``speed``: µs per point, batch ``detect`` and streaming ``update``.
+* ``speed``: µs per point, batch ``detect`` and streaming ``update``;
+* ``robustness``: ``gradgps bench --suite robustness`` with the shipped model
+  (every real data set x column variant x rate, issue 13); written to
+  ``results/robustness_grad-default.json`` and to its own block of
+  BENCHMARKS.md (between ``<!-- robustness:start -->`` and
+  ``<!-- robustness:end -->``) by the process that runs it, so
+  ``python benchmarks/run_all.py --table robustness --json FILE`` alone
+  refreshes that block.
 
 Every trained method (GRAD and the baselines) is trained on the data set's
 train split with the same recipe and cached (``$GRADGPS_CACHE``), so a second
@@ -42,7 +49,7 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-TABLES = ("grad-driveplotr", "grad-tuc", "sensor-grid", "sweep", "speed")
+TABLES = ("grad-driveplotr", "grad-tuc", "sensor-grid", "sweep", "speed", "robustness")
 POSITION_METHODS = ["grad", "grad-default", "rema", "speed-gate", "kf", "cnn", "cnn-kf", "lstm-cnn"]
 SENSOR_METHODS = ["grad", "kf", "cnn", "cnn-kf", "lstm-cnn"]
 BASELINES = ["kf", "cnn", "cnn-kf", "lstm-cnn", "rema", "speed-gate"]
@@ -183,6 +190,8 @@ def run_table(name: str, args: argparse.Namespace) -> dict[str, Any]:
         }
     if name == "speed":
         return _speed(args)
+    if name == "robustness":
+        return robustness_table(args)
     raise SystemExit(f"unknown table {name!r}; known: {', '.join(TABLES)}")
 
 
@@ -307,6 +316,36 @@ def _speed_section(speed: dict[str, Any]) -> list[str]:
             f"{'-' if stream is None else f'{stream:.1f}'} |"
         )
     return [*lines, ""]
+
+
+ROBUSTNESS_DETECTOR = "grad-default"
+R_START, R_END = "<!-- robustness:start -->", "<!-- robustness:end -->"
+
+
+def robustness_table(args: argparse.Namespace) -> dict[str, Any]:
+    """The robustness suite with the shipped model; writes its own block of ``args.markdown``."""
+    import shlex
+
+    from gradgps._eval.bench import make_detector
+    from gradgps._eval.robustness import robustness_markdown, run_robustness
+
+    report = run_robustness(
+        make_detector(ROBUSTNESS_DETECTOR), ROBUSTNESS_DETECTOR, data_dir=args.data_dir
+    )
+    words = ["benchmarks/run_all.py"]
+    words += [os.path.relpath(a, REPO) if a.startswith(str(REPO)) else a for a in sys.argv[1:]]
+    lines = [R_START, "", "## Robustness: real drives unlike the training data", ""]
+    if args.quick:
+        lines += ["**quick mode: tiny data, not results**", ""]
+    lines += [*robustness_markdown(report, shlex.join(["python", *words])), R_END]
+    old = args.markdown.read_text() if args.markdown.is_file() else "# Benchmarks\n\n"
+    block = "\n".join(lines) + "\n"
+    if R_START in old and R_END in old:
+        new = old[: old.index(R_START)] + block + old[old.index(R_END) + len(R_END) + 1 :]
+    else:
+        new = old.rstrip("\n") + "\n\n" + block
+    args.markdown.write_text(new)
+    return report
 
 
 def _machine() -> str:
@@ -464,8 +503,10 @@ def main() -> None:
     results: dict[str, Any] = {}
     seconds: dict[str, float] = {}
     for table in TABLES:
-        target = args.results / f"bench_{table}{'_quick' if args.quick else ''}.json"
+        stem = f"robustness_{ROBUSTNESS_DETECTOR}" if table == "robustness" else f"bench_{table}"
+        target = args.results / f"{stem}{'_quick' if args.quick else ''}.json"
         cmd = [sys.executable, __file__, "--table", table, "--json", str(target)]
+        cmd += ["--markdown", str(args.markdown)]
         cmd += ["--quick"] if args.quick else []
         cmd += ["--data-dir", args.data_dir] if args.data_dir else []
         began = time.perf_counter()

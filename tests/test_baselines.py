@@ -190,3 +190,24 @@ def test_channel_grad_features_are_the_position_features_of_each_channel() -> No
             rtol=1e-7,
             atol=1e-7,
         )
+
+
+@pytest.mark.parametrize("kind", ["kf", "cnn", "cnn-kf"])
+def test_an_out_of_order_fix_is_flagged_and_changes_nothing(kind: str) -> None:
+    """A fix before the previous one: invalid (was: negative time step, score < 0, clock back)."""
+    cnn, _ = _random_model("cnn", "position")
+    kf = KalmanParams("position", (0.5, 0.5), (1.0, 1.0), 20.0)
+    det = {
+        "kf": lambda: KalmanDetector.from_params(kf),
+        "cnn": lambda: WindowClassifier(cnn),
+        "cnn-kf": lambda: CnnKalmanDetector(cnn, kf),
+    }[kind]()
+    fixes = drive(10)
+    for r in fixes.itertuples(index=False):
+        det.update(r.t, r.lat, r.lon)
+    before = det.get_state()
+    back = det.update(3.0, fixes["lat"].iloc[3], fixes["lon"].iloc[3] + 1e-4)
+    assert back.anomaly == 1
+    assert back.invalid_reason == "time before the previous fix"
+    assert np.isnan(back.score)
+    assert det.get_state() == before

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from _robustness_support import write_tiny_new_drives
 from gradgps import simulate_fleet
 
 REPO = Path(__file__).resolve().parents[1]
@@ -57,6 +58,7 @@ def test_quick_bench_writes_every_table(tmp_path: Path) -> None:
     data = tmp_path / "data"
     data.mkdir()
     _tiny_data(data)
+    write_tiny_new_drives(data)
     results, markdown = tmp_path / "results", tmp_path / "BENCHMARKS.md"
     markdown.write_text("# Benchmarks\n\n## Memory\n\nkept\n")
     env = {
@@ -82,7 +84,17 @@ def test_quick_bench_writes_every_table(tmp_path: Path) -> None:
         timeout=600,
     )
     report = json.loads((results / "bench_all_quick.json").read_text())["results"]
-    assert set(report) == {"grad-driveplotr", "grad-tuc", "sensor-grid", "sweep", "speed"}
+    assert set(report) == {
+        "grad-driveplotr",
+        "grad-tuc",
+        "sensor-grid",
+        "sweep",
+        "speed",
+        "robustness",
+    }
+    robust = json.loads((results / "robustness_grad-default_quick.json").read_text())
+    assert robust == report["robustness"]
+    assert robust["n_cells"] == len(robust["cells"]) > 0
     methods = {"grad", "grad-default", "rema", "speed-gate", "kf", "cnn", "cnn-kf", "lstm-cnn"}
     for key in ("grad-driveplotr", "grad-tuc"):
         assert set(report[key]["results"]) == methods
@@ -101,3 +113,5 @@ def test_quick_bench_writes_every_table(tmp_path: Path) -> None:
     assert text.count("<!-- bench:end -->") == 1
     assert "quick mode" in text
     assert text.count("| instant-25 |") == 1
+    assert text.count("<!-- robustness:start -->") == text.count("<!-- robustness:end -->") == 1
+    assert "| data set | columns | native | 1 Hz | 0.5 Hz |" in text

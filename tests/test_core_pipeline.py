@@ -96,7 +96,8 @@ def test_tune_rema_finds_parameters_that_beat_the_defaults() -> None:
 
 def test_f1_scores() -> None:
     assert f1_scores([1, 0, 0, 1], [1, 0, 1, 1]) == (pytest.approx(0.8), pytest.approx(2 / 3))
-    assert f1_scores([0, 0], [0, 0]) == (1.0, 1.0)
+    # No anomaly predicted nor present: scikit-learn's convention, 0.0 (was 1.0 here).
+    assert f1_scores([0, 0], [0, 0]) == (0.0, 1.0)
 
 
 def test_detector_returns_one_row_per_input_row() -> None:
@@ -113,6 +114,7 @@ def test_detector_returns_one_row_per_input_row() -> None:
     assert result.loc[100, "anomaly"] == 1
     assert result.loc[100, "time_type"] == "transient"
     assert abs(result.loc[100, "lat_clean"] - (lat[99] + lat[101]) / 2) < 2e-5
-    assert result.loc[7, "invalid_reason"] != ""
-    assert result.loc[7, "anomaly"] == 0
-    assert result["anomaly"].sum() <= 5  # the jump plus at most a few noise flags
+    assert result.loc[7, "invalid_reason"] == "latitude missing or not finite"
+    assert result.loc[7, "anomaly"] == 1  # the one invalid-row policy (it was 0, score 0.0)
+    assert np.isnan(result.loc[7, "score"])
+    assert result["anomaly"].sum() <= 6  # the jump plus at most a few noise flags

@@ -13,20 +13,12 @@ from click.testing import CliRunner
 from gradgps import ConfigError, InputError
 from gradgps._cli import main
 from gradgps._data.simulator import simulate_fleet
+from gradgps._result import RESULT_COLUMNS as _RESULT_COLUMNS
 from gradgps._run.fleet_dask import dask_client, detect_fleet, find_partitions
 
 pytest.importorskip("distributed")
 
-RESULT_COLUMNS = [
-    "anomaly",
-    "score",
-    "bias_type",
-    "time_type",
-    "lat_clean",
-    "lon_clean",
-    "alert",
-    "invalid_reason",
-]
+RESULT_COLUMNS = list(_RESULT_COLUMNS)
 
 
 @pytest.fixture(scope="module")
@@ -161,3 +153,24 @@ def test_output_directory_must_be_new_or_empty(
         detect_fleet(source, target, client)
     with pytest.raises(ConfigError, match="input directory"):
         detect_fleet(source, source, client)
+
+
+def test_a_partition_runs_serially_without_touching_numba_threads(
+    fleet: pd.DataFrame, tmp_path: Path
+) -> None:
+    """Detect runs the serial kernel: no process-wide lock, numba's thread count left alone."""
+    import threading
+
+    import numba
+
+    from gradgps._run import fleet_dask
+    from gradgps._run.fleet_dask import detect_partition
+
+    _write_fleet(fleet, tmp_path / "in")
+    parts = find_partitions(tmp_path / "in")
+    (tmp_path / "out").mkdir()
+    before = numba.get_num_threads()
+    assert not any(isinstance(v, type(threading.Lock())) for v in vars(fleet_dask).values())
+    summary = detect_partition(parts[0], str(tmp_path / "out"))
+    assert numba.get_num_threads() == before
+    assert summary is not None

@@ -134,7 +134,7 @@ def test_channels_carried(tmp_path: Path) -> None:
         ('t,lat,lon\n0,1,2\n1,"x"y,2\n', "malformed CSV record", 3),
         ('t,lat,lon\n0,1,2\n1,"open,2\n2,1,2\n', "malformed CSV record", 3),
         ("0,41.2,-95.9\n1,41.2,-95.9\n", "no header", 1),
-        ("t,y,x\n0,1,2\n", "cannot find the lat column", None),
+        ("t,a,b\n0,1,2\n", "cannot find the lat column", None),
     ],
     ids=[
         "empty",
@@ -156,8 +156,8 @@ def test_malformed_csv(tmp_path: Path, text: str, match: str, line: int | None) 
 
 
 def test_wrong_columns_lists_the_available_ones(tmp_path: Path) -> None:
-    path = write_text(tmp_path / "m.csv", "t,y,x\n0,1,2\n")
-    with pytest.raises(InputError, match=r"--lat-col; available columns: t, y, x"):
+    path = write_text(tmp_path / "m.csv", "t,a,b\n0,1,2\n")
+    with pytest.raises(InputError, match=r"--lat-col; available columns: t, a, b"):
         read_fixes(path)
 
 

@@ -22,12 +22,13 @@ def test_class_scores_by_hand() -> None:
     assert s["normal"]["f1"] == pytest.approx(0.8)
 
 
-def test_class_scores_undefined_is_nan_not_zero() -> None:
+def test_class_scores_undefined_precision_is_nan_and_f1_follows_scikit_learn() -> None:
     s = metrics.class_scores([0, 1, 0], [0, 0, 0])
     assert math.isnan(s["anomaly"]["precision"])
     assert s["anomaly"]["recall"] == 0.0
     assert s["anomaly"]["f1"] == 0.0
-    assert math.isnan(metrics.class_scores([0, 0], [0, 0])["anomaly"]["f1"])
+    # Nothing positive at all: F1 0.0, scikit-learn's zero_division default (the one F1).
+    assert metrics.class_scores([0, 0], [0, 0])["anomaly"]["f1"] == 0.0
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -107,3 +108,27 @@ def test_rmse_m_by_hand() -> None:
     rmse = metrics.rmse_m(lat, lon_true, lat_true, lon_true, mask=[True, True, False])
     assert rmse == pytest.approx(math.sqrt((9 + 16) / 2), rel=1e-4)
     assert math.isnan(metrics.rmse_m(lat, lon_true, lat_true, lon_true, mask=[False] * 3))
+
+
+@pytest.mark.parametrize(
+    ("truth", "pred"),
+    [
+        ([], []),
+        ([0, 0, 0], [0, 0, 0]),
+        ([1, 0, 1, 1], [1, 0, 0, 1]),
+        ([0, 0], [1, 1]),
+        ([1, 1], [0, 0]),
+        ([1, 0, 1, 0, 1], [1, 1, 0, 0, 1]),
+    ],
+)
+def test_one_f1_with_the_scikit_learn_convention(truth: list[int], pred: list[int]) -> None:
+    """Every F1 in gradgps (training, tuning, metrics) is this one, equal to scikit-learn's."""
+    from sklearn.metrics import f1_score as sk_f1
+
+    from gradgps._result import f1_score
+    from gradgps._train.tune_rema import f1_scores
+
+    expected = float(sk_f1(truth, pred, zero_division=0.0)) if truth else 0.0
+    assert f1_score(truth, pred) == pytest.approx(expected)
+    assert f1_scores(pred, truth)[0] == pytest.approx(expected)
+    assert metrics.class_scores(truth, pred)["anomaly"]["f1"] == pytest.approx(expected)

@@ -92,7 +92,7 @@ def test_dropped_fix_is_not_a_fault() -> None:
 
 
 @pytest.mark.parametrize(
-    "bad", [{"gate": 0.0}, {"memory": 1.5}, {"max_run_s": math.inf}, {"turn_gain": -0.1}]
+    "bad", [{"gate": 0.0}, {"memory": 1.5}, {"max_run_s": math.inf}, {"turn_tau_s": -0.1}]
 )
 def test_params_are_checked(bad: dict[str, float]) -> None:
     with pytest.raises(ConfigError):

@@ -215,7 +215,7 @@ def test_notes_are_capped(tmp_path: Path) -> None:
     ("content", "match"),
     [
         (b"", "empty file"),
-        (b"t,lat,lon\n1,2,3\n", "no usable GGA or RMC sentences in 2 lines"),
+        (b"$GPTXT,banner\nhello\n", "no usable GGA or RMC sentences in 2 lines"),
         ((GGA_REF[:-2] + "00\n").encode() * 3, r"3 rejected, first: line 1: GGA checksum mismatch"),
         (
             np.random.default_rng(2).integers(0, 256, 4096, dtype=np.uint8).tobytes(),

@@ -29,6 +29,7 @@ from gradgps import ConfigError, Detector
 from gradgps._grad.detector import MIN_STEP_S, TrackStreams
 from gradgps._grad.features import MAX_WINDOW_POINTS
 from gradgps._tracks.geo import haversine_m
+from gradgps._tracks.preprocess import preprocess
 
 T0 = 1.7e9
 
@@ -364,5 +365,12 @@ def test_merging_fixes_either_side_of_the_antimeridian_stays_there() -> None:
             "lon": [179.9999, -179.9999, 179.9998, 179.9997],
         }
     )
+    # Detection never merges (one semantics): the repeated time is flagged, the rest stay.
     out = Detector().detect(fixes)
-    assert (np.abs(out["lon_clean"]) > 179.99).all()  # on main: a point near 0 deg
+    assert out["invalid_reason"].tolist() == ["", "time not after the previous fix", "", ""]
+    assert (np.abs(out["lon_clean"].dropna()) > 179.99).all()
+    # preprocess() (the baselines' batch preprocessing) still merges repeated times:
+    # around the fixes' own longitude, not to a point near 0 deg.
+    merged = preprocess(fixes, interpolate=False).points
+    assert len(merged) == 3
+    assert (np.abs(merged["lon"]) > 179.99).all()

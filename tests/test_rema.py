@@ -104,6 +104,7 @@ def test_kernel_matches_reference(mode: str) -> None:
     margin=st.floats(0.0, 5.0),
     growth=st.floats(0.0, 2.0),
     reacquire=st.integers(0, 4),
+    max_run=st.integers(0, 6),
     with_steps=st.booleans(),
 )
 def test_kernel_matches_reference_on_generated_tracks(
@@ -114,6 +115,7 @@ def test_kernel_matches_reference_on_generated_tracks(
     margin: float,
     growth: float,
     reacquire: int,
+    max_run: int,
     with_steps: bool,
 ) -> None:
     x = np.cumsum(values)
@@ -124,6 +126,7 @@ def test_kernel_matches_reference_on_generated_tracks(
         min_margin=margin,
         run_growth=growth,
         reacquire_after=reacquire,
+        max_run=max_run,
     )
     # Known steps: the true steps with every third one unknown (NaN) and a small error.
     steps = np.diff(x, prepend=x[0]) + 0.5 if with_steps else None
@@ -160,3 +163,27 @@ def test_params_json_round_trip_and_validation() -> None:
         rema_batch([1.0, 2.0], RemaParams(mode="fancy"))
     with pytest.raises(ConfigError, match="alpha_min"):
         RemaParams(alpha=0.05, alpha_min=0.1).checked()
+
+
+@given(
+    shift=st.floats(-500.0, 500.0).filter(lambda v: abs(v) > 1.0),
+    length=st.integers(1, 150),
+    max_run=st.integers(1, 25),
+    speed=st.floats(0.0, 40.0),
+)
+def test_trend_never_dead_reckons_longer_than_max_run(
+    shift: float, length: int, max_run: int, speed: float
+) -> None:
+    """Whatever the input (here: a shift of any size and length on a moving car with a
+    known step that is slightly wrong), no run of flags outlasts ``max_run`` points."""
+    x = np.arange(400) * speed + np.sin(np.arange(400) * 0.3)
+    x[100 : 100 + length] += shift
+    prm = RemaParams(mode="trend", min_margin=2.0, max_run=max_run)
+    flags = rema_batch(x, prm, np.full(400, speed * 1.01)).flag
+    run = longest = 0
+    for f in flags:
+        run = run + 1 if f else 0
+        longest = max(longest, run)
+    assert longest <= max_run
+    with pytest.raises(ConfigError):
+        RemaParams(max_run=-1).checked()

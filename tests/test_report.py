@@ -46,7 +46,10 @@ def test_demo_report_for_10000_points_is_offline_and_small(tmp_path):
     assert text.count("src='data:image/png;base64,") >= 2
     # Nothing fetched from the network: no external src/href, no script from anywhere.
     assert not re.search(r"""(src|href)\s*=\s*['"]?(https?:)?//""", text)
-    assert "<script" not in text
+    # One small inline script (zoom, track selector, local times): nothing loaded from anywhere.
+    assert text.count("<script") == 1
+    assert not re.search(r"<script[^>]*\ssrc", text)
+    assert not re.search(r"fetch\(|XMLHttpRequest|import\(", text)
 
 
 def test_detect_writes_report_and_plots(tmp_path):

@@ -87,14 +87,24 @@ def test_unusable_fixes_change_nothing() -> None:
     gate.update(0.0, 41.0, -95.0)
     before = gate.get_state()
     r = gate.update(1.0, math.nan, -95.0)
-    assert r.anomaly == 0
+    assert r.anomaly == 1  # the one invalid-row policy: flagged, with its reason
+    assert r.invalid_reason == "latitude missing or not finite"
     assert math.isnan(r.score)
     assert gate.get_state() == before
     fixes = track(*driving(5))
     fixes.loc[2, "lon"] = np.nan
     out = SpeedGate().detect(fixes)
-    assert out.loc[2, "invalid_reason"] != ""
-    assert out["anomaly"].sum() == 0
+    assert out.loc[2, "invalid_reason"] == "longitude missing or not finite"
+    assert out["anomaly"].tolist() == [0, 0, 1, 0, 0]
+
+
+def test_update_takes_none_and_set_state_returns_the_gate() -> None:
+    gate = SpeedGate()
+    r = gate.update(None, 41.0, -95.0)  # type: ignore[arg-type]
+    assert r.anomaly == 1
+    assert r.invalid_reason == "time missing or not finite"
+    gate.update(0.0, 41.0, -95.0)
+    assert gate.set_state(gate.get_state()) is gate
 
 
 @settings(max_examples=30, deadline=None)

@@ -35,7 +35,7 @@ def test_overrides_win_and_missing_names_are_reported() -> None:
     with pytest.raises(InputError, match="no column named 'zz' for lat"):
         resolve_columns(["t", "lat", "lon"], ColumnMap(lat="zz"))
     with pytest.raises(InputError, match=r"cannot find the lon column.*--lon-col"):
-        resolve_columns(["t", "lat", "x"])
+        resolve_columns(["t", "lat", "b"])
 
 
 def test_non_numeric_latitude_names_row_line_and_column() -> None:

@@ -1,29 +1,42 @@
 """gradgps: find, classify and repair faults in vehicle GPS and sensor streams.
 
 An implementation of GRAD (REMA + multi-stage sliding-window features + a
-small GRU) built for real-time use. The public API is exactly ``__all__``;
-everything in underscore modules is private and may change.
+small GRU) built for real-time use. The product is exactly ``__all__``: the
+:class:`Detector` for one vehicle's stream or whole tables, the
+:class:`MultiTrackDetector` for many vehicles' streams, readers and the
+track model, the per-fix :class:`PointResult`, the errors, and the
+``speed-gate`` and ``rema`` baselines. The evaluation kit lives in public
+submodules: :mod:`gradgps.simulate` (simulated drives), :mod:`gradgps.inject`
+(fault injection), :mod:`gradgps.datasets` (the shared data sets) and
+:mod:`gradgps.metrics` (benchmark metrics). Everything in underscore modules
+is private and may change.
 """
 
 from __future__ import annotations
 
-from types import FunctionType as _FunctionType
-
-from . import metrics
+from . import datasets, inject, metrics, simulate
 from ._baselines.rema_detector import RemaDetector
 from ._baselines.speed_gate import SpeedGate
-from ._data.datasets import load_dataset
-from ._data.inject import inject_grad, inject_sensor_grid
-from ._data.simulator import SimulatorParams, simulate_drive, simulate_fleet
 from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
-from ._grad.detector import Detector, TrackStreams
+from ._grad.api import clean, detect
+from ._grad.detector import Detector, MultiTrackDetector
+from ._grad.detector import TrackStreams as TrackStreams  # deprecated name of MultiTrackDetector
 from ._grad.rema import RemaParams
 from ._io.read import iter_csv_tables, read_fixes, read_table, write_table
+from ._public import claim
 from ._result import PointResult
 from ._tracks.geo import LocalFrame
 from ._tracks.preprocess import Prepared, preprocess
 from ._tracks.track import ColumnMap, Table, to_fixes
 from ._version import __version__
+
+# The evaluation kit's names, still importable from the top for older code.
+from .datasets import load_dataset as load_dataset
+from .inject import inject_grad as inject_grad
+from .inject import inject_sensor_grid as inject_sensor_grid
+from .simulate import SimulatorParams as SimulatorParams
+from .simulate import simulate_drive as simulate_drive
+from .simulate import simulate_fleet as simulate_fleet
 
 __all__ = [
     "ColumnMap",
@@ -34,33 +47,26 @@ __all__ = [
     "InputError",
     "LocalFrame",
     "ModelError",
+    "MultiTrackDetector",
     "PointResult",
     "Prepared",
     "RemaDetector",
     "RemaParams",
-    "SimulatorParams",
     "SpeedGate",
     "Table",
-    "TrackStreams",
     "__version__",
-    "inject_grad",
-    "inject_sensor_grid",
+    "clean",
+    "datasets",
+    "detect",
+    "inject",
     "iter_csv_tables",
-    "load_dataset",
     "metrics",
     "preprocess",
     "read_fixes",
     "read_table",
-    "simulate_drive",
-    "simulate_fleet",
+    "simulate",
     "to_fixes",
     "write_table",
 ]
 
-# The curated classes and functions report the module they are reached
-# through (``gradgps.Detector``, not ``gradgps._grad.detector.Detector``).
-for _name in __all__:
-    _obj = globals()[_name]
-    if isinstance(_obj, (type, _FunctionType)) and _obj.__module__.startswith(f"{__name__}._"):
-        _obj.__module__ = __name__
-del _name, _obj
+claim(globals(), __all__)

@@ -3,22 +3,10 @@
 ``from gradgps import metrics``; see :mod:`gradgps._eval.metrics` for the definitions.
 """
 
-from ._eval.metrics import (
-    class_scores,
-    confusion_matrix,
-    detection_delays,
-    event_recall,
-    false_alarms_per_hour,
-    rmse_m,
-    type_accuracy,
-)
+from __future__ import annotations
 
-__all__ = [
-    "class_scores",
-    "confusion_matrix",
-    "detection_delays",
-    "event_recall",
-    "false_alarms_per_hour",
-    "rmse_m",
-    "type_accuracy",
-]
+from ._eval.metrics import *  # noqa: F403
+from ._eval.metrics import __all__ as __all__
+from ._public import claim
+
+claim(globals(), __all__)

@@ -15,48 +15,193 @@ preprocessing does for GRAD): nothing before a long dropout says anything
 about the readings after it, so each segment starts a fresh filter or window.
 Unlike GRAD's preprocessing, rows are never merged: repeated timestamps are
 kept as readings ``dt = 0`` apart, so every input row gets its own verdict.
+
+Every baseline derives from :class:`BatchBaseline` (batch ``detect``) or
+:class:`StreamingBaseline` (also ``update``/``get_state``/``set_state``),
+which validate the input once and apply the invalid-row policy of
+:mod:`gradgps._result`, then delegate to the detector's own
+``_detect_core`` / ``_update_valid`` (as darts' detectors and movingpandas'
+cleaners do). A stream's fix whose time is before the previous usable fix
+is invalid (flagged, never used); a repeated time is a reading ``dt = 0``
+after the previous one, as in batch.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
-from dataclasses import dataclass
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError
-from .._result import PointResult
+from .._result import (
+    RESULT_COLUMNS,
+    RESULT_DTYPES,
+    PointResult,
+    as_number,
+    decode_floats,
+    fix_reason,
+    invalid_reasons,
+    reading,
+    result_frame,
+)
 from .._tracks.geo import LocalFrame
-from .._tracks.preprocess import invalid_reasons
+from .._tracks.track import track_rows
 
-__all__ = ["INPUTS", "SENSOR_CHANNELS", "Segment", "input_names", "result_frame", "segments"]
+__all__ = [
+    "INPUTS",
+    "SENSOR_CHANNELS",
+    "BatchBaseline",
+    "Reading",
+    "Segment",
+    "StreamingBaseline",
+    "input_names",
+    "segments",
+]
 
 INPUTS = ("position", "sensor")
 SENSOR_CHANNELS = ("speed", "accel_x_mps2", "gyro_z_dps")
+_REQUIRED = ("track", "t", "lat", "lon")
 
 
-def unusable_fix(t: float, lat: float, lon: float) -> PointResult | None:
-    """The baselines' verdict on a fix they cannot use (not flagged), or None if usable."""
-    usable = (
-        math.isfinite(t)
-        and math.isfinite(lat)
-        and math.isfinite(lon)
-        and abs(lat) <= 90.0
-        and abs(lon) <= 180.0
+@dataclass(frozen=True)
+class Reading:
+    """A usable fix as a baseline's stream sees it: optional readings NaN when absent."""
+
+    t: float
+    lat: float
+    lon: float
+    speed: float = np.nan
+    heading: float = np.nan
+    channels: Mapping[str, float] = field(default_factory=dict)
+
+    def sensor_values(self) -> list[float]:
+        """The sensor channels in :data:`SENSOR_CHANNELS` order (NaN if absent)."""
+        readings = {"speed": self.speed, **self.channels}
+        return [float(readings.get(c, np.nan)) for c in SENSOR_CHANNELS]
+
+
+class BatchBaseline(ABC):
+    """A baseline's batch face: ``detect`` checks the input, runs ``_detect_core``, checks the output."""
+
+    @abstractmethod
+    def _detect_core(self, fixes: pd.DataFrame) -> pd.DataFrame:
+        """One result row per row of ``fixes`` (built with :func:`gradgps._result.result_frame`)."""
+
+    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
+        """One result row per input row, same index, for canonical fixes of any tracks in any order."""
+        missing = [c for c in _REQUIRED if c not in fixes.columns]
+        if missing:
+            raise ConfigError(
+                f"{type(self).__name__}.detect needs canonical fixes with columns "
+                f"{list(_REQUIRED)}, missing {missing}; build them with gradgps.to_fixes"
+            )
+        result = self._detect_core(fixes)
+        if len(result) != len(fixes) or list(result.columns) != list(RESULT_COLUMNS):
+            raise AssertionError(f"{type(self).__name__} broke the result schema")
+        out = result.astype(RESULT_DTYPES)
+        out.index = fixes.index
+        return out
+
+
+class StreamingBaseline(BatchBaseline):
+    """A baseline that also streams one track: ``update`` validates, ``_update_valid`` judges.
+
+    Subclasses keep the time of their last usable fix in ``_last_t`` (``None``
+    before the first and after a reset) and implement ``_update_valid``,
+    ``get_state`` and ``set_state``.
+    """
+
+    _last_t: float | None = None
+
+    def _stream_last_t(self) -> float | None:
+        return self._last_t
+
+    def update(
+        self,
+        t: float,
+        lat: float,
+        lon: float,
+        speed: float | None = None,
+        heading: float | None = None,
+        **channels: float,
+    ) -> PointResult:
+        """Judge one fix of this detector's track; never raises on bad values.
+
+        Unusable fixes (time, latitude or longitude missing, not a number, out
+        of range, or time before the previous usable fix) are flagged with
+        their reason and change nothing. Optional readings that are missing
+        or not numbers count as absent (NaN).
+        """
+        t_f, lat_f, lon_f = as_number(t), as_number(lat), as_number(lon)
+        reason = fix_reason(t_f, lat_f, lon_f, self._stream_last_t())
+        if reason:
+            return PointResult.invalid(reason, classifies=False)
+        extra = {name: reading(value) for name, value in channels.items()}
+        return self._update_valid(
+            Reading(t_f, lat_f, lon_f, reading(speed), reading(heading), extra)
+        )
+
+    @abstractmethod
+    def _update_valid(self, fix: Reading) -> PointResult:
+        """Judge a usable fix (finite, in range, in time order)."""
+
+    @abstractmethod
+    def get_state(self) -> dict[str, Any]:
+        """The stream's memory as strict-JSON-able data."""
+
+    @abstractmethod
+    def set_state(self, state: Mapping[str, Any]) -> StreamingBaseline:
+        """Restore :meth:`get_state` output (``ConfigError`` if it is not one); returns self."""
+
+
+def flags_frame(
+    fixes: pd.DataFrame,
+    reason: np.ndarray,
+    score: np.ndarray,
+    threshold: float,
+    bias_type: np.ndarray | None = None,
+) -> pd.DataFrame:
+    """The result of a classifier that repairs nothing: anomaly where ``score`` reaches
+    ``threshold``, the input position as the clean one."""
+    return result_frame(
+        fixes.index,
+        reason,
+        anomaly=np.nan_to_num(score) >= threshold,
+        score=score,
+        lat_clean=fixes["lat"].to_numpy(np.float64),
+        lon_clean=fixes["lon"].to_numpy(np.float64),
+        bias_type=bias_type,
     )
-    if usable:
+
+
+def load_time(value: Any) -> float | None:
+    """A stored time: ``None`` or a finite number of seconds."""
+    if value is None:
         return None
-    return PointResult(
-        0,
-        math.nan,
-        None,
-        None,
-        math.nan,
-        math.nan,
-        0,
-        invalid_reason="time, latitude or longitude unusable",
+    if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+        raise ValueError(f"a time must be a finite number, got {value!r}")
+    return float(value)
+
+
+def load_frame(value: Any) -> LocalFrame | None:
+    """A stored tangent plane: ``None`` or ``[lat0, lon0]`` of a usable fix."""
+    if value is None:
+        return None
+    origin = decode_floats(value)
+    assert origin is not None
+    if len(origin) != 2 or fix_reason(0.0, origin[0], origin[1]):
+        raise ValueError(f"a frame is [lat0, lon0] of a usable fix, got {value!r}")
+    return LocalFrame(origin[0], origin[1])
+
+
+def state_error(what: str, exc: Exception) -> ConfigError:
+    """The error for a state that is not one :meth:`get_state` wrote."""
+    return ConfigError(
+        f"not a {what} state ({type(exc).__name__}: {exc}); pass what get_state() returned"
     )
 
 
@@ -102,7 +247,6 @@ def segments(
                 "pass them as channels to to_fixes (gradgps bench does under protocol sensor-grid)"
             )
     reason = invalid_reasons(fixes)
-    usable = np.flatnonzero(reason == "")
     tracks = fixes["track"].to_numpy(dtype=object)
     t = fixes["t"].to_numpy(dtype=np.float64)
     lat = fixes["lat"].to_numpy(dtype=np.float64)
@@ -112,12 +256,8 @@ def segments(
         if inputs == "position"
         else fixes[list(names)].to_numpy(dtype=np.float64, na_value=np.nan)
     )
-    order = usable[np.lexsort((t[usable], pd.factorize(tracks[usable])[0]))]
     out: list[Segment] = []
-    if order.size == 0:
-        return out, reason
-    track_change = np.flatnonzero(tracks[order][1:] != tracks[order][:-1]) + 1
-    for rows in np.split(order, track_change):
+    for rows in track_rows(fixes, reason == ""):
         frame = LocalFrame(float(lat[rows[0]]), float(lon[rows[0]]))
         if channels is None:
             east, north = frame.to_local(lat[rows], lon[rows])
@@ -130,36 +270,3 @@ def segments(
                 Segment(str(tracks[rows[0]]), piece, t[piece], np.ascontiguousarray(vals), frame)
             )
     return out, reason
-
-
-def result_frame(
-    fixes: pd.DataFrame,
-    reason: np.ndarray,
-    anomaly: np.ndarray,
-    score: np.ndarray,
-    lat_clean: np.ndarray,
-    lon_clean: np.ndarray,
-    bias_type: Sequence[str | None] | np.ndarray | None = None,
-) -> pd.DataFrame:
-    """The detector-interface frame (docs/architecture.md) from per-row arrays.
-
-    Baselines do not classify time types, and only name a bias type when
-    ``bias_type`` is given: what they do not produce stays missing (``None``).
-    Unusable rows get ``anomaly=0`` and their reason, as in the speed gate.
-    """
-    n = len(fixes)
-    return pd.DataFrame(
-        {
-            "anomaly": np.asarray(anomaly, dtype=np.int8),
-            "score": np.asarray(score, dtype=np.float64),
-            "bias_type": np.full(n, None, dtype=object)
-            if bias_type is None
-            else np.asarray(bias_type, dtype=object),
-            "time_type": np.full(n, None, dtype=object),
-            "lat_clean": np.asarray(lat_clean, dtype=np.float64),
-            "lon_clean": np.asarray(lon_clean, dtype=np.float64),
-            "alert": np.zeros(n, dtype=np.int8),
-            "invalid_reason": reason,
-        },
-        index=fixes.index,
-    )

@@ -35,7 +35,7 @@ import pandas as pd
 from .._grad.features import N_CHANNEL, FeatureParams, features_batch_kernel
 from .._grad.gru import GRUModel
 from .._grad.rema import RemaParams
-from .base import Segment, result_frame, segments
+from .base import BatchBaseline, Segment, flags_frame, segments
 
 __all__ = ["SENSOR_BIAS_CLASSES", "ChannelGradDetector", "ChannelGradModel", "channel_features"]
 
@@ -80,13 +80,13 @@ class ChannelGradModel:
     max_gap_s: float = 5.0
 
 
-class ChannelGradDetector:
+class ChannelGradDetector(BatchBaseline):
     """Batch channel-wise GRAD detector over fixes carrying the three sensor channels."""
 
     def __init__(self, model: ChannelGradModel) -> None:
         self.model = model
 
-    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
+    def _detect_core(self, fixes: pd.DataFrame) -> pd.DataFrame:
         m = self.model
         segs, reason = segments(fixes, "sensor", m.max_gap_s)
         n = len(fixes)
@@ -100,12 +100,4 @@ class ChannelGradDetector:
         anomaly = np.nan_to_num(score) >= m.threshold
         bias = np.where(anomaly, bias, "none")
         bias[reason != ""] = None
-        return result_frame(
-            fixes,
-            reason,
-            anomaly,
-            score,
-            fixes["lat"].to_numpy(np.float64),
-            fixes["lon"].to_numpy(np.float64),
-            bias,
-        )
+        return flags_frame(fixes, reason, score, m.threshold, bias)

@@ -27,13 +27,14 @@ import numpy as np
 import pandas as pd
 
 from .._result import PointResult
+from .base import Reading, StreamingBaseline, state_error
 from .kalman import KalmanDetector, KalmanParams, filter_result, kf_segment
 from .window import WindowClassifier, WindowModel
 
 __all__ = ["CnnKalmanDetector"]
 
 
-class CnnKalmanDetector:
+class CnnKalmanDetector(StreamingBaseline):
     """CNN flags first, then the Kalman filter and χ² test on what the CNN let through."""
 
     def __init__(self, cnn: WindowModel, kalman: KalmanParams) -> None:
@@ -42,7 +43,7 @@ class CnnKalmanDetector:
         self._cnn_stream = WindowClassifier(cnn)
         self._kf_stream = KalmanDetector.from_params(kalman)
 
-    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
+    def _detect_core(self, fixes: pd.DataFrame) -> pd.DataFrame:
         segs, reason, probs = WindowClassifier(self.cnn).segment_flags(fixes)
         k = self.kalman
         q, r = np.array(k.q), np.array(k.r)
@@ -55,26 +56,29 @@ class CnnKalmanDetector:
             fixes, k, segs, reason, outs, cnn_flags, [p.astype(np.float64) for p in probs]
         )
 
-    def update(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float | None = None,
-        heading: float | None = None,
-        **channels: float,
-    ) -> PointResult:
-        """One reading of this detector's track: CNN verdict, then the filter with it forced."""
-        c = self._cnn_stream.update(t, lat, lon, speed, heading, **channels)
-        if c.invalid_reason:
-            return c
-        k = self._kf_stream.step(t, lat, lon, speed, channels, forced=bool(c.anomaly))
+    def _stream_last_t(self) -> float | None:
+        return self._cnn_stream._stream_last_t()
+
+    def _update_valid(self, fix: Reading) -> PointResult:
+        """One usable reading of this detector's track: CNN verdict, then the filter with it forced."""
+        c = self._cnn_stream._update_valid(fix)
+        k = self._kf_stream.step_valid(fix, forced=bool(c.anomaly))
         return replace(k, score=max(k.score, c.score))
 
     def get_state(self) -> dict[str, Any]:
         return {"cnn": self._cnn_stream.get_state(), "kf": self._kf_stream.get_state()}
 
     def set_state(self, state: Mapping[str, Any]) -> CnnKalmanDetector:
-        self._cnn_stream.set_state(state["cnn"])
-        self._kf_stream.set_state(state["kf"])
+        """Restore :meth:`get_state` output; a bad state leaves this detector as it was."""
+        try:
+            cnn, kf = state["cnn"], state["kf"]
+        except (KeyError, TypeError) as exc:
+            raise state_error("cnn-kf", exc) from exc
+        before = self._cnn_stream.get_state()
+        self._cnn_stream.set_state(cnn)
+        try:
+            self._kf_stream.set_state(kf)
+        except Exception:
+            self._cnn_stream.set_state(before)
+            raise
         return self

@@ -42,9 +42,18 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from .._exceptions import ConfigError
-from .._result import PointResult
+from .._result import PointResult, decode_floats, encode_floats, f1_score, result_frame
 from .._tracks.geo import LocalFrame
-from .base import Segment, input_names, result_frame, segments, unusable_fix
+from .base import (
+    Reading,
+    Segment,
+    StreamingBaseline,
+    input_names,
+    load_frame,
+    load_time,
+    segments,
+    state_error,
+)
 
 __all__ = ["KalmanDetector", "KalmanParams", "kf_reference", "kf_segment"]
 
@@ -323,9 +332,7 @@ def tune_threshold(
             )
             == 1.0
         )
-        tp = int(np.sum(flags & truth))
-        denominator = int(flags.sum() + truth.sum())
-        f1 = 2.0 * tp / denominator if denominator else 0.0
+        f1 = f1_score(truth, flags)
         if f1 > best_f1:
             best_f1, best = f1, float(threshold)
     return best
@@ -410,10 +417,12 @@ def filter_result(
             lat, lon = seg.frame.to_geodetic(out[:, 2], out[:, 3])
             lat_clean[seg.rows] = np.where(flag, lat, lat_clean[seg.rows])
             lon_clean[seg.rows] = np.where(flag, lon, lon_clean[seg.rows])
-    return result_frame(fixes, reason, anomaly, score, lat_clean, lon_clean)
+    return result_frame(
+        fixes.index, reason, anomaly=anomaly, score=score, lat_clean=lat_clean, lon_clean=lon_clean
+    )
 
 
-class KalmanDetector:
+class KalmanDetector(StreamingBaseline):
     """The ``kf`` baseline: batch ``detect`` and streaming ``update`` (module docstring).
 
     ``inputs`` is ``position`` (protocol ``grad``) or ``sensor`` (protocol
@@ -464,7 +473,7 @@ class KalmanDetector:
             raise ConfigError("this KalmanDetector is not fitted; call fit() or use from_params()")
         return params
 
-    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
+    def _detect_core(self, fixes: pd.DataFrame) -> pd.DataFrame:
         """One result row per input row; each segment runs through a fresh filter in time order."""
         params = self._fitted()
         segs, reason, outs = detect_with_filter(fixes, params)
@@ -477,41 +486,21 @@ class KalmanDetector:
         self._last_t: float | None = None
         self._state: FloatArray | None = None
 
-    def update(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float | None = None,
-        heading: float | None = None,
-        **channels: float,
-    ) -> PointResult:
-        """Judge one reading of this detector's track (time order), as :meth:`detect` would."""
-        return self.step(t, lat, lon, speed, channels, forced=False)
+    def _update_valid(self, fix: Reading) -> PointResult:
+        """Judge one usable reading of this detector's track, as :meth:`detect` would."""
+        return self.step_valid(fix, forced=False)
 
-    def step(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float | None,
-        channels: Mapping[str, float],
-        *,
-        forced: bool,
-    ) -> PointResult:
-        """:meth:`update` with ``forced``: flag the reading and never use it (``cnn-kf``)."""
+    def step_valid(self, fix: Reading, *, forced: bool) -> PointResult:
+        """:meth:`_update_valid` with ``forced``: flag the reading and never use it (``cnn-kf``)."""
+        t, lat, lon = fix.t, fix.lat, fix.lon
         params = self._fitted()
-        unusable = unusable_fix(t, lat, lon)
-        if unusable is not None:
-            return unusable
         if self._frame is None:
             self._frame = LocalFrame(float(lat), float(lon))
         if params.inputs == "position":
             east, north = self._frame.to_local(lat, lon)
             z = np.array([float(east), float(north)])
         else:
-            readings = {"speed": math.nan if speed is None else float(speed), **channels}
-            z = np.array([float(readings.get(c, math.nan)) for c in input_names("sensor")])
+            z = np.array(fix.sensor_values())
         gap = self._last_t is None or t - self._last_t > params.max_gap_s
         if gap or self._state is None:
             self._state = np.zeros((z.size, N_CHANNEL_STATE))
@@ -538,19 +527,27 @@ class KalmanDetector:
         )
 
     def get_state(self) -> dict[str, Any]:
-        """The stream's memory as plain JSON-able data (the fitted settings are not state)."""
+        """The stream's memory as strict-JSON-able data (the fitted settings are not state)."""
         return {
             "frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
             "last_t": self._last_t,
-            "state": None if self._state is None else self._state.tolist(),
+            "state": None if self._state is None else [encode_floats(r) for r in self._state],
         }
 
-    def set_state(self, state: dict[str, Any]) -> KalmanDetector:
+    def set_state(self, state: Mapping[str, Any]) -> KalmanDetector:
+        """Restore :meth:`get_state` output of a filter with the same input kind; returns self."""
+        channels = len(input_names(self._fitted().inputs))
         try:
-            frame = state["frame"]
-            self._frame = None if frame is None else LocalFrame(float(frame[0]), float(frame[1]))
-            self._last_t = None if state["last_t"] is None else float(state["last_t"])
-            self._state = None if state["state"] is None else np.array(state["state"], np.float64)
+            frame, last_t = load_frame(state["frame"]), load_time(state["last_t"])
+            rows = state["state"]
+            filt = None
+            if rows is not None:
+                filt = np.array([decode_floats(r) for r in rows], np.float64)
+                if filt.shape != (channels, N_CHANNEL_STATE):
+                    raise ValueError(
+                        f"filter state of shape {filt.shape}, expected ({channels}, {N_CHANNEL_STATE})"
+                    )
         except (KeyError, TypeError, ValueError) as exc:
-            raise ConfigError(f"not a Kalman detector state: {exc}") from exc
+            raise state_error("Kalman detector", exc) from exc
+        self._frame, self._last_t, self._state = frame, last_t, filt
         return self

@@ -6,8 +6,7 @@ one result row per input row (``Prepared.to_rows``), with the columns of the
 detector interface in ``docs/architecture.md``. REMA cannot tell bias types
 apart, so ``bias_type`` is ``unknown`` for anomalies and ``none`` otherwise.
 Recovered positions go back to degrees through the track's own frame. Rows
-that are not usable fixes get ``anomaly=0``, NaN clean positions and their
-``invalid_reason``.
+that are not usable fixes follow the policy of :mod:`gradgps._result`.
 """
 
 from __future__ import annotations
@@ -26,13 +25,15 @@ from .._grad.features import FeatureParams
 from .._grad.recovery import RecoveryParams
 from .._grad.rema import RemaParams
 from .._grad.time_classifier import TIME_TYPES, TimeParams
+from .._result import result_frame
 from .._tracks.preprocess import preprocess
+from .base import BatchBaseline
 
 __all__ = ["RemaDetector", "paper_detector"]
 
 
 @dataclass
-class RemaDetector:
+class RemaDetector(BatchBaseline):
     """Batch REMA detector; parameters as in :class:`CoreParams` plus ``max_gap_s`` for preprocessing.
 
     The defaults are what ``gradgps tune-rema --dataset driveplotr`` chose on
@@ -127,7 +128,7 @@ class RemaDetector:
             raise ConfigError(f"REMA settings {path} are not valid JSON: {exc}") from exc
         return cls.from_dict(data)
 
-    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
+    def _detect_core(self, fixes: pd.DataFrame) -> pd.DataFrame:
         prepared = preprocess(fixes, max_gap_s=self.max_gap_s)
         pts = prepared.points
         n = len(pts)
@@ -164,23 +165,18 @@ class RemaDetector:
                 out.east_clean, out.north_clean
             )
         names = np.array(TIME_TYPES, dtype=object)
-        anomaly = prepared.to_rows(flag, fill=0).astype(np.int8)
-        result = pd.DataFrame(
-            {
-                "anomaly": anomaly,
-                "score": prepared.to_rows(score, fill=0.0).astype(np.float64),
-                # REMA cannot tell noise from jump: it names no bias type (None, as the
-                # detector interface asks), so benchmarks report its accuracy as null.
-                "bias_type": np.full(len(anomaly), None, dtype=object),
-                "time_type": prepared.to_rows(names[code], fill="none"),
-                "lat_clean": prepared.to_rows(lat_clean).astype(np.float64),
-                "lon_clean": prepared.to_rows(lon_clean).astype(np.float64),
-                "alert": prepared.to_rows(alert, fill=0).astype(np.int8),
-                "invalid_reason": prepared.row_reason,
-            },
-            index=fixes.index,
+        # REMA cannot tell noise from jump: it names no bias type (None, as the
+        # detector interface asks), so benchmarks report its accuracy as null.
+        return result_frame(
+            fixes.index,
+            prepared.row_reason,
+            anomaly=prepared.to_rows(flag, fill=0),
+            score=prepared.to_rows(score, fill=0.0),
+            time_type=prepared.to_rows(names[code], fill="none"),
+            lat_clean=prepared.to_rows(lat_clean),
+            lon_clean=prepared.to_rows(lon_clean),
+            alert=prepared.to_rows(alert, fill=0),
         )
-        return result
 
 
 def paper_detector() -> RemaDetector:

@@ -27,14 +27,16 @@ hold the last accepted fix for a rejected one.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError
-from .._result import PointResult
-from .._tracks.preprocess import invalid_reasons
+from .._result import PointResult, decode_floats, invalid_reasons, results_frame
+from .._tracks.track import track_rows
+from .base import Reading, StreamingBaseline, load_time, state_error
 
 __all__ = ["SpeedGate"]
 
@@ -61,7 +63,15 @@ def _speed(a: list[float], t: float, lat: float, lon: float) -> float:
     return 0.0 if dist == 0.0 else math.inf
 
 
-class SpeedGate:
+def _fix(value: Any) -> list[float] | None:
+    """A stored ``[t, lat, lon]`` (or None), checked."""
+    out = decode_floats(value)
+    if out is not None and (len(out) != 3 or not all(math.isfinite(v) for v in out)):
+        raise ValueError(f"a fix is [t, lat, lon] of finite numbers, got {value!r}")
+    return out
+
+
+class SpeedGate(StreamingBaseline):
     """Streaming and batch maximum-speed filter for one vehicle's fixes.
 
     Parameters: ``max_speed_mps`` the bound (default 50 m/s for cars; use
@@ -87,39 +97,24 @@ class SpeedGate:
         self._streak = 0
         self._last_t: float | None = None
 
-    def update(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float | None = None,
-        heading: float | None = None,
-        **channels: float,
-    ) -> PointResult:
-        """Judge one fix (time order). Unusable fixes (missing or out of range) change nothing."""
-        if not (
-            math.isfinite(t)
-            and math.isfinite(lat)
-            and math.isfinite(lon)
-            and abs(lat) <= 90.0
-            and abs(lon) <= 180.0
-        ):
-            return PointResult(0, math.nan, None, None, math.nan, math.nan, 0)
-        fix = [float(t), float(lat), float(lon)]
+    def _update_valid(self, fix: Reading) -> PointResult:
+        """Judge one usable fix (time order)."""
+        t, lat, lon = fix.t, fix.lat, fix.lon
+        point = [t, lat, lon]
         gap = self._last_t is not None and t - self._last_t > self.max_gap_s
-        self._last_t = float(t)
+        self._last_t = t
         if self._anchor is None or gap:
-            return self._accept(fix, 0.0, alert=0)
+            return self._accept(point, 0.0, alert=0)
         v = _speed(self._anchor, t, lat, lon)
         if v <= self.max_speed_mps:
-            return self._accept(fix, v, alert=0)
+            return self._accept(point, v, alert=0)
         consistent = (
             self._rejected is not None and _speed(self._rejected, t, lat, lon) <= self.max_speed_mps
         )
         self._streak = self._streak + 1 if consistent else 1
-        self._rejected = fix
+        self._rejected = point
         if self._streak > self.reanchor_after:
-            return self._accept(fix, v, alert=1)
+            return self._accept(point, v, alert=1)
         return PointResult(1, self._score(v), None, None, self._anchor[1], self._anchor[2], 0)
 
     def _score(self, v: float) -> float:
@@ -140,54 +135,33 @@ class SpeedGate:
             "last_t": self._last_t,
         }
 
-    def set_state(self, state: dict[str, Any]) -> None:
-        """Restore what :meth:`get_state` returned (e.g. after a restart)."""
-        missing = [k for k in _STATE_KEYS if k not in state]
-        if missing:
-            raise ConfigError(f"speed-gate state lacks {missing}; pass what get_state() returned")
-        self._anchor = None if state["anchor"] is None else [float(v) for v in state["anchor"]]
-        self._rejected = (
-            None if state["rejected"] is None else [float(v) for v in state["rejected"]]
-        )
-        self._streak = int(state["streak"])
-        self._last_t = None if state["last_t"] is None else float(state["last_t"])
+    def set_state(self, state: Mapping[str, Any]) -> SpeedGate:
+        """Restore what :meth:`get_state` returned (e.g. after a restart); returns self."""
+        try:
+            missing = [k for k in _STATE_KEYS if k not in state]
+            if missing:
+                raise KeyError(f"lacks {missing}")
+            anchor, rejected = _fix(state["anchor"]), _fix(state["rejected"])
+            streak = state["streak"]
+            if isinstance(streak, bool) or not isinstance(streak, int) or streak < 0:
+                raise ValueError(f"streak must be a count, got {streak!r}")
+            last_t = load_time(state["last_t"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise state_error("speed-gate", exc) from exc
+        self._anchor, self._rejected, self._streak = anchor, rejected, streak
+        self._last_t = last_t
+        return self
 
-    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
-        """Batch: judge every row of canonical fixes (any tracks, any order); one row per input row.
-
-        Each track runs through a fresh gate in time order, exactly as
-        :meth:`update` would see it; this object's own state is not touched.
-        """
-        n = len(fixes)
+    def _detect_core(self, fixes: pd.DataFrame) -> pd.DataFrame:
+        """Each track runs through a fresh gate in time order, exactly as :meth:`update` would see it;
+        this object's own state is not touched."""
         reason = invalid_reasons(fixes)
-        anomaly = np.zeros(n, dtype=np.int8)
-        alert = np.zeros(n, dtype=np.int8)
-        score = np.full(n, np.nan)
-        lat_clean = np.full(n, np.nan)
-        lon_clean = np.full(n, np.nan)
-        tracks = fixes["track"].to_numpy(dtype=object)
+        results = [PointResult.invalid(str(r), classifies=False) if r else None for r in reason]
         t = fixes["t"].to_numpy(dtype=np.float64)
         lat = fixes["lat"].to_numpy(dtype=np.float64)
         lon = fixes["lon"].to_numpy(dtype=np.float64)
-        usable = reason == ""
-        for track in pd.unique(pd.Series(tracks[usable], dtype=object)):
-            rows = np.flatnonzero(usable & (tracks == track))
-            rows = rows[np.argsort(t[rows], kind="stable")]
+        for rows in track_rows(fixes, reason == ""):
             gate = SpeedGate(self.max_speed_mps, self.reanchor_after, self.max_gap_s)
             for i in rows.tolist():
-                r = gate.update(float(t[i]), float(lat[i]), float(lon[i]))
-                anomaly[i], score[i], alert[i] = r.anomaly, r.score, r.alert
-                lat_clean[i], lon_clean[i] = r.lat_clean, r.lon_clean
-        return pd.DataFrame(
-            {
-                "anomaly": anomaly,
-                "score": score,
-                "bias_type": np.full(n, None, dtype=object),
-                "time_type": np.full(n, None, dtype=object),
-                "lat_clean": lat_clean,
-                "lon_clean": lon_clean,
-                "alert": alert,
-                "invalid_reason": reason,
-            },
-            index=fixes.index,
-        )
+                results[i] = gate._update_valid(Reading(float(t[i]), float(lat[i]), float(lon[i])))
+        return results_frame(results, fixes.index)  # type: ignore[arg-type]

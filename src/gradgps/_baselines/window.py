@@ -24,7 +24,6 @@ written by :mod:`gradgps._train.baselines`.
 from __future__ import annotations
 
 import json
-import math
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -35,9 +34,19 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import ModelError
-from .._result import PointResult
+from .._result import PointResult, decode_floats, encode_floats
 from .._tracks.geo import LocalFrame
-from .base import Segment, input_names, result_frame, segments, unusable_fix
+from .base import (
+    Reading,
+    Segment,
+    StreamingBaseline,
+    flags_frame,
+    input_names,
+    load_frame,
+    load_time,
+    segments,
+    state_error,
+)
 from .cnn import CNN_WEIGHTS, cnn_forward
 from .lstm_cnn import LSTM_CNN_WEIGHTS, lstm_cnn_forward
 
@@ -170,7 +179,7 @@ def load_window_model(directory: str | os.PathLike[str]) -> WindowModel:
         raise ModelError(f"{path}: not a window-classifier model ({exc}); retrain it") from exc
 
 
-class WindowClassifier:
+class WindowClassifier(StreamingBaseline):
     """The ``cnn`` or ``lstm-cnn`` baseline for a loaded :class:`WindowModel`: batch and stream.
 
     It repairs nothing: ``lat_clean``/``lon_clean`` are the input position
@@ -188,22 +197,14 @@ class WindowClassifier:
         segs, reason = segments(fixes, self.model.inputs, self.model.max_gap_s)
         return segs, reason, [self.model.segment_probability(s) for s in segs]
 
-    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
+    def _detect_core(self, fixes: pd.DataFrame) -> pd.DataFrame:
         """One result row per input row; each segment is windowed on its own, in time order."""
         segs, reason, probs = self.segment_flags(fixes)
         n = len(fixes)
         score = np.full(n, np.nan)
         for seg, p in zip(segs, probs, strict=True):
             score[seg.rows] = p
-        anomaly = np.nan_to_num(score) >= self.model.threshold
-        return result_frame(
-            fixes,
-            reason,
-            anomaly,
-            score,
-            fixes["lat"].to_numpy(np.float64),
-            fixes["lon"].to_numpy(np.float64),
-        )
+        return flags_frame(fixes, reason, score, self.model.threshold)
 
     # -- streaming (one track) ---------------------------------------------
 
@@ -213,20 +214,9 @@ class WindowClassifier:
         self._recent: list[tuple[float, list[float]]] = []  # (t, values) of the last two readings
         self._rows = np.zeros((self.model.window, len(self.model.mean)), np.float32)
 
-    def update(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float | None = None,
-        heading: float | None = None,
-        **channels: float,
-    ) -> PointResult:
-        """Judge one reading of this detector's track (time order), as :meth:`detect` would."""
-        m = self.model
-        unusable = unusable_fix(t, lat, lon)
-        if unusable is not None:
-            return unusable
+    def _update_valid(self, fix: Reading) -> PointResult:
+        """Judge one usable reading of this detector's track (time order), as :meth:`detect` would."""
+        m, t, lat, lon = self.model, fix.t, fix.lat, fix.lon
         if self._frame is None:
             self._frame = LocalFrame(float(lat), float(lon))
         if self._last_t is not None and t - self._last_t > m.max_gap_s:
@@ -238,8 +228,7 @@ class WindowClassifier:
             east, north = self._frame.to_local(lat, lon)
             values = [float(east), float(north)]
         else:
-            readings = {"speed": math.nan if speed is None else float(speed), **channels}
-            values = [float(readings.get(c, math.nan)) for c in input_names("sensor")]
+            values = fix.sensor_values()
         self._recent = ([*self._recent, (float(t), values)])[-3:]
         recent = Segment(
             "",
@@ -254,18 +243,33 @@ class WindowClassifier:
         return PointResult(int(p >= m.threshold), p, None, None, float(lat), float(lon), 0)
 
     def get_state(self) -> dict[str, Any]:
-        """The stream's memory as plain JSON-able data."""
+        """The stream's memory as strict-JSON-able data."""
         return {
             "frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
             "last_t": self._last_t,
-            "recent": [[t, list(v)] for t, v in self._recent],
-            "rows": self._rows.tolist(),
+            "recent": [[t, encode_floats(v)] for t, v in self._recent],
+            "rows": [encode_floats(r) for r in self._rows],
         }
 
     def set_state(self, state: Mapping[str, Any]) -> WindowClassifier:
-        frame = state["frame"]
-        self._frame = None if frame is None else LocalFrame(float(frame[0]), float(frame[1]))
-        self._last_t = None if state["last_t"] is None else float(state["last_t"])
-        self._recent = [(float(t), [float(x) for x in v]) for t, v in state["recent"]]
-        self._rows = np.array(state["rows"], np.float32)
+        """Restore :meth:`get_state` output of a classifier with the same model; returns self."""
+        m = self.model
+        channels = len(input_names(m.inputs))
+        try:
+            frame, last_t = load_frame(state["frame"]), load_time(state["last_t"])
+            recent: list[tuple[float, list[float]]] = []
+            for t, v in state["recent"]:
+                values = decode_floats(v)
+                time = load_time(t)
+                if values is None or time is None or len(values) != channels:
+                    raise ValueError(f"a recent reading is [t, {channels} values], got {[t, v]!r}")
+                recent.append((time, values))
+            if len(recent) > 3:
+                raise ValueError(f"{len(recent)} recent readings, at most 3 are kept")
+            rows = np.array([decode_floats(r) for r in state["rows"]], np.float32)
+            if rows.shape != self._rows.shape or not np.isfinite(rows).all():
+                raise ValueError(f"window rows of shape {rows.shape}, expected {self._rows.shape}")
+        except (KeyError, TypeError, ValueError) as exc:
+            raise state_error("window classifier", exc) from exc
+        self._frame, self._last_t, self._recent, self._rows = frame, last_t, recent, rows
         return self

@@ -7,7 +7,58 @@ from pathlib import Path
 
 import click
 
+from .options import option
+
 __all__ = ["bench"]
+
+
+def _robustness(
+    detector: str,
+    train_dataset: str | None,
+    data_dir: Path | None,
+    model: Path | None,
+    json_path: Path | None,
+) -> None:
+    """``--suite robustness``: run the suite, print its matrix (Markdown), save the JSON."""
+    import shlex
+
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from .._eval.bench import make_detector
+    from .._eval.robustness import ROBUSTNESS_DATASETS, robustness_markdown, run_robustness
+    from .._exceptions import GradGPSError
+
+    try:
+        # grad-default with --model: that model in place of the shipped one, i.e. 'grad'.
+        det = make_detector(
+            "grad" if detector == "grad-default" and model is not None else detector,
+            dataset=train_dataset or "driveplotr",
+            data_dir=data_dir,
+            model=model,
+        )
+        with Progress(console=Console(stderr=True), transient=True) as progress:
+            task = progress.add_task("robustness", total=None)
+            report = run_robustness(
+                det,
+                detector,
+                model=model,
+                datasets=ROBUSTNESS_DATASETS,
+                data_dir=data_dir,
+                advance=lambda what: progress.update(task, advance=1, description=what),
+            )
+    except GradGPSError as exc:
+        raise click.ClickException(str(exc)) from exc
+    words = ["gradgps", "bench", "--suite", "robustness", "--detector", detector]
+    words += ["--model", str(model)] if model is not None else []
+    words += ["--dataset", train_dataset] if train_dataset is not None else []
+    words += ["--data-dir", str(data_dir)] if data_dir is not None else []
+    words += ["--json", str(json_path)] if json_path is not None else []
+    command = shlex.join(words)
+    click.echo("\n".join(robustness_markdown(report, command)))
+    if json_path is not None:
+        json_path.write_text(json.dumps(report, indent=1) + "\n")
+        click.echo(f"wrote {json_path}")
 
 
 def _fmt(value: object) -> str:
@@ -15,60 +66,59 @@ def _fmt(value: object) -> str:
 
 
 @click.command()
-@click.option(
+@option(
+    "--suite",
+    type=click.Choice(["robustness"]),
+    help="run a whole suite instead of one protocol on one data set: 'robustness' = every "
+    "real data set's test split x column variants x rates (see gradgps._eval.robustness); "
+    "--dataset then names where detectors that need training are trained (default driveplotr)",
+)
+@option(
     "--protocol",
     type=click.Choice(["grad", "sensor-grid"]),
-    required=True,
-    help="fault protocol (docs/protocols.md)",
+    help="fault protocol (docs/protocols.md); required without --suite",
 )
-@click.option("--dataset", type=click.Choice(["driveplotr", "tuc", "simulated"]), required=True)
-@click.option(
-    "--split", type=click.Choice(["train", "validation", "test"]), default="test", show_default=True
+@option(
+    "--dataset",
+    type=click.Choice(["driveplotr", "tuc", "simulated"]),
+    help="data set; required without --suite",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="injection seed")
-@click.option(
-    "--scale", type=float, default=1.0, show_default=True, help="multiplies every fault magnitude"
-)
-@click.option(
+@option("--split", type=click.Choice(["train", "validation", "test"]), default="test")
+@option("--seed", type=int, default=0, help="injection seed")
+@option("--scale", type=float, default=1.0, help="multiplies every fault magnitude")
+@option(
     "--detector",
     "detectors",
-    required=True,
     metavar="NAME[,NAME...]",
     help="detectors to score, comma-separated: speed-gate, rema, rema-paper, grad "
-    "(GRAD trained on the dataset's train split), grad-default (the shipped model)",
+    "(GRAD trained on the dataset's train split), grad-default (the shipped model); "
+    "required without --suite, one name with --suite (default grad-default)",
 )
-@click.option(
+@option(
     "--data-dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
+    path="dir",
     help="folder with the shared drives; default $GRADGPS_DATA, then ../shared/data",
 )
-@click.option(
+@option(
     "--rema-params",
-    type=click.Path(dir_okay=False, exists=True, path_type=Path),
-    default=None,
+    path="existing file",
     help="settings for detector 'rema' written by gradgps tune-rema (default: built-in)",
 )
-@click.option(
+@option(
     "--model",
-    type=click.Path(file_okay=False, exists=True, path_type=Path),
-    default=None,
-    help="model directory for detector 'grad' (default: trained on the train split and cached)",
+    path="existing dir",
+    help="model directory for detector 'grad' (default: trained on the train split and "
+    "cached); with --suite also for 'grad-default' (a model to measure instead of the shipped one)",
 )
-@click.option(
-    "--json",
-    "json_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="write the full report here",
-)
+@option("--json", "json_path", path="file", help="write the full report here")
 def bench(
-    protocol: str,
-    dataset: str,
+    suite: str | None,
+    protocol: str | None,
+    dataset: str | None,
     split: str,
     seed: int,
     scale: float,
-    detectors: str,
+    detectors: str | None,
     data_dir: Path | None,
     rema_params: Path | None,
     model: Path | None,
@@ -82,6 +132,19 @@ def bench(
     from .._eval.bench import bench_units, run_bench
     from .._exceptions import GradGPSError
 
+    if suite == "robustness":
+        _robustness(detectors or "grad-default", dataset, data_dir, model, json_path)
+        return
+    for value, flag in (
+        (protocol, "--protocol"),
+        (dataset, "--dataset"),
+        (detectors, "--detector"),
+    ):
+        if value is None:
+            raise click.UsageError(f"missing option '{flag}' (needed without --suite)")
+    assert protocol is not None
+    assert dataset is not None
+    assert detectors is not None
     names = [d.strip() for d in detectors.split(",") if d.strip()]
     console = Console(stderr=True)
     try:

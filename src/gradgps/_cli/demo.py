@@ -14,36 +14,32 @@ from pathlib import Path
 
 import click
 
+from .options import option
+
 __all__ = ["demo"]
 
 
 @click.command()
-@click.option("--tracks", type=int, default=10, show_default=True, help="simulated drives")
-@click.option("--minutes", type=float, default=10.0, show_default=True, help="minutes per drive")
-@click.option(
-    "--rate", "rate_hz", type=float, default=1.0, show_default=True, help="fixes per second"
-)
-@click.option(
+@option("--tracks", type=int, default=10, help="simulated drives")
+@option("--minutes", type=float, default=10.0, help="minutes per drive")
+@option("--rate", "rate_hz", type=float, default=1.0, help="fixes per second")
+@option(
     "--seed",
     type=int,
     default=0,
-    show_default=True,
     help="seed of the fault injection (the drives use the simulated test split's seed)",
 )
-@click.option(
+@option(
+    "-o",
+    "--output",
     "--out",
     "out_dir",
-    type=click.Path(file_okay=False, path_type=Path),
+    path="dir",
     default=Path("out/demo"),
-    show_default=True,
     help="folder for the outputs",
 )
-@click.option(
-    "--report",
-    "report_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="HTML report to write  [default: OUT/report.html]",
+@option(
+    "--report", "report_path", path="file", help="HTML report to write  [default: OUT/report.html]"
 )
 def demo(
     tracks: int, minutes: float, rate_hz: float, seed: int, out_dir: Path, report_path: Path | None

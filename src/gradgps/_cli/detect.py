@@ -6,23 +6,25 @@ column kept, plus the detector's columns: ``anomaly`` (0/1), ``score``
 ``alert`` (0/1) and ``invalid_reason`` (empty for a usable fix).
 
 CSV input is processed ``--chunk-size`` rows at a time in bounded memory
-(:mod:`gradgps._run.chunked`), with streaming semantics: rows in file order, one
-streaming detector per track, so a fix whose time is not after the previous
-fix of its track is flagged invalid. ``--chunk-size 0`` and the other
-formats read the whole file and run batch detection, which sorts each track
-by time and merges repeated timestamps first. For time-ordered tracks
-without repeated timestamps both give the same numbers.
+(:mod:`gradgps._run.chunked`); ``--chunk-size 0`` and the other formats read
+the whole file. Both read each track in row order with one rule (see
+:func:`gradgps._tracks.preprocess.stream_reasons`): a fix whose time is not
+after the previous usable fix of its track is flagged invalid, never merged,
+so every mode, ``--report`` included, gives the same rows flagged and the
+same clean positions.
 """
 
 from __future__ import annotations
 
+import contextlib
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import click
 
-from .options import column_map, column_options, model_options
+from .options import column_map, column_options, model_options, option
 
 if TYPE_CHECKING:
     from .._tracks.track import ColumnMap
@@ -34,43 +36,54 @@ __all__ = ["detect"]
 @click.argument(
     "input_path", metavar="INPUT", type=click.Path(exists=True, allow_dash=True, path_type=Path)
 )
-@click.option(
+@option(
     "-o",
     "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="output file: .csv, .csv.gz or .parquet (with --follow: CSV lines, "
-    "default standard output)",
+    path="file",
+    help="output table: .csv, .csv.gz or .parquet (with --follow: CSV lines, "
+    "default standard output); optional when --report, --plots, --events, "
+    "--geojson or --gpx is given",
 )
 @model_options
-@click.option(
+@option(
     "--follow",
     is_flag=True,
     help="live mode: read INPUT ('-' = standard input) line by line as it arrives "
     "(CSV with a header, or NMEA) and print one result line per line at once",
 )
-@click.option(
+@option(
     "--report",
     "report_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="also write a self-contained HTML report (track, bounds, summary)",
+    path="file",
+    help="also write a self-contained HTML report (track, bounds, summary, events)",
 )
-@click.option(
+@option(
     "--plots",
     "plots_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
+    path="dir",
     help="also write the report's figures as PNG files into this folder",
 )
-@click.option(
+@option(
+    "--events",
+    "events_path",
+    path="file",
+    help="also write the fault events (track, start, end, duration, bias type, "
+    "time type, peak offset, alert) as a table (.csv, .csv.gz, .parquet)",
+)
+@option(
+    "--geojson",
+    "geojson_path",
+    path="file",
+    help="also write GeoJSON: flagged fixes with their verdicts, the repaired "
+    "track as lines, the events",
+)
+@option("--gpx", "gpx_path", path="file", help="also write the repaired track as GPX")
+@option(
     "--chunk-size",
-    type=click.IntRange(min=0),
+    minimum=0,
     default=200_000,
-    show_default=True,
-    help="CSV rows per chunk (bounded memory, file order per track); "
-    "0 = whole file, batch (sorts each track by time); --report/--plots read "
-    "the whole file",
+    help="CSV rows per chunk (bounded memory); 0 = read the whole file at once. "
+    "Same results either way",
 )
 @column_options
 def detect(
@@ -81,74 +94,219 @@ def detect(
     follow: bool,
     report_path: Path | None,
     plots_dir: Path | None,
+    events_path: Path | None,
+    geojson_path: Path | None,
+    gpx_path: Path | None,
     chunk_size: int,
     fmt: str | None,
     **cols: Any,
 ) -> None:
     """Detect, classify and repair faults in every fix of INPUT; write OUTPUT.
 
-    CSV input is processed in chunks of --chunk-size rows with one streaming
-    detector per track, in file order (memory stays bounded however large
-    the file); other formats, --chunk-size 0 and --report/--plots process
-    the whole file at once, sorting each track by time. With --follow, INPUT
-    is read as a live stream (e.g. 'tail -f log.nmea | gradgps detect
-    --follow -') and results go to standard output.
+    Every mode gives the same answer: each track is read in row order, and a
+    fix whose time is not after the previous usable fix of its track (a
+    repeated or backward timestamp) is flagged invalid, never merged. CSV
+    input is processed in chunks of --chunk-size rows (memory stays bounded
+    however large the file, unless --report/--plots/--geojson/--gpx need the
+    whole track). With --follow, INPUT is read as a live stream (e.g. 'tail
+    -f log.nmea | gradgps detect --follow -') and results go to standard
+    output.
     """
+    extras = (report_path, plots_dir, events_path, geojson_path, gpx_path)
     if follow:
-        if report_path is not None or plots_dir is not None:
-            raise click.UsageError("--report and --plots need a whole file, not --follow")
+        if any(p is not None for p in extras):
+            raise click.UsageError(
+                "--report, --plots, --events, --geojson and --gpx need a whole file, not --follow"
+            )
         _run_follow(input_path, output, model_dir, threshold, fmt, column_map(cols))
         return
-    if output is None:
-        raise click.UsageError("missing option '-o' / '--output'")
+    if output is None and all(p is None for p in extras):
+        raise click.UsageError(
+            "name an output: -o/--output, --report, --plots, --events, --geojson or --gpx"
+        )
     if str(input_path) == "-":
         raise click.UsageError("reading standard input ('-') needs --follow")
+    if report_path is not None or plots_dir is not None:
+        _need_matplotlib()
     import time
 
     import pandas as pd
 
     from .._grad.detector import Detector
+    from .._grad.events import EventBuilder
     from .._io.read import read_table, resolve_format, write_table
+    from .._result import ResultCounts
+    from .._tracks.input_checks import input_warnings, validated_rates
     from .._tracks.track import to_fixes
 
-    whole_file = report_path is not None or plots_dir is not None
-    if chunk_size > 0 and not whole_file and resolve_format(input_path, fmt) == "csv":
-        _detect_in_chunks(input_path, output, model_dir, threshold, chunk_size, column_map(cols))
-        return
-    table = read_table(input_path, fmt, column_map(cols))
-    fixes = to_fixes(table)
+    whole = any(p is not None for p in (report_path, plots_dir, geojson_path, gpx_path))
+    events = EventBuilder() if (events_path or report_path or geojson_path) else None
+    kept: list[tuple[pd.DataFrame, pd.DataFrame]] = []
     detector = Detector(model_dir, threshold=threshold)
-    started = time.perf_counter()
-    result = detector.detect(fixes)
-    elapsed = time.perf_counter() - started
-    frame = table.frame.reset_index(drop=True)
-    clash = [c for c in result.columns if c in frame.columns]
-    if clash:
-        raise click.UsageError(f"{input_path} already has columns {clash}; rename them first")
-    out = pd.concat([frame, result.reset_index(drop=True)], axis=1)
-    write_table(out, output)
-    n = len(out)
-    flagged = int(result["anomaly"].sum())
-    invalid = int((result["invalid_reason"] != "").sum())
-    alerts = int(result["alert"].sum())
-    rate = n / elapsed if elapsed > 0 else float("inf")
-    click.echo(
-        f"wrote {output}: {n:,} rows, {flagged:,} anomalies ({invalid:,} invalid fixes), "
-        f"{alerts:,} alerts; {rate:,.0f} fixes/s"
-    )
-    from .report import write_report_outputs
+    time_column: Any = None
+    if chunk_size > 0 and resolve_format(input_path, fmt) == "csv":
 
-    write_report_outputs(report_path, plots_dir, fixes, result, detector, elapsed, str(input_path))
+        def collect(fixes: pd.DataFrame, result: pd.DataFrame) -> None:
+            if events is not None:
+                events.add(fixes, result)
+            if whole:
+                kept.append((fixes, result))
+
+        summary = _detect_in_chunks(
+            input_path, output, model_dir, threshold, chunk_size, column_map(cols), collect
+        )
+        counts = ResultCounts(summary.rows, summary.anomalies, summary.invalid, summary.alerts)
+        warnings: list[str] = list(summary.warnings)
+        elapsed = summary.seconds
+        rate = summary.rows_per_second
+    else:
+        with _steps() as step:
+            step("read")
+            table = read_table(input_path, fmt, column_map(cols))
+            fixes = to_fixes(table)
+            lowest, highest = validated_rates(detector.model_.config)
+            warnings = input_warnings(fixes, min_rate_hz=lowest, max_rate_hz=highest)
+            time_column = _time_column(table.frame, fixes)
+            step(f"detect {len(fixes):,} fixes")
+            started = time.perf_counter()
+            result = detector.detect_fixes(fixes)
+            elapsed = time.perf_counter() - started
+            frame = table.frame.reset_index(drop=True)
+            clash = [c for c in result.columns if c in frame.columns]
+            if clash:
+                raise click.UsageError(
+                    f"{input_path} already has columns {clash}; rename them first"
+                )
+            if output is not None:
+                step("write")
+                write_table(pd.concat([frame, result.reset_index(drop=True)], axis=1), output)
+        if events is not None:
+            events.add(fixes, result)
+        kept.append((fixes, result))
+        counts = ResultCounts.of(result)
+        rate = counts.rows / elapsed if elapsed > 0 else float("inf")
+    what = str(output) if output is not None else str(input_path)
+    click.echo(
+        f"{'wrote ' if output is not None else ''}{what}: {counts.text()}; {rate:,.0f} fixes/s"
+    )
+    for warning in warnings:
+        # Once, on standard error: the input is outside what the model was validated on.
+        click.echo(f"warning: {warning}", err=True)
+    if not whole and events is None:
+        return
+    if time_column is None and chunk_size > 0:
+        time_column = _csv_time_column(input_path, kept)
+    fixes_all = pd.concat([f for f, _ in kept], ignore_index=True) if whole else None
+    result_all = pd.concat([r for _, r in kept], ignore_index=True) if whole else None
+    table_events = events.events() if events is not None else None
+    if events_path is not None and table_events is not None:
+        write_table(_events_in_input_form(table_events, time_column), events_path)
+        click.echo(f"events: {events_path} ({len(table_events):,} fault events)")
+    if geojson_path is not None:
+        from .._io.export import write_geojson
+
+        assert fixes_all is not None
+        assert result_all is not None
+        write_geojson(geojson_path, fixes_all, result_all, table_events)
+        click.echo(f"geojson: {geojson_path}")
+    if gpx_path is not None:
+        from .._io.export import write_gpx
+
+        assert fixes_all is not None
+        assert result_all is not None
+        write_gpx(gpx_path, fixes_all, result_all)
+        click.echo(f"gpx: {gpx_path} (the repaired track)")
+    if fixes_all is not None and result_all is not None and (report_path or plots_dir):
+        from .report import write_report_outputs
+
+        with _steps() as step:
+            step("draw the report")
+            write_report_outputs(
+                report_path,
+                plots_dir,
+                fixes_all,
+                result_all,
+                detector,
+                elapsed,
+                str(input_path),
+                events=table_events,
+                warnings=warnings,
+            )
+
+
+@contextlib.contextmanager
+def _steps() -> Iterator[Callable[[str], None]]:
+    """A spinner with the current step and the elapsed time on stderr (whole-file runs)."""
+    from rich.console import Console
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    progress = Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    )
+    task = progress.add_task("start", total=None)
+    with progress:
+        yield lambda text: progress.update(task, description=text)
+
+
+def _need_matplotlib() -> None:
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise click.ClickException(
+            "--report and --plots need matplotlib: pip install 'gradgps[report]'"
+        ) from None
+
+
+def _time_column(frame: Any, fixes: Any) -> Any:
+    cmap = fixes.attrs.get("columns")
+    if cmap is None or cmap.time is None or cmap.time not in frame.columns:
+        return None
+    return frame[cmap.time]
+
+
+def _csv_time_column(input_path: Path, kept: list[Any]) -> Any:
+    """A sample of the CSV's time column (first rows), to give event times in the same form."""
+    import pandas as pd
+
+    if not kept:
+        return None
+    cmap = kept[0][0].attrs.get("columns")
+    if cmap is None or cmap.time is None:
+        return None
+    try:
+        return pd.read_csv(input_path, usecols=[cmap.time], nrows=5)[cmap.time]
+    except (ValueError, OSError):
+        return None
+
+
+def _events_in_input_form(events: Any, time_column: Any) -> Any:
+    """Event start/end as the input wrote its times: ISO-8601 text for text or datetime times."""
+    import pandas as pd
+
+    if time_column is None:
+        return events
+    if pd.api.types.is_numeric_dtype(time_column.dtype):
+        return events
+    out = events.copy()
+    for c in ("start", "end"):
+        stamps = pd.to_datetime(out[c].to_numpy(float), unit="s", utc=True)
+        out[c] = [s.isoformat().replace("+00:00", "Z") for s in stamps]
+    return out
 
 
 def _detect_in_chunks(
     input_path: Path,
-    output: Path,
+    output: Path | None,
     model_dir: Path | None,
     threshold: float | None,
     chunk_size: int,
     columns: ColumnMap,
-) -> None:
+    on_result: Any = None,
+) -> Any:
     from rich.console import Console
     from rich.progress import (
         BarColumn,
@@ -179,7 +337,7 @@ def _detect_in_chunks(
         progress.update(task, rate=f"{done / elapsed:,.0f}" if elapsed > 0 else "-")
 
     with progress:
-        summary = detect_csv_in_chunks(
+        return detect_csv_in_chunks(
             input_path,
             output,
             columns=columns,
@@ -188,12 +346,8 @@ def _detect_in_chunks(
             chunk_size=chunk_size,
             on_start=lambda total: progress.update(task, total=total),
             on_chunk=advance,
+            on_result=on_result,
         )
-    click.echo(
-        f"wrote {output}: {summary.rows:,} rows, {summary.anomalies:,} anomalies "
-        f"({summary.invalid:,} invalid fixes), {summary.alerts:,} alerts; "
-        f"{summary.rows_per_second:,.0f} fixes/s"
-    )
 
 
 def _run_follow(

@@ -14,32 +14,30 @@ from typing import Any
 
 import click
 
-from .options import column_map, column_options, model_options
+from .options import column_map, column_options, model_options, option
 
 __all__ = ["detect_fleet"]
 
 
 @click.command("detect-fleet")
 @click.argument("input_dir", type=click.Path(exists=True, file_okay=False, path_type=Path))
-@click.option(
+@option(
     "-o",
     "--output",
     "output_dir",
-    type=click.Path(file_okay=False, path_type=Path),
+    path="dir",
     required=True,
     help="output directory (new or empty); same layout as INPUT_DIR",
 )
-@click.option(
+@option(
     "--scheduler",
-    default=None,
     metavar="ADDRESS",
     help="Dask scheduler to run on, e.g. tcp://10.0.0.5:8786 (workers need gradgps "
     "and the files); default: a local cluster",
 )
-@click.option(
+@option(
     "--workers",
-    type=click.IntRange(min=1),
-    default=None,
+    minimum=1,
     help="local cluster size in single-thread worker processes (default: one per CPU)",
 )
 @model_options

@@ -32,8 +32,37 @@ class BadInputError(CleanError):
     exit_code = 2
 
 
+#: Which extra installs a module an optional part of gradgps imports.
+EXTRAS = {
+    "torch": "train",
+    "dask": "fleet",
+    "distributed": "fleet",
+    "redis": "fleet",
+    "matplotlib": "report",
+    "onnx": "onnx",
+    "onnxruntime": "onnx",
+    "rosbags": "ros",
+    "pyarrow": "io",
+    "geopandas": "geo",
+    "movingpandas": "geo",
+    "shapely": "geo",
+    "pyproj": "geo",
+}
+
+
+def missing_extra(exc: ModuleNotFoundError, command: str | None) -> str | None:
+    """One line naming the extra to install, for a module of an extra; else ``None``."""
+    top = (exc.name or "").split(".")[0]
+    extra = EXTRAS.get(top)
+    if extra is None:
+        return None
+    what = f"'gradgps {command}'" if command else "this command"
+    return f"{what} needs {top}, which is not installed: pip install 'gradgps[{extra}]'"
+
+
 class ErrorReportingGroup(click.Group):
-    """A click group that turns gradgps errors raised by its commands into :class:`CleanError`."""
+    """A click group that turns gradgps errors raised by its commands into :class:`CleanError`,
+    and a missing optional dependency into one line naming the extra to install."""
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
@@ -42,3 +71,8 @@ class ErrorReportingGroup(click.Group):
             raise BadInputError(str(exc)) from exc
         except GradGPSError as exc:
             raise CleanError(str(exc)) from exc
+        except ModuleNotFoundError as exc:
+            line = missing_extra(exc, ctx.invoked_subcommand)
+            if line is None:
+                raise
+            raise CleanError(line) from exc

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from .options import option
+
 __all__ = ["export"]
 
 
@@ -16,13 +18,7 @@ __all__ = ["export"]
     default=None,
     type=click.Path(exists=True, file_okay=False, path_type=Path),
 )
-@click.option(
-    "--onnx",
-    "onnx_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    required=True,
-    help="ONNX file to write",
-)
+@option("--onnx", "onnx_path", path="file", required=True, help="ONNX file to write")
 def export(model_dir: Path | None, onnx_path: Path) -> None:
     """Export the GRU network of MODEL_DIR (default: the shipped model) to ONNX.
 

@@ -8,7 +8,7 @@ from typing import Any
 import click
 
 from .._tracks.track import ColumnMap, Table
-from .options import column_map, column_options
+from .options import column_map, column_options, option
 
 __all__ = ["inject"]
 
@@ -24,27 +24,24 @@ def _read_input(path: Path, fmt: str | None) -> Table:
 @click.argument(
     "input_path", metavar="INPUT", type=click.Path(exists=True, dir_okay=False, path_type=Path)
 )
-@click.option(
+@option(
     "--protocol",
     type=click.Choice(["grad", "sensor-grid"]),
     required=True,
     help="grad: position faults (paper Table 1); sensor-grid: speed/accel/yaw-rate faults",
 )
-@click.option(
+@option(
     "--row",
-    default=None,
     metavar="NAME",
     help="sensor-grid row, e.g. instant-25, bias-5-3, drift-4-20, or mixed (default)",
 )
-@click.option("--seed", type=int, required=True, help="random seed; same seed, same output bytes")
-@click.option(
-    "--scale", type=float, default=1.0, show_default=True, help="multiplies every fault magnitude"
-)
-@click.option(
+@option("--seed", type=int, default=0, help="random seed; same seed, same output bytes")
+@option("--scale", type=float, default=1.0, help="multiplies every fault magnitude")
+@option(
     "-o",
     "--output",
     "output",
-    type=click.Path(dir_okay=False, path_type=Path),
+    path="file",
     required=True,
     help="output CSV: the input columns (corrupted) plus label columns",
 )

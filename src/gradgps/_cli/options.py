@@ -10,7 +10,7 @@ import click
 
 from .._tracks.track import ColumnMap
 
-__all__ = ["column_map", "column_options", "model_options"]
+__all__ = ["column_map", "column_options", "model_options", "option"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -40,8 +40,10 @@ def column_options(func: F) -> F:
         "--format",
         "fmt",
         default=None,
-        type=click.Choice(["csv", "parquet", "gpx", "nmea", "rosbag"], case_sensitive=False),
-        help="input format; by default from the file extension",
+        type=click.Choice(
+            ["csv", "parquet", "gpx", "nmea", "geojson", "rosbag"], case_sensitive=False
+        ),
+        help="input format; by default from the content (first bytes), then the extension",
     )(func)
     return func
 
@@ -57,7 +59,8 @@ def model_options(func: F) -> F:
         "--threshold",
         type=float,
         default=None,
-        help="anomaly threshold on the score, overriding the model's",
+        help="anomaly threshold on the score, in (0, 1)  [default: the model's own; "
+        "the shipped model's is in its config.json]",
     )(func)
     func = click.option(
         "--model",
@@ -67,3 +70,29 @@ def model_options(func: F) -> F:
         help="model directory from 'gradgps train' (default: the shipped model)",
     )(func)
     return func
+
+
+def option(
+    *decls: str, path: str | None = None, minimum: float | None = None, **kwargs: Any
+) -> Callable[[F], F]:
+    """``click.option`` with the house conventions, written once for every command.
+
+    ``path``: ``"file"`` or ``"dir"`` (``"existing file"``, ``"existing dir"``
+    when it must exist) makes a :class:`pathlib.Path` option of that kind;
+    ``minimum`` (an int or a float) a number option with that lower bound; a
+    default other than ``None`` is shown in ``--help``.
+    """
+    if minimum is not None:
+        kwargs["type"] = (
+            click.IntRange(min=minimum)
+            if isinstance(minimum, int)
+            else click.FloatRange(min=minimum)
+        )
+    if path is not None:
+        existing, _, kind = path.rpartition(" ")
+        kwargs["type"] = click.Path(
+            exists=bool(existing), dir_okay=kind == "dir", file_okay=kind == "file", path_type=Path
+        )
+    if kwargs.get("default") is not None and not kwargs.get("is_flag"):
+        kwargs.setdefault("show_default", True)
+    return click.option(*decls, **kwargs)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +20,8 @@ def write_report_outputs(
     elapsed_s: float,
     source: str,
     extra_summary: Mapping[str, str] | None = None,
+    events: Any = None,
+    warnings: Sequence[str] = (),
 ) -> None:
     """Write the HTML report and/or the PNG figures and say where they went."""
     if report_path is None and plots_dir is None:
@@ -40,6 +42,8 @@ def write_report_outputs(
         model=f"{detector.model_.path} (sha256 {detector.model_.checksum[:12]})",
         elapsed_s=elapsed_s,
         extra_summary=dict(extra_summary or {}),
+        events=events,
+        warnings=list(warnings),
     )
     if report_path is not None:
         path = write_report(inputs, report_path)

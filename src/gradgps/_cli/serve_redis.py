@@ -18,7 +18,7 @@ from types import FrameType
 
 import click
 
-from .options import model_options
+from .options import model_options, option
 
 __all__ = ["serve_redis"]
 
@@ -27,53 +27,49 @@ _STATUS_EVERY_S = 10.0
 
 
 @click.command("serve-redis")
-@click.option(
+@option(
     "--url",
     required=True,
     metavar="redis://HOST:PORT[/DB]",
     help="Redis server (redis://, rediss:// or unix:// URL)",
 )
-@click.option("--input-stream", required=True, metavar="S_IN", help="stream the vehicles write to")
-@click.option("--output-stream", required=True, metavar="S_OUT", help="stream results go to")
-@click.option(
+@option("--input-stream", required=True, metavar="S_IN", help="stream the vehicles write to")
+@option("--output-stream", required=True, metavar="S_OUT", help="stream results go to")
+@option(
     "--group",
     required=True,
     metavar="G",
     help="consumer group (created, reading from the start, when missing)",
 )
-@click.option(
+@option(
     "--consumer",
     required=True,
     metavar="NAME",
     help="this worker's name, unique among running workers",
 )
 @model_options
-@click.option(
+@option(
     "--batch-size",
-    type=click.IntRange(min=1),
+    minimum=1,
     default=100,
-    show_default=True,
     help="messages per read and per transaction",
 )
-@click.option(
+@option(
     "--lease-ms",
-    type=click.IntRange(min=100),
+    minimum=100,
     default=10_000,
-    show_default=True,
     help="a worker silent this long is taken for dead and its messages taken over",
 )
-@click.option(
+@option(
     "--block-ms",
-    type=click.IntRange(min=1),
+    minimum=1,
     default=1000,
-    show_default=True,
     help="longest wait for new input when idle",
 )
-@click.option(
+@option(
     "--exit-when-idle",
     "exit_when_idle_s",
-    type=click.FloatRange(min=0.0),
-    default=None,
+    minimum=0.0,
     metavar="SECONDS",
     help="stop after this long without input (drain a backlog)",
 )

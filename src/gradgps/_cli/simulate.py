@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from .options import option
+
 __all__ = ["simulate"]
 
 # Above this many tracks a progress bar is worth its screen line.
@@ -13,37 +15,24 @@ _PROGRESS_FROM = 20
 
 
 @click.command()
-@click.option(
+@option(
     "--minutes",
     type=click.FloatRange(min=0.0, min_open=True, max=1440.0),
     default=30.0,
-    show_default=True,
     help="length of each drive",
 )
-@click.option(
-    "--rate",
-    "rate_hz",
-    type=click.FloatRange(0.1, 100.0),
-    default=1.0,
-    show_default=True,
-    help="fixes per second",
+@option(
+    "--rate", "rate_hz", type=click.FloatRange(0.1, 100.0), default=1.0, help="fixes per second"
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="same seed, same bytes")
-@click.option(
+@option("--seed", type=int, default=0, help="same seed, same bytes")
+@option(
     "--tracks",
-    type=click.IntRange(min=1),
+    minimum=1,
     default=1,
-    show_default=True,
     help="number of drives (track ids 0..N-1, start points spread around the origin)",
 )
-@click.option("--no-imu", is_flag=True, help="leave out accel_x (m/s^2) and yaw_rate (deg/s)")
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    required=True,
-    help="output file: .csv or .parquet",
-)
+@option("--no-imu", is_flag=True, help="leave out accel_x (m/s^2) and yaw_rate (deg/s)")
+@option("-o", "--output", path="file", required=True, help="output file: .csv or .parquet")
 def simulate(
     minutes: float, rate_hz: float, seed: int, tracks: int, no_imu: bool, output: Path
 ) -> None:

@@ -16,68 +16,58 @@ from typing import Any
 
 import click
 
-from .options import column_map, column_options
+from .options import column_map, column_options, option
 
 __all__ = ["train"]
 
+#: Injection seeds of the recipe: three passes of protocol ``grad`` over its drives.
+RECIPE_SEEDS = (101, 102, 103)
+
 
 @click.command()
-@click.option(
+@option(
     "--data",
     "data_paths",
+    path="existing file",
     multiple=True,
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
     help="clean track file(s) to train on (repeatable)",
 )
-@click.option(
+@option(
     "--val-data",
     "val_paths",
+    path="existing file",
     multiple=True,
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
     help="clean track file(s) for validation (repeatable)",
 )
-@click.option(
+@option(
     "--dataset",
-    type=click.Choice(["driveplotr", "tuc", "simulated"]),
-    default=None,
-    help="train on a named data set's train split, validate on its validation split",
+    type=click.Choice(["driveplotr", "tuc", "simulated", "recipe"]),
+    help="train on a named data set's train split, validate on its validation split; "
+    "`recipe` is the shipped model's mix (simulated drives at 0.5-10 Hz, the real data "
+    "sets' train splits, columns withheld at random, dropouts, frozen fixes; "
+    "docs/model-card.md)",
 )
-@click.option(
+@option(
     "--data-dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
+    path="dir",
     help="folder of the real data sets (default $GRADGPS_DATA, then ../shared/data)",
 )
-@click.option(
+@option(
     "--protocol",
     type=click.Choice(["grad"]),
     default="grad",
-    show_default=True,
     help="fault injection protocol for the labels (position faults)",
 )
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(file_okay=False, path_type=Path),
-    required=True,
-    help="model directory to write",
-)
-@click.option(
-    "--time-budget",
-    type=float,
-    default=180.0,
-    show_default=True,
-    help="seconds of training at most",
-)
-@click.option(
+@option("-o", "--output", path="dir", required=True, help="model directory to write")
+@option("--time-budget", type=float, default=180.0, help="seconds of training at most")
+@option(
     "--max-epochs",
     type=int,
     default=400,
-    show_default=True,
     help="epochs at most (a fixed count, with a large --time-budget, makes the run "
     "reproducible byte for byte)",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="training seed")
+@option("--seed", type=int, default=0, help="training seed")
 @column_options
 def train(
     data_paths: tuple[Path, ...],
@@ -104,7 +94,18 @@ def train(
         raise click.UsageError(
             "nothing to train on: give --data FILE (your clean logs) or --dataset"
         )
-    if dataset is not None:
+    spec = None
+    validated = None
+    if dataset == "recipe":
+        from .._train.grad import GradTrainingSet
+        from .._train.recipe import recipe_tables, recipe_validated
+
+        train_tables = recipe_tables("train", data_dir=data_dir)
+        val_tables = recipe_tables("validation", data_dir=data_dir)
+        spec = GradTrainingSet(seeds=RECIPE_SEEDS, freeze_share=0.02, stale_start=0.1)
+        source = "recipe (gradgps._train.recipe.DefaultRecipe)"
+        validated = recipe_validated()
+    elif dataset is not None:
         from .._data.datasets import load_dataset
 
         train_tables = [load_dataset(dataset, "train", data_dir=data_dir)]
@@ -121,6 +122,8 @@ def train(
         train_tables,
         val_tables,
         output,
+        data=spec,
+        validated=validated,
         time_budget_s=time_budget,
         seed=seed,
         max_epochs=max_epochs,

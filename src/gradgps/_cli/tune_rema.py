@@ -7,70 +7,59 @@ from pathlib import Path
 
 import click
 
+from .options import option
+
 __all__ = ["tune_rema"]
 
 
 @click.command("tune-rema")
-@click.option(
+@option(
     "--protocol",
     type=click.Choice(["grad"]),
     default="grad",
-    show_default=True,
     help="fault protocol (position faults with per-channel labels)",
 )
-@click.option("--dataset", type=click.Choice(["driveplotr", "tuc", "simulated"]), required=True)
-@click.option(
+@option("--dataset", type=click.Choice(["driveplotr", "tuc", "simulated"]), required=True)
+@option(
     "--split",
     type=click.Choice(["train", "validation", "test"]),
     default="validation",
-    show_default=True,
     help="split to tune on (never tune on test)",
 )
-@click.option(
+@option(
     "--seeds",
     default="0,1,2",
-    show_default=True,
     metavar="S[,S...]",
     help="injection seeds, pooled (several draws make the choice less lucky)",
 )
-@click.option(
-    "--mode",
-    type=click.Choice(["trend", "paper"]),
-    default="trend",
-    show_default=True,
-    help="REMA mode to tune",
-)
-@click.option(
+@option("--mode", type=click.Choice(["trend", "paper"]), default="trend", help="REMA mode to tune")
+@option(
     "--speed-heading/--no-speed-heading",
     default=True,
-    show_default=True,
     help="trend mode: predict steps from reported speed and heading",
 )
-@click.option(
+@option(
     "--data-dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
+    path="dir",
     help="folder with the shared drives; default $GRADGPS_DATA, then ../shared/data",
 )
-@click.option(
+@option(
     "--grid",
     "grid_path",
-    type=click.Path(dir_okay=False, exists=True, path_type=Path),
-    default=None,
+    path="existing file",
     help='JSON object of REMA parameter lists, e.g. {"min_margin": [5, 8]} '
     "(default: the built-in grid, about 15,000 combinations)",
 )
-@click.option(
+@option(
     "--table",
     "table_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
+    path="file",
     help="also write every REMA combination's scores here (CSV)",
 )
-@click.option(
+@option(
     "-o",
     "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
+    path="file",
     required=True,
     help="JSON file for the best settings (gradgps bench --rema-params FILE)",
 )

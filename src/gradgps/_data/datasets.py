@@ -15,18 +15,69 @@ import pandas as pd
 
 from .._exceptions import ConfigError, DataNotFoundError
 
-__all__ = ["DATASETS", "SIMULATED_SPLITS", "SPLITS", "find_data_dir", "load_dataset"]
+__all__ = [
+    "DATASETS",
+    "SIMULATED_SPLITS",
+    "SPLITS",
+    "TEST_ONLY",
+    "find_data_dir",
+    "load_dataset",
+]
 
-DATASETS = ("driveplotr", "tuc", "simulated")
+DATASETS = (
+    "driveplotr",
+    "tuc",
+    "simulated",
+    "nl_motorway",
+    "nl_motorway_gopro",
+    "austin2006",
+    "nevada",
+    "ublox_f9k",
+    "munich",
+)
 SPLITS = ("train", "validation", "test")
 
-_FILES = {"driveplotr": "driveplotr_nds.csv", "tuc": "tuc_urban_gt.csv"}
-_TRACK_COLUMN = {"driveplotr": "drive", "tuc": "trace"}
+_FILES = {
+    "driveplotr": "driveplotr_nds.csv",
+    "tuc": "tuc_urban_gt.csv",
+    "nl_motorway": "nl_motorway_1hz.csv",
+    "nl_motorway_gopro": "nl_motorway_gopro_1hz.csv",
+    "austin2006": "austin2006_logger_1hz.csv",
+    "nevada": "garmin_nmea_nevada2005.csv",
+    "ublox_f9k": "ublox_f9k_mtv_1hz.csv",
+    "munich": "munich_bmw_1hz.csv",
+}
+_TRACK_COLUMN = {"driveplotr": "drive", "tuc": "trace"}  # the others: "track"
 # Held-out tracks; "train" is every other track in the file.
 _HELD_OUT: dict[str, dict[str, tuple[object, ...]]] = {
     "driveplotr": {"test": (11, 14, 31), "validation": (9, 10, 12, 13, 15)},
     "tuc": {"test": ("chemnitz_city",), "validation": ("frankfurt_westend_tower",)},
 }
+# The drives added on 2026-11-23: each split is the tracks whose id starts with one of
+# these prefixes (by trip or household, never by receiver: the NL receivers rode in
+# one car together).
+_NL: dict[str, tuple[str, ...]] = {
+    "train": ("trip01",),
+    "validation": ("trip02",),
+    "test": ("trip03",),
+}
+_BY_PREFIX: dict[str, dict[str, tuple[str, ...]]] = {
+    "nl_motorway": _NL,
+    "nl_motorway_gopro": _NL,
+    "austin2006": {
+        "train": ("austin_321180", "austin_425114"),
+        "validation": ("austin_425131",),
+        "test": ("austin_426309",),
+    },
+    "nevada": {
+        "train": ("garmin_nv2005_s1_00",),
+        "validation": ("garmin_nv2005_s1_01",),
+        "test": ("garmin_nv2005_s2_00",),
+    },
+}
+#: Data sets with a test split only (every row is test): too small or too unlike the
+#: others to train on, kept for measuring.
+TEST_ONLY = ("ublox_f9k", "munich")
 
 #: (n_tracks, minutes, rate_hz, seed) of the simulated fleet for each split; distinct
 #: seeds so no simulated drive appears in two splits.
@@ -63,14 +114,23 @@ def _check(name: str, split: str) -> None:
         raise ConfigError(f"unknown dataset {name!r}; choose one of {', '.join(DATASETS)}")
     if split not in SPLITS:
         raise ConfigError(f"unknown split {split!r}; choose one of {', '.join(SPLITS)}")
+    if name in TEST_ONLY and split != "test":
+        raise ConfigError(
+            f"data set {name!r} has a test split only (see shared/data/README.md): "
+            f"it is for measuring, not for {split}; use split 'test' or another data set"
+        )
 
 
 def load_dataset(
     name: str, split: str = "test", *, data_dir: str | Path | None = None
 ) -> pd.DataFrame:
-    """Rows of data set ``name`` (``driveplotr``, ``tuc`` or ``simulated``) in ``split``.
+    """Rows of data set ``name`` (one of :data:`DATASETS`) in ``split``.
 
-    Real data keeps the file's columns and row order (index 0..n-1).
+    Real data keeps the file's columns (``glitch`` included, where a file has
+    it) and row order (index 0..n-1). The drives added on 2026-11-23 have
+    their track id in ``track`` and time in ``t``; ``ublox_f9k`` and
+    ``munich`` have a test split only (:data:`TEST_ONLY`): other splits are a
+    :class:`ConfigError`.
     ``simulated`` calls the fleet simulator with the split's fixed settings
     (:data:`SIMULATED_SPLITS`) and names its sensor channels as in the
     DrivePlotR file (``accel_x`` -> ``accel_x_mps2``, ``yaw_rate`` ->
@@ -94,12 +154,16 @@ def load_dataset(
             "(see shared/data/README.md), pass --data-dir DIR or set GRADGPS_DATA"
         )
     table = pd.read_csv(path)
-    track = table[_TRACK_COLUMN[name]]
-    held = _HELD_OUT[name]
-    if split == "train":
-        keep = ~track.isin([v for ids in held.values() for v in ids])
+    track = table[_TRACK_COLUMN.get(name, "track")]
+    if name in TEST_ONLY:
+        keep = pd.Series(True, index=table.index)
+    elif name in _BY_PREFIX:
+        ids = track.astype(str)
+        keep = ids.str.startswith(_BY_PREFIX[name][split])
+    elif split == "train":
+        keep = ~track.isin([v for ids in _HELD_OUT[name].values() for v in ids])
     else:
-        keep = track.isin(list(held[split]))
+        keep = track.isin(list(_HELD_OUT[name][split]))
     out = table[keep.to_numpy()].reset_index(drop=True)
     out.attrs["source"] = f"{path} [{split}]"
     return out

@@ -29,9 +29,9 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
+from .._result import invalid_reasons
 from .._tracks.geo import LocalFrame
-from .._tracks.preprocess import invalid_reasons
-from .._tracks.track import ColumnMap, to_fixes
+from .._tracks.track import ColumnMap, to_fixes, track_rows
 
 __all__ = [
     "BIAS_TYPES",
@@ -43,6 +43,7 @@ __all__ = [
     "TIME_TYPES",
     "SensorFaultRow",
     "grad_rates",
+    "inject_freeze",
     "inject_grad",
     "inject_sensor_grid",
     "sensor_grid_rates",
@@ -207,17 +208,6 @@ def _check_scale(scale: float) -> None:
         raise ConfigError(f"scale must be a positive finite number, got {scale}")
 
 
-def _track_order(fixes: pd.DataFrame, usable: np.ndarray) -> list[np.ndarray]:
-    """Row numbers of each track's usable fixes in time order, tracks in order of appearance."""
-    tracks = fixes["track"].to_numpy(dtype=object)
-    t = fixes["t"].to_numpy(dtype=np.float64)
-    out = []
-    for track in pd.unique(pd.Series(tracks[usable], dtype=object)):
-        rows = np.flatnonzero(usable & (tracks == track))
-        out.append(rows[np.argsort(t[rows], kind="stable")])
-    return out
-
-
 def inject_grad(
     table: pd.DataFrame, *, seed: int, scale: float = 1.0, columns: ColumnMap | None = None
 ) -> pd.DataFrame:
@@ -248,7 +238,7 @@ def inject_grad(
     lon = lon_true.copy()
     labels = {name: _Channel.empty(n) for name in ("lat", "lon")}
     scheduler = _GradScheduler(np.random.default_rng(seed), scale)
-    for rows in _track_order(fixes, invalid_reasons(fixes) == ""):
+    for rows in track_rows(fixes, invalid_reasons(fixes) == ""):
         frame = LocalFrame(float(lat_true[rows[0]]), float(lon_true[rows[0]]))
         east, north = frame.to_local(lat_true[rows], lon_true[rows])
         for name in ("lat", "lon"):
@@ -460,7 +450,7 @@ def inject_sensor_grid(
     rng = np.random.default_rng(seed)
     usable = np.isfinite(fixes["t"].to_numpy(dtype=np.float64))
     next_id = 0
-    for rows in _track_order(fixes, usable):
+    for rows in track_rows(fixes, usable):
         step = 0
         while True:
             step += int(rng.geometric(SENSOR_START_PROBABILITY)) - 1
@@ -514,3 +504,89 @@ def sensor_grid_rates(labelled: pd.DataFrame) -> pd.DataFrame:
         row["all"] = 100.0 * float(np.sum(sel)) / n
         table[kind] = row
     return pd.DataFrame.from_dict(table, orient="index")
+
+
+def inject_freeze(
+    labelled: pd.DataFrame,
+    *,
+    seed: int,
+    share: float = 0.02,
+    hold_s: tuple[float, float] = (3.0, 60.0),
+    stale_start: float = 0.1,
+    stale_offset_m: tuple[float, float] = (30.0, 500.0),
+    columns: ColumnMap | None = None,
+) -> pd.DataFrame:
+    """Add *frozen fixes* to a labelled table (protocol ``grad`` output): a receiver
+    repeating its last solution while the vehicle moves on.
+
+    Two shapes a GNSS receiver really produces (see the Munich and Austin
+    drives in ``../shared/data``): a **hold** inside a drive (tunnel, lost
+    lock: the last fix repeats for ``hold_s`` seconds, then the position jumps
+    to where the vehicle is), and a **stale start** (probability
+    ``stale_start`` per track: the first fixes repeat a position from before,
+    ``stale_offset_m`` away, until the first real fix). Held fixes are
+    labelled ``label_anomaly = 1`` with bias ``freeze`` (time type
+    ``transient``); the jump back to the truth is *not* a fault. Holds are
+    placed where the vehicle moves (a frozen fix of a parked car is a true
+    fix) and only on fixes without a label, about ``share`` of each track's
+    fixes. Seeded: the same input and seed give the same bytes.
+    """
+    if not (0 <= share < 1 and 0 <= stale_start <= 1):
+        raise ConfigError(
+            f"share must be in [0, 1) and stale_start in [0, 1], got {share}, {stale_start}"
+        )
+    fixes = to_fixes(labelled, columns)
+    cmap: ColumnMap = fixes.attrs["columns"]
+    assert cmap.lat is not None
+    assert cmap.lon is not None
+    rng = np.random.default_rng(seed)
+    result = labelled.copy()
+    lat = result[cmap.lat].to_numpy(dtype=np.float64).copy()
+    lon = result[cmap.lon].to_numpy(dtype=np.float64).copy()
+    anomaly = result["label_anomaly"].to_numpy().astype(np.int8).copy()
+    bias = result["label_bias"].to_numpy(dtype=object).copy()
+    time_type = result["label_time"].to_numpy(dtype=object).copy()
+    t_all = fixes["t"].to_numpy(dtype=np.float64)
+    for rows in track_rows(fixes, invalid_reasons(fixes) == ""):
+        if rows.size < 10:
+            continue
+        t = t_all[rows]
+        frame = LocalFrame(float(lat[rows[0]]), float(lon[rows[0]]))
+        east, north = frame.to_local(lat[rows], lon[rows])
+        moving = np.r_[np.hypot(np.diff(east), np.diff(north)) > 0.5, False]
+        free = anomaly[rows] == 0
+        if rng.random() < stale_start:
+            end = int(np.searchsorted(t, t[0] + rng.uniform(*hold_s)))
+            end = min(max(end, 2), rows.size - 5)
+            if free[: end + 1].all():
+                angle = rng.uniform(0, 2 * np.pi)
+                dist = rng.uniform(*stale_offset_m)
+                s_lat, s_lon = frame.to_geodetic(
+                    east[end] + dist * np.sin(angle), north[end] + dist * np.cos(angle)
+                )
+                held = rows[:end]
+                lat[held], lon[held] = s_lat, s_lon
+                anomaly[held], bias[held], time_type[held] = 1, "freeze", "transient"
+                free[:end] = False
+        budget = share * rows.size
+        tries = 0
+        while budget > 0 and tries < 50:
+            tries += 1
+            start = int(rng.integers(1, rows.size - 3))
+            stop = int(np.searchsorted(t, t[start] + rng.uniform(*hold_s)))
+            stop = min(stop, rows.size - 1)
+            span = slice(start + 1, stop)
+            # The vehicle must move during the hold, and one clean fix must follow it.
+            if stop - start < 2 or not free[start : stop + 1].all() or not moving[span].any():
+                continue
+            held = rows[span]
+            lat[held], lon[held] = lat[rows[start]], lon[rows[start]]
+            anomaly[held], bias[held], time_type[held] = 1, "freeze", "transient"
+            free[max(start - 5, 0) : stop + 5] = False
+            budget -= stop - start - 1
+    result[cmap.lat] = lat
+    result[cmap.lon] = lon
+    result["label_anomaly"] = anomaly
+    result["label_bias"] = bias
+    result["label_time"] = time_type
+    return result

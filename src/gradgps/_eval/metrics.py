@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike
 
+from .._result import f1_score
 from .._tracks.geo import haversine_m
 
 __all__ = [
@@ -48,7 +49,7 @@ def class_scores(y_true: ArrayLike, y_pred: ArrayLike) -> dict[str, dict[str, fl
         out[name] = {
             "precision": _ratio(tp, tp + fp),
             "recall": _ratio(tp, tp + fn),
-            "f1": _ratio(2 * tp, 2 * tp + fp + fn),
+            "f1": f1_score(t == positive, p == positive),
         }
     return out
 

@@ -9,16 +9,15 @@ Two faces, one computation (:mod:`gradgps._grad.pipeline`):
 * batch: ``detect(frame)`` for any number of tracks returns one result row
   per input row, in input order.
 
-For time-ordered input whose time steps are all at least :data:`MIN_STEP_S`
-(1 ms), both give the same numbers bit for bit (tested): batch runs the same
-compiled per-fix step. Where they cannot agree, by nature: batch sorts each
-track by time and merges fixes less than 1 ms apart (repeated timestamps)
-first, while a stream cannot reorder the past, so a fix whose time is not at
-least 1 ms after the previous one is *invalid* there (flagged with a reason,
-never used).
+Both read each track in row order with one rule and give the same numbers
+bit for bit (tested), whatever the order of the input: batch runs the same
+compiled per-fix step on the fixes a stream would use. A fix whose time is
+not at least :data:`MIN_STEP_S` (1 ms) after the previous usable fix of its
+track (a repeated or backward timestamp) is *invalid* in both: flagged with a
+reason, never merged or averaged with its neighbours, never used.
 
 Invalid fixes (time, latitude or longitude missing, not finite or out of
-range; in a stream also not after the previous fix) come back with
+range; a repeated or backward time) come back with
 ``anomaly=1``, ``invalid_reason`` saying why, NaN score and clean position,
 and never touch the detector's state. Speed and heading are optional: a
 missing, non-numeric or infinite reading is treated as absent (NaN), and the
@@ -45,7 +44,7 @@ period, and :meth:`Detector.set_state` checks every array's size and every
 counter that the compiled step uses as an index against the model, so a
 damaged or foreign state is refused (``ConfigError``), never run.
 
-``gradgps.TrackStreams`` (below) keeps one streaming Detector per track id.
+``gradgps.MultiTrackDetector`` (below) keeps one streaming Detector per track id.
 """
 
 from __future__ import annotations
@@ -67,11 +66,23 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from .._exceptions import ConfigError, GradGPSError, ModelError
-from .._result import PointResult
+from .._result import (
+    RESULT_DTYPES,
+    STEP_TOLERANCE_S,
+    PointResult,
+    as_number,
+    decode_floats,
+    encode_floats,
+    fix_reason,
+    reading,
+    result_frame,
+    results_frame,
+)
 from .._tracks.geo import LocalFrame, far_apart_scalar
-from .._tracks.preprocess import NULL_ISLAND, preprocess
-from .._tracks.track import CANONICAL_COLUMNS, to_fixes
+from .._tracks.preprocess import stream_reasons
 from .core import N_CORE_PARAMS, _layout
+from .defaults import FRAME_RADIUS_M, MIN_STEP_S, grad_points
+from .events import fault_events
 from .model_io import CONFIG_FILE, WEIGHTS_FILE, gru_model, load_model
 from .motion import N_MOTION_STATE
 from .offset import N_OFFSET_STATE
@@ -90,6 +101,7 @@ from .pipeline import (
     grad_segments,
     grad_step,
     new_state,
+    new_work,
     pipeline_feature_names,
     warmup_periods,
 )
@@ -105,35 +117,15 @@ __all__ = [
     "MIN_STEP_S",
     "Detector",
     "GradModel",
-    "TrackStreams",
+    "MultiTrackDetector",
     "load_grad_model",
 ]
 
-#: Shortest time step between two fixes of a track. No receiver reports faster
-#: than 1 kHz: closer fixes are one instant (merged in batch, invalid in a
-#: stream). Steps are compared with a tolerance of :data:`STEP_TOLERANCE_S`:
-#: at Unix-time magnitudes a float64 time has a resolution of about 0.24 us, so
-#: a true 1 ms step can come out as 0.99999 ms.
-MIN_STEP_S = 1e-3
-STEP_TOLERANCE_S = 1e-5
+#: The shortest step a stored warm-up may hold (see :data:`gradgps._result.STEP_TOLERANCE_S`).
 _MIN_STEP = MIN_STEP_S - STEP_TOLERANCE_S
-
-#: A fix farther than this from its segment's first fix starts a new segment
-#: (with its own local frame): the projection is exact to 1 mm within 100 km.
-FRAME_RADIUS_M = 100_000.0
 
 #: Name of the model shipped inside the package, used by ``Detector()``.
 DEFAULT_MODEL = "default"
-RESULT_DTYPES = {
-    "anomaly": "int8",
-    "score": "float64",
-    "bias_type": "object",
-    "time_type": "object",
-    "lat_clean": "float64",
-    "lon_clean": "float64",
-    "alert": "int8",
-    "invalid_reason": "object",
-}
 
 
 @dataclass(frozen=True)
@@ -231,44 +223,23 @@ def load_grad_model(model: str | os.PathLike[str] | None = None) -> GradModel:
     return _load_cached(resolved, max(stamps))
 
 
-def _check_fix(t: float, lat: float, lon: float, last_t: float | None) -> str:
-    if not math.isfinite(t):
-        return "time missing or not finite"
-    if not math.isfinite(lat):
-        return "latitude missing or not finite"
-    if abs(lat) > 90.0:
-        return "latitude outside +-90"
-    if not math.isfinite(lon):
-        return "longitude missing or not finite"
-    if abs(lon) > 180.0:
-        return "longitude outside +-180"
-    if lat == 0.0 and lon == 0.0:
-        return NULL_ISLAND
-    if last_t is not None and t <= last_t:
-        return "time not after the previous fix"
-    if last_t is not None and t - last_t < _MIN_STEP:
-        return "time less than 1 ms after the previous fix"
-    return ""
-
-
 _STATE_FORMAT = 3
 _NON_FINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
 
 
-def _encode_float(value: float) -> float | str:
-    if math.isfinite(value):
-        return value
-    return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+def _decode_float(value: Any) -> float:
+    """One number of a stored state (see :func:`gradgps._result.decode_floats`)."""
+    decoded = decode_floats([value])
+    assert decoded is not None
+    return decoded[0]
 
 
-def _decode_float(value: float | str) -> float:
-    if isinstance(value, str):
-        if value not in _NON_FINITE:
-            raise ValueError(f"{value!r} is not a number")
-        return _NON_FINITE[value]
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise TypeError(f"{value!r} is not a number")
-    return float(value)
+def _decode_list(values: Any) -> list[float]:
+    """A stored list of numbers; ``TypeError`` for anything else (``None`` included)."""
+    decoded = decode_floats(values)
+    if decoded is None:
+        raise TypeError("a list of numbers is missing")
+    return decoded
 
 
 def _settings_checksum(model: GradModel) -> str:
@@ -309,23 +280,23 @@ def _check_counters(P: NDArray[np.float64], S: NDArray[np.float64], seg_count: i
         raise AssertionError("REMA state layout changed")
 
 
-def _number(value: float | None) -> float:
-    if value is None:
-        return math.nan
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return math.nan
-
-
-def _reading(value: float | None) -> float:
-    """An optional reading (speed, heading): a finite number, or NaN for missing/unusable."""
-    number = _number(value)
-    return number if math.isfinite(number) else math.nan
+def _time_number(value: Any) -> float:
+    """A fix time as seconds: numbers as they are; datetimes, Timestamps, ISO-8601 strings to unix."""
+    if isinstance(value, str | pd.Timestamp | np.datetime64) or hasattr(value, "isoformat"):
+        try:
+            stamp: Any = pd.Timestamp(value)
+        except (TypeError, ValueError):
+            return math.nan
+        if pd.isna(stamp):
+            return math.nan
+        if stamp.tzinfo is None:
+            stamp = stamp.tz_localize("UTC")
+        return float(stamp.value) / 1e9
+    return as_number(value)
 
 
 def _readings(values: NDArray[np.float64]) -> NDArray[np.float64]:
-    """:func:`_reading` for a whole column."""
+    """:func:`gradgps._result.reading` for a whole column."""
     return np.where(np.isfinite(values), values, np.nan)
 
 
@@ -370,6 +341,7 @@ class Detector:
         self._P: NDArray[np.float64] | None = None
         self._S: NDArray[np.float64] | None = None
         self._H: NDArray[np.float32] | None = None
+        self._work: Any = None
         self._seg_count = 0
         # The segment's fixes while its period is provisional: (t, lat, lon, speed, heading).
         self._warm: list[tuple[float, float, float, float, float]] = []
@@ -381,15 +353,19 @@ class Detector:
         self._P = m.params.array(period, self._frame, m.dims)
         self._S = new_state(self._P)
         self._H = np.zeros(int(m.dims[1] + m.dims[2]), np.float32)
+        self._work = new_work(self._P)
 
     def _step(self, dt: float, lat: float, lon: float, speed: float, heading: float) -> None:
         assert self._P is not None
         assert self._S is not None
+        if self._work is None:  # restored by set_state: made on the first step
+            self._work = new_work(self._P)
         grad_step(
             self._P,
             self._S,
             self._H,
             self.model_.gru_params,
+            self._work,
             dt,
             lat,
             lon,
@@ -400,7 +376,7 @@ class Detector:
 
     def update(
         self,
-        t: float,
+        t: Any,
         lat: float,
         lon: float,
         speed: float | None = None,
@@ -409,14 +385,17 @@ class Detector:
     ) -> PointResult:
         """Score one fix of this detector's track; returns at once, never raises on bad values.
 
+        ``t``: seconds (unix or relative), or a datetime, ``pandas.Timestamp``
+        or ISO-8601 string (naive ones read as UTC).
+
         ``channels`` (other sensor readings) are accepted for interface
         compatibility and ignored by the position model.
         """
-        t_f, lat_f, lon_f = _number(t), _number(lat), _number(lon)
-        reason = _check_fix(t_f, lat_f, lon_f, self._last_t)
+        t_f, lat_f, lon_f = _time_number(t), as_number(lat), as_number(lon)
+        reason = fix_reason(t_f, lat_f, lon_f, self._last_t, MIN_STEP_S)
         if reason:
             return PointResult.invalid(reason)
-        fix = (t_f, lat_f, lon_f, _reading(speed), _reading(heading))
+        fix = (t_f, lat_f, lon_f, reading(speed), reading(heading))
         dt = 0.0 if self._last_t is None else t_f - self._last_t
         if (
             self._frame is None
@@ -469,9 +448,6 @@ class Detector:
         follow from the model, ``frame`` and ``period``.
         """
 
-        def floats(values: Any) -> list[float | str] | None:
-            return None if values is None else [_encode_float(float(v)) for v in values]
-
         return {
             "format": _STATE_FORMAT,
             "model_checksum": self.model_.checksum,
@@ -481,9 +457,9 @@ class Detector:
             "last_t": self._last_t,
             "segment_count": self._seg_count,
             "period": self._period,
-            "warm": [floats(w) for w in self._warm],
-            "S": floats(self._S),
-            "H": floats(self._H),
+            "warm": [encode_floats(w) for w in self._warm],
+            "S": encode_floats(self._S),
+            "H": encode_floats(self._H),
         }
 
     def set_state(self, state: Mapping[str, Any]) -> Detector:
@@ -511,6 +487,7 @@ class Detector:
             self._S,
             self._H,
         ) = restored
+        self._work = None  # made for the restored P on the first step
         return self
 
     def _parse_state(self, state: Mapping[str, Any]) -> tuple[Any, ...]:
@@ -556,7 +533,7 @@ class Detector:
         for w in warm:
             if len(w) != 5:
                 raise ValueError(f"a kept fix holds {len(w)} values, expected 5")
-            if _check_fix(w[0], w[1], w[2], None) or not all(
+            if fix_reason(w[0], w[1], w[2]) or not all(
                 math.isnan(v) or math.isfinite(v) for v in w[3:]
             ):
                 raise ValueError(f"a kept fix {w} is not a usable fix")
@@ -577,8 +554,8 @@ class Detector:
         if _decode_float(state["period"]) != period:
             raise ValueError("'period' does not follow from the kept fixes")
         P = m.params.array(period, frame, m.dims)
-        S = np.array([_decode_float(v) for v in state["S"]], np.float64)
-        H64 = np.array([_decode_float(v) for v in state["H"]], np.float64)
+        S = np.array(_decode_list(state["S"]), np.float64)
+        H64 = np.array(_decode_list(state["H"]), np.float64)
         expected = new_state(P).size
         if S.shape != (expected,):
             raise ValueError(f"'S' holds {S.size} values, this model's state has {expected}")
@@ -593,27 +570,69 @@ class Detector:
 
     # -- batch -------------------------------------------------------------
 
-    def detect(self, frame: pd.DataFrame, *, threads: int = 1) -> pd.DataFrame:
-        """One result row per input row (same index order) for a table of one or many tracks.
+    def detect(
+        self,
+        data: Any,
+        *,
+        threads: int = 1,
+        time: str | None = None,
+        lat: str | None = None,
+        lon: str | None = None,
+        track: str | None = None,
+        speed: str | None = None,
+        heading: str | None = None,
+        alt: str | None = None,
+        hdop: str | None = None,
+    ) -> Any:
+        """Flag, classify and repair every fix of ``data``; one result row per input row.
 
-        ``frame``: canonical fixes (see :func:`gradgps.to_fixes`) or any table
-        whose columns can be auto-detected. Result columns: ``anomaly``,
-        ``score``, ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
-        ``alert``, ``invalid_reason``. ``threads`` > 1 spreads segments over
-        that many numba threads (same numbers; see ``grad_segments`` for the
-        threading-layer caveat when calling from several threads at once).
+        ``data``: a DataFrame of one or many tracks (canonical fixes, see
+        :func:`gradgps.to_fixes`, or any table whose columns are found by
+        name or named by keyword: ``time="ts"``, ``lat=``, ``lon=``,
+        ``track=``, ``speed=``, ``heading=``; a ``DatetimeIndex`` is the time
+        when no column is), a GeoPandas GeoDataFrame (point geometry, any
+        CRS), or a movingpandas Trajectory/TrajectoryCollection.
+
+        A DataFrame gives the result columns only (``anomaly``, ``score``,
+        ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``, ``alert``,
+        ``invalid_reason``) on the caller's index, so ``df.join(result)``
+        lines up; a GeoDataFrame or trajectory comes back as the same type
+        with those columns added (:func:`gradgps.detect` does that for a
+        DataFrame too).
+
+        Every track is read in row order, exactly as the streaming
+        :meth:`update` reads it: a fix whose time is not after the previous
+        usable fix of its track (a repeated or backward timestamp) is
+        unusable, flagged with its reason, and never merged or averaged, so
+        the whole file, chunks, ``--follow`` and this method give the same
+        rows flagged and the same clean positions. ``threads`` > 1 spreads
+        segments over that many numba threads (same numbers).
         """
-        fixes = frame if set(CANONICAL_COLUMNS[:4]) <= set(frame.columns) else to_fixes(frame)
-        if not set(CANONICAL_COLUMNS[:4]) <= set(fixes.columns):
-            fixes = to_fixes(fixes)
-        m = self.model_
-        prepared = preprocess(
-            fixes,
-            max_gap_s=m.params.max_gap_s,
-            interpolate=False,
-            min_step_s=_MIN_STEP,
-            frame_radius_m=FRAME_RADIUS_M,
+        from .._tracks.objects import add_columns, as_track_input
+
+        columns = dict(
+            time=time,
+            lat=lat,
+            lon=lon,
+            track=track,
+            speed=speed,
+            heading=heading,
+            alt=alt,
+            hdop=hdop,
         )
+        inp = as_track_input(data, columns)
+        result = self.detect_fixes(inp.fixes, threads=threads)
+        result.index = inp.index
+        if inp.kind == "frame":
+            return result
+        return add_columns(inp, result)
+
+    def detect_fixes(self, fixes: pd.DataFrame, *, threads: int = 1) -> pd.DataFrame:
+        """:meth:`detect` on canonical fixes; the result has ``fixes``' index."""
+        m = self.model_
+        reason = stream_reasons(fixes, min_step_s=MIN_STEP_S)
+        usable = np.flatnonzero(reason == "")
+        prepared = grad_points(fixes.iloc[usable], m.params.max_gap_s)
         pts = prepared.points
         n = len(pts)
         out = np.zeros((n, N_POINT_OUT))
@@ -641,7 +660,103 @@ class Detector:
                 heading,
                 threads=threads,
             )
-        return self._rows(prepared.to_rows(out), prepared.row_reason, fixes.index)
+        rows = np.full((len(fixes), N_POINT_OUT), np.nan)
+        rows[usable] = prepared.to_rows(out)
+        return self._rows(rows, reason, fixes.index)
+
+    def clean(
+        self,
+        data: Any,
+        *,
+        keep_invalid: bool = False,
+        time: str | None = None,
+        lat: str | None = None,
+        lon: str | None = None,
+        track: str | None = None,
+        speed: str | None = None,
+        heading: str | None = None,
+        alt: str | None = None,
+        hdop: str | None = None,
+    ) -> Any:
+        """``data`` with every position replaced by the repaired one, in the same type.
+
+        Like movingpandas' cleaners: the rows come back in order with
+        ``lat_clean``/``lon_clean`` as their position (the geometry, in the
+        caller's CRS, for a GeoDataFrame or trajectory). Unusable fixes
+        (``invalid_reason`` set: no time, a repeated timestamp...) have no
+        repaired position and are dropped unless ``keep_invalid`` (then
+        their position is missing). Columns by keyword as in :meth:`detect`.
+        """
+        from .._tracks.objects import as_track_input, replace_positions
+
+        columns = dict(
+            time=time,
+            lat=lat,
+            lon=lon,
+            track=track,
+            speed=speed,
+            heading=heading,
+            alt=alt,
+            hdop=hdop,
+        )
+        inp = as_track_input(data, columns)
+        result = self.detect_fixes(inp.fixes)
+        keep = (result["invalid_reason"].to_numpy() == "") | keep_invalid
+        return replace_positions(
+            inp,
+            result["lat_clean"].to_numpy(np.float64),
+            result["lon_clean"].to_numpy(np.float64),
+            keep,
+        )
+
+    def events(
+        self,
+        result: Any,
+        *,
+        time: str | None = None,
+        lat: str | None = None,
+        lon: str | None = None,
+        track: str | None = None,
+        speed: str | None = None,
+        heading: str | None = None,
+        alt: str | None = None,
+        hdop: str | None = None,
+    ) -> pd.DataFrame:
+        """Fault events of a result (see :mod:`gradgps._grad.events`), one row per event.
+
+        ``result``: what :func:`gradgps.detect` (or :meth:`detect` on a
+        GeoDataFrame/trajectory) returned, i.e. the input with the result
+        columns added. Columns: ``track``, ``start``, ``end`` (in the input's
+        own time form: Timestamps for datetime input, else seconds),
+        ``duration_s``, ``fixes``, ``bias_type``, ``time_type``,
+        ``peak_offset_m``, ``peak_score``, ``alert``, ``first_row``,
+        ``last_row`` (0-based positions of the rows in ``result``).
+        """
+        from .._tracks.objects import as_track_input, time_values
+
+        columns = dict(
+            time=time,
+            lat=lat,
+            lon=lon,
+            track=track,
+            speed=speed,
+            heading=heading,
+            alt=alt,
+            hdop=hdop,
+        )
+        inp = as_track_input(result, columns)
+        missing = [c for c in RESULT_DTYPES if c not in inp.flat.columns]
+        if missing:
+            raise ConfigError(
+                f"events() needs a detection result with the input's columns; {missing} "
+                "are missing: pass what gradgps.detect(data) returned"
+            )
+        res = pd.DataFrame({c: inp.flat[c].to_numpy() for c in RESULT_DTYPES})
+        events = fault_events(inp.fixes, res)
+        form = time_values(inp)
+        events["start"] = form(events["start"].to_numpy(np.float64))
+        events["end"] = form(events["end"].to_numpy(np.float64))
+        return events
 
     def _rows(
         self, out: NDArray[np.float64], reason: NDArray[Any], index: pd.Index
@@ -651,24 +766,24 @@ class Detector:
         time_names = np.array(TIME_TYPES, dtype=object)
         codes_b = np.where(invalid, 0, np.nan_to_num(out[:, O_BIAS])).astype(np.int64)
         codes_t = np.where(invalid, 0, np.nan_to_num(out[:, O_TIME])).astype(np.int64)
-        return pd.DataFrame(
-            {
-                "anomaly": np.where(invalid, 1, np.nan_to_num(out[:, O_FLAG])).astype(np.int8),
-                "score": out[:, O_SCORE],
-                "bias_type": bias_names[codes_b],
-                "time_type": time_names[codes_t],
-                "lat_clean": out[:, O_LAT],
-                "lon_clean": out[:, O_LON],
-                "alert": np.where(invalid, 0, np.nan_to_num(out[:, O_ALERT])).astype(np.int8),
-                "invalid_reason": reason.astype(object),
-            },
-            index=index,
+        return result_frame(
+            index,
+            reason,
+            anomaly=out[:, O_FLAG],
+            score=out[:, O_SCORE],
+            bias_type=bias_names[codes_b],
+            time_type=time_names[codes_t],
+            lat_clean=out[:, O_LAT],
+            lon_clean=out[:, O_LON],
+            alert=np.nan_to_num(out[:, O_ALERT]),
         )
 
 
-class TrackStreams:
-    """One streaming :class:`Detector` per track id, made on first sight, kept across calls.
+class MultiTrackDetector:
+    """GRAD for many vehicles at once: one streaming :class:`Detector` per track id.
 
+    The one registry of per-track detectors (chunked files, follow mode): a
+    track's Detector is made on first sight and kept across calls.
     ``model`` and ``threshold`` are passed to every Detector.
     """
 
@@ -679,7 +794,8 @@ class TrackStreams:
         self.threshold = threshold
         self.detectors: dict[str, Detector] = {}
 
-    def _detector(self, track: str) -> Detector:
+    def detector(self, track: str) -> Detector:
+        """The streaming Detector of ``track`` (made on first sight)."""
         det = self.detectors.get(track)
         if det is None:
             det = Detector(self.model, threshold=self.threshold)
@@ -690,12 +806,12 @@ class TrackStreams:
         """Every track's detector state, as plain JSON-able data (see :meth:`Detector.get_state`)."""
         return {"tracks": {track: det.get_state() for track, det in self.detectors.items()}}
 
-    def set_state(self, state: Mapping[str, Any]) -> TrackStreams:
+    def set_state(self, state: Mapping[str, Any]) -> MultiTrackDetector:
         """Restore :meth:`get_state` output (same model and threshold); returns self."""
         try:
             tracks = dict(state["tracks"])
         except (KeyError, TypeError, ValueError) as exc:
-            raise ConfigError(f"not a track streams state: {exc}") from exc
+            raise ConfigError(f"not a multi-track detector state: {exc}") from exc
         self.detectors = {
             str(track): Detector(self.model, threshold=self.threshold).set_state(s)
             for track, s in tracks.items()
@@ -716,28 +832,12 @@ class TrackStreams:
         lon = fixes["lon"].to_numpy(np.float64).tolist()
         speed = fixes["speed"].to_numpy(np.float64).tolist() if "speed" in fixes else nan
         heading = fixes["heading"].to_numpy(np.float64).tolist() if "heading" in fixes else nan
-        columns: dict[str, list[object]] = {name: [] for name in RESULT_DTYPES}
-        values = list(columns.values())
-        for i in range(n):
-            r = self._detector(str(tracks[i])).update(t[i], lat[i], lon[i], speed[i], heading[i])
-            for column, value in zip(
-                values,
-                (
-                    r.anomaly,
-                    r.score,
-                    r.bias_type,
-                    r.time_type,
-                    r.lat_clean,
-                    r.lon_clean,
-                    r.alert,
-                    r.invalid_reason,
-                ),
-                strict=True,
-            ):
-                column.append(value)
-        return pd.DataFrame(
-            {
-                name: pd.Series(v, dtype=RESULT_DTYPES[name], index=fixes.index)
-                for name, v in columns.items()
-            }
+        results = (
+            self.detector(str(tracks[i])).update(t[i], lat[i], lon[i], speed[i], heading[i])
+            for i in range(n)
         )
+        return results_frame(results, fixes.index)
+
+
+#: Deprecated name of :class:`MultiTrackDetector` (kept so old code still imports).
+TrackStreams = MultiTrackDetector

@@ -58,6 +58,7 @@ __all__ = [
     "motion_new_state",
     "motion_reference",
     "motion_step",
+    "motion_velocity",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -74,14 +75,13 @@ MOTION_FEATURES = (
 )
 N_MOTION_FEATURES = len(MOTION_FEATURES)
 
-P_GATE, P_FLOOR, P_MEMORY, P_VEL_GAIN, P_TURN_GAIN, P_MAX_RUN, P_MAX_TURN, P_PERIOD, P_INIT = range(
-    9
-)
+P_GATE, P_FLOOR, P_MEMORY, P_VEL_TAU, P_TURN_TAU, P_MAX_RUN, P_MAX_TURN, P_PERIOD, P_INIT = range(9)
 N_MOTION_PARAMS = 9
 # State: count, p east/north, v east/north, turn rate, m2, run seconds,
-# previous observed east/north.
-S_COUNT, S_PE, S_PN, S_VE, S_VN, S_W, S_M2, S_RUN, S_ZE, S_ZN = range(10)
-N_MOTION_STATE = 10
+# previous observed east/north, and the velocity predicted for the newest fix
+# (before it was seen; NaN until two fixes have set a velocity).
+S_COUNT, S_PE, S_PN, S_VE, S_VN, S_W, S_M2, S_RUN, S_ZE, S_ZN, S_PVE, S_PVN = range(12)
+N_MOTION_STATE = 12
 
 
 @dataclass(frozen=True)
@@ -92,8 +92,10 @@ class MotionParams:
     ``noise_floor``: metres, the smallest innovation scale (a stationary
     receiver's jitter must not make every metre a surprise);
     ``memory``: weight of the newest squared innovation in the running scale;
-    ``velocity_gain`` / ``turn_gain``: how fast the velocity and turn rate
-    follow the observed steps (0..1); ``max_run_s``: seconds after which a
+    ``velocity_tau_s`` / ``turn_tau_s``: time constants (s) with which the
+    velocity and turn rate follow the observed steps (a step of ``dt`` moves
+    them by ``1 - exp(-dt / tau)`` of the way: the same smoothing in seconds at
+    0.5 Hz and at 10 Hz, where a step is mostly receiver noise); ``max_run_s``: seconds after which a
     rejected track is re-acquired whatever the fixes do; ``max_turn``: rad/s
     cap on the turn rate (a car does not turn faster than about 1 rad/s);
     ``initial_scale``: metres, the innovation scale before any has been
@@ -104,18 +106,26 @@ class MotionParams:
     gate: float = 4.0
     noise_floor: float = 1.0
     memory: float = 0.05
-    velocity_gain: float = 0.7
-    turn_gain: float = 0.5
+    velocity_tau_s: float = 1.5
+    turn_tau_s: float = 2.0
     max_run_s: float = 10.0
     max_turn: float = 1.0
     initial_scale: float = 5.0
 
     def checked(self) -> MotionParams:
-        for name in ("gate", "noise_floor", "max_run_s", "max_turn", "initial_scale"):
+        for name in (
+            "gate",
+            "noise_floor",
+            "max_run_s",
+            "max_turn",
+            "initial_scale",
+            "velocity_tau_s",
+            "turn_tau_s",
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"motion {name} must be a positive number, got {value!r}")
-        for name in ("memory", "velocity_gain", "turn_gain"):
+        for name in ("memory",):
             value = getattr(self, name)
             if not (math.isfinite(value) and 0 < value <= 1):
                 raise ConfigError(f"motion {name} must be in (0, 1], got {value!r}")
@@ -128,8 +138,8 @@ class MotionParams:
                 self.gate,
                 self.noise_floor,
                 self.memory,
-                self.velocity_gain,
-                self.turn_gain,
+                self.velocity_tau_s,
+                self.turn_tau_s,
                 self.max_run_s,
                 self.max_turn,
                 period,
@@ -141,7 +151,25 @@ class MotionParams:
 
 def motion_new_state() -> FloatArray:
     """A fresh state (no fix seen)."""
-    return np.zeros(N_MOTION_STATE)
+    state = np.zeros(N_MOTION_STATE)
+    state[S_PVE] = state[S_PVN] = np.nan
+    return state
+
+
+@numba.njit(cache=True, error_model="numpy")
+def motion_velocity(state: FloatArray) -> tuple[float, float]:
+    """(speed m/s, course degrees clockwise from north) the model predicted for the newest
+    fix, before seeing it; NaN while it knows no velocity yet.
+
+    This is what the pipeline uses in place of a reported speed and heading
+    when a file has none: a turn-aware velocity from the positions alone,
+    which does not follow a fix it rejected.
+    """
+    ve = state[S_PVE]
+    vn = state[S_PVN]
+    if not (np.isfinite(ve) and np.isfinite(vn)):
+        return np.nan, np.nan
+    return math.hypot(ve, vn), math.degrees(math.atan2(ve, vn)) % 360.0
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -164,6 +192,8 @@ def motion_step(
     for k in range(N_MOTION_FEATURES):
         out[k] = 0.0
     out[7] = step_dt / period
+    state[S_PVE] = np.nan
+    state[S_PVN] = np.nan
     if count == 0.0:
         state[S_PE] = east
         state[S_PN] = north
@@ -194,6 +224,8 @@ def motion_step(
     # Heading measured clockwise from north: a positive turn rate turns right.
     pve = c * ve + s * vn
     pvn = -s * ve + c * vn
+    state[S_PVE] = pve
+    state[S_PVN] = pvn
     pred_e = state[S_PE] + pve * step_dt
     pred_n = state[S_PN] + pvn * step_dt
     re = east - pred_e
@@ -234,7 +266,7 @@ def motion_step(
             obs_e = (east - state[S_PE]) / step_dt
             obs_n = (north - state[S_PN]) / step_dt
             m2 = (1.0 - p[P_MEMORY]) * m2 + p[P_MEMORY] * innov * innov
-        g = p[P_VEL_GAIN]
+        g = 1.0 - math.exp(-step_dt / p[P_VEL_TAU])
         new_ve = g * obs_e + (1.0 - g) * pve
         new_vn = g * obs_n + (1.0 - g) * pvn
         old_speed = math.hypot(ve, vn)
@@ -243,7 +275,8 @@ def motion_step(
         if old_speed > 1.0 and new_speed > 1.0:
             # Course (clockwise from north) change per second.
             w_obs = _wrap(math.atan2(new_ve, new_vn) - math.atan2(ve, vn)) / step_dt
-        w_new = p[P_TURN_GAIN] * w_obs + (1.0 - p[P_TURN_GAIN]) * w
+        gw = 1.0 - math.exp(-step_dt / p[P_TURN_TAU])
+        w_new = gw * w_obs + (1.0 - gw) * w
         state[S_W] = min(max(w_new, -p[P_MAX_TURN]), p[P_MAX_TURN])
         state[S_VE] = new_ve
         state[S_VN] = new_vn
@@ -268,6 +301,7 @@ def _motion_batch_kernel(
     p: FloatArray, dt: FloatArray, east: FloatArray, north: FloatArray
 ) -> FloatArray:
     state = np.zeros(N_MOTION_STATE)
+    state[S_PVE] = state[S_PVN] = np.nan
     out = np.empty((east.size, N_MOTION_FEATURES))
     for i in range(east.size):
         motion_step(p, state, dt[i], east[i], north[i], out[i])
@@ -357,14 +391,14 @@ def motion_reference(
             else:
                 obs = (z - pos) / dt
                 m2 = (1 - prm.memory) * m2 + prm.memory * innov**2
-            new_vel = prm.velocity_gain * obs + (1 - prm.velocity_gain) * v_pred
+            g = 1 - math.exp(-dt / prm.velocity_tau_s)
+            new_vel = g * obs + (1 - g) * v_pred
             w_obs = 0.0
             if math.hypot(*vel) > 1.0 and math.hypot(*new_vel) > 1.0:
                 change = math.atan2(new_vel[0], new_vel[1]) - math.atan2(vel[0], vel[1])
                 w_obs = ((change + math.pi) % (2 * math.pi) - math.pi) / dt
-            turn = min(
-                max(prm.turn_gain * w_obs + (1 - prm.turn_gain) * turn, -prm.max_turn), prm.max_turn
-            )
+            gw = 1 - math.exp(-dt / prm.turn_tau_s)
+            turn = min(max(gw * w_obs + (1 - gw) * turn, -prm.max_turn), prm.max_turn)
             vel, pos, run = new_vel, z.copy(), 0.0
         last_obs = z.copy()
         row[:7] = [innov, along, cross, nis, run, speed, abs(turn_before) * speed]

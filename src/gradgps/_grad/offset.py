@@ -44,7 +44,13 @@ other) and per point:
   the offset, so a real jump cannot end by drift. ``max_fault_s`` bounds how
   long any suspicion lives, so a stretch where the reported velocity
   disagrees with the fixes (real drives have them), or a segment that
-  starts inside a fault, cannot leave an offset behind for ever.
+  starts inside a fault, cannot leave an offset behind for ever. A fault
+  that outlives ``max_fault_s`` is released, but remembered for as long
+  again: a later unexplained step that undoes the released offset (within
+  ``threshold_m`` plus a quarter of it: a held offset leaks a little) is that fault's *end*, a return to the track, not the
+  start of a new one. The same holds for a fault whose end was read from the
+  drift gate rather than from a step back. Without that memory a long fault at a low rate (200 s
+  at 0.5 Hz) would be followed by as long a phantom fault once it ended.
 
 So ``offset`` is approximately the current fault offset: it jumps to ``d``
 when a jump of ``d`` starts and back to zero when it ends. Outputs per point:
@@ -99,9 +105,32 @@ P_THRESHOLD, P_LEAK, P_ALPHA, P_FAST_LEAK, P_DRIFT, P_MAX_FAULT, P_BIAS_ALPHA, P
 )
 # State: count, last east, last north, last ve, last vn (reported, NaN if none),
 # cv ve, cv vn, offset east, offset north, clean-track east, north, fault age (s),
-# velocity bias east, north (m/s).
-S_COUNT, S_E, S_N, S_VE, S_VN, S_CVE, S_CVN, S_OE, S_ON, S_CE, S_CN, S_AGE, S_BE, S_BN = range(14)
-N_OFFSET_STATE = 14
+# velocity bias east, north (m/s), the offset released by ``max_fault_s`` east,
+# north (m) and the seconds since that release.
+(
+    S_COUNT,
+    S_E,
+    S_N,
+    S_VE,
+    S_VN,
+    S_CVE,
+    S_CVN,
+    S_OE,
+    S_ON,
+    S_CE,
+    S_CN,
+    S_AGE,
+    S_BE,
+    S_BN,
+    S_RE,
+    S_RN,
+    S_RAGE,
+) = range(17)
+N_OFFSET_STATE = 17
+# How far (a fraction of the released offset) a step may miss undoing it and still
+# count as the released fault's end: the held offset has leaked by up to
+# 1 - (1 - leak_per_s) ** max_fault_s (18 % with the defaults) before release.
+_RETURN_SLACK = 0.25
 
 
 @dataclass(frozen=True)
@@ -182,6 +211,8 @@ def offset_features_reference(
     clean = [0.0, 0.0]
     bias = [0.0, 0.0]
     age = 0.0
+    released = [0.0, 0.0]
+    release_age = 0.0
     for i in range(len(fix)):
         if i == 0:
             clean = [fix[0, 0], fix[0, 1]]
@@ -203,6 +234,7 @@ def offset_features_reference(
             out[i, 4:6] = residual
             continue
         norm_before = math.hypot(*offset)
+        offset_before = [offset[0], offset[1]]
         for c in range(2):
             before = offset[c]
             in_fault = abs(before) > prm.threshold_m
@@ -228,7 +260,25 @@ def offset_features_reference(
                 clean[c] = fix[i, c]  # a clean step from a clean fix: re-anchor
         suspected = max(abs(offset[0]), abs(offset[1])) > prm.threshold_m
         age = age + d[i] if suspected else 0.0
+        slack = prm.threshold_m + _RETURN_SLACK * math.hypot(*offset_before)
+        if (
+            norm_before > prm.threshold_m
+            and offset == [0.0, 0.0]
+            and math.hypot(residual[0] + offset_before[0], residual[1] + offset_before[1]) > slack
+        ):
+            # Ended by the drift gate, not by a step back: remember it as released.
+            released, release_age = offset_before, 0.0
+        elif released != [0.0, 0.0]:
+            release_age += d[i]
+            undone = math.hypot(residual[0] + released[0], residual[1] + released[1])
+            tolerance = prm.threshold_m + _RETURN_SLACK * math.hypot(*released)
+            if undone <= tolerance:  # the released fault ends: back on the track
+                offset, clean, age = [0.0, 0.0], [fix[i, 0], fix[i, 1]], 0.0
+                released = [0.0, 0.0]
+            elif release_age > prm.max_fault_s:
+                released = [0.0, 0.0]
         if age > prm.max_fault_s:  # held too long to be a fault: start afresh here
+            released, release_age = [offset[0], offset[1]], 0.0
             offset, clean, age = [0.0, 0.0], [fix[i, 0], fix[i, 1]], 0.0
         distance = math.hypot(fix[i, 0] - clean[0], fix[i, 1] - clean[1])
         out[i] = (
@@ -321,13 +371,43 @@ def offset_step(
             state[S_CVN] = step_n / dt
         else:
             norm_before = np.hypot(state[S_OE], state[S_ON])
+            before_e = state[S_OE]
+            before_n = state[S_ON]
             _channel(p, state, 0, east, pred_e, out[4], step_e, dt, reported)
             _channel(p, state, 1, north, pred_n, out[5], step_n, dt, reported)
             if max(abs(state[S_OE]), abs(state[S_ON])) > p[P_THRESHOLD]:
                 state[S_AGE] += dt
             else:
                 state[S_AGE] = 0.0
+            slack = p[P_THRESHOLD] + _RETURN_SLACK * norm_before
+            if (
+                norm_before > p[P_THRESHOLD]
+                and state[S_OE] == 0.0
+                and state[S_ON] == 0.0
+                and np.hypot(out[4] + before_e, out[5] + before_n) > slack
+            ):
+                # Ended by the drift gate, not by a step back: remember it as released.
+                state[S_RE] = before_e
+                state[S_RN] = before_n
+                state[S_RAGE] = 0.0
+            elif state[S_RE] != 0.0 or state[S_RN] != 0.0:
+                state[S_RAGE] += dt
+                undone = np.hypot(out[4] + state[S_RE], out[5] + state[S_RN])
+                if undone <= p[P_THRESHOLD] + _RETURN_SLACK * np.hypot(state[S_RE], state[S_RN]):
+                    state[S_OE] = 0.0
+                    state[S_ON] = 0.0
+                    state[S_AGE] = 0.0
+                    state[S_CE] = east
+                    state[S_CN] = north
+                    state[S_RE] = 0.0
+                    state[S_RN] = 0.0
+                elif state[S_RAGE] > p[P_MAX_FAULT]:
+                    state[S_RE] = 0.0
+                    state[S_RN] = 0.0
             if state[S_AGE] > p[P_MAX_FAULT]:
+                state[S_RE] = state[S_OE]
+                state[S_RN] = state[S_ON]
+                state[S_RAGE] = 0.0
                 state[S_OE] = 0.0
                 state[S_ON] = 0.0
                 state[S_AGE] = 0.0

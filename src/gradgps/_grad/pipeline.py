@@ -77,6 +77,7 @@ from .motion import (
     N_MOTION_STATE,
     MotionParams,
     motion_step,
+    motion_velocity,
 )
 from .offset import (
     N_OFFSET_FEATURES,
@@ -99,6 +100,7 @@ __all__ = [
     "grad_segments",
     "grad_step",
     "new_state",
+    "new_work",
     "pipeline_feature_names",
     "segment_period",
     "warmup_periods",
@@ -117,6 +119,10 @@ _FRAME = _DIMS + 4
 _MOTION_ON = _FRAME + N_FRAME_CONSTANTS
 _MOTION = _MOTION_ON + 1
 N_REST_PARAMS = _MOTION + N_MOTION_PARAMS
+# ``off_out`` scratch: offset features, motion features, then the speed and
+# heading the pipeline used for the point (reported, or the motion model's).
+_SH = N_OFFSET_FEATURES + N_MOTION_FEATURES
+_N_OFF_OUT = _SH + 2
 # State blocks after the core's: offset, time, recovery, motion.
 _N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_MOTION_STATE
 # Per-point outputs.
@@ -220,11 +226,33 @@ def _features_point(
     heading: float,
     x: Any,
 ) -> tuple[float, float]:
-    """Project, run core + offset tracker, write the feature vector into ``x``; return (east, north)."""
+    """Project, run motion model + core + offset tracker, write the feature vector into
+    ``x``; return (east, north).
+
+    Where the fix has no reported speed or heading, the motion model's predicted
+    velocity (:func:`motion_velocity`) stands in for the missing one in REMA's
+    expected step, the offset tracker and the recovery: without it those fall
+    back to per-channel constant-velocity guesses that lag in every curve and
+    never re-acquire after a long jump on a positions-only file (issue 13).
+    The speed and heading used are left in ``off_out[_SH : _SH + 2]`` for the
+    recovery in :func:`_decide_point`.
+    """
     Pc = P[:N_CORE_PARAMS]
     rest = P[N_CORE_PARAMS:]
     core_size = S.size - _N_TAIL_STATE
     east, north = to_local_scalar(rest[_FRAME : _FRAME + N_FRAME_CONSTANTS], lat, lon)
+    if rest[_MOTION_ON] != 0.0:
+        ms = S.size - N_MOTION_STATE
+        m_out = off_out[N_OFFSET_FEATURES:_SH]
+        motion_step(rest[_MOTION : _MOTION + N_MOTION_PARAMS], S[ms:], dt, east, north, m_out)
+        if not (np.isfinite(speed) and np.isfinite(heading)):
+            m_speed, m_heading = motion_velocity(S[ms:])
+            if not np.isfinite(speed):
+                speed = m_speed
+            if not np.isfinite(heading):
+                heading = m_heading
+    off_out[_SH] = speed
+    off_out[_SH + 1] = heading
     core_step(Pc, S[:core_size], east, north, speed, heading, core_out)
     offset_step(
         rest[_OFF : _OFF + N_OFFSET_PARAMS],
@@ -243,13 +271,9 @@ def _features_point(
     for k in range(N_OFFSET_FEATURES):
         x[nc + k] = _compress(off_out[k])
     if rest[_MOTION_ON] != 0.0:
-        # The motion features reuse the tail of ``off_out`` as scratch.
-        ms = S.size - N_MOTION_STATE
-        m_out = off_out[N_OFFSET_FEATURES:]
-        motion_step(rest[_MOTION : _MOTION + N_MOTION_PARAMS], S[ms:], dt, east, north, m_out)
         m0 = nc + N_OFFSET_FEATURES
         for k in range(N_MOTION_FEATURES):
-            x[m0 + k] = _compress(m_out[k])
+            x[m0 + k] = _compress(off_out[N_OFFSET_FEATURES + k])
     return east, north
 
 
@@ -338,11 +362,31 @@ def _core_width(P: FloatArray) -> int:
 
 
 @numba.njit(cache=True)
+def new_work(P: FloatArray) -> Any:
+    """The work arrays of one segment's per-fix step (``dims`` and six scratch arrays).
+
+    Made once per segment (the Detector keeps them with the segment's state),
+    so a streamed fix allocates nothing.
+    """
+    dims = _dims(P)
+    return (
+        dims,
+        np.empty(_core_width(P)),
+        np.empty(_N_OFF_OUT),
+        np.empty(3),
+        np.empty(dims[0], np.float32),
+        np.empty(_scratch_size(dims), np.float32),
+        np.empty(1 + dims[3], np.float32),
+    )
+
+
+@numba.njit(cache=True)
 def grad_step(
     P: FloatArray,
     S: FloatArray,
     H: Any,
     gp: Any,
+    work: Any,
     dt: float,
     lat: float,
     lon: float,
@@ -350,17 +394,28 @@ def grad_step(
     heading: float,
     out: FloatArray,
 ) -> None:
-    """One fix of one segment: advance ``S`` and ``H`` and write the 7 outputs into ``out``."""
-    dims = _dims(P)
-    core_out = np.empty(_core_width(P))
-    off_out = np.empty(N_OFFSET_FEATURES + N_MOTION_FEATURES)
-    rec_out = np.empty(3)
-    x = np.empty(dims[0], np.float32)
-    scratch = np.empty(_scratch_size(dims), np.float32)
-    gru_out = np.empty(1 + dims[3], np.float32)
+    """One fix of one segment: advance ``S`` and ``H`` and write the 7 outputs into ``out``.
+
+    ``work``: :func:`new_work` of this segment's ``P``.
+    """
+    dims, core_out, off_out, rec_out, x, scratch, gru_out = work
     east, north = _features_point(P, S, core_out, off_out, dt, lat, lon, speed, heading, x)
     _decide_point(
-        P, S, H, gp, dims, x, scratch, gru_out, core_out, rec_out, east, north, speed, heading, out
+        P,
+        S,
+        H,
+        gp,
+        dims,
+        x,
+        scratch,
+        gru_out,
+        core_out,
+        rec_out,
+        east,
+        north,
+        off_out[_SH],
+        off_out[_SH + 1],
+        out,
     )
 
 
@@ -376,35 +431,10 @@ def _segment_kernel(
     speed: FloatArray,
     heading: FloatArray,
 ) -> FloatArray:
-    dims = _dims(P)
-    core_out = np.empty(_core_width(P))
-    off_out = np.empty(N_OFFSET_FEATURES + N_MOTION_FEATURES)
-    rec_out = np.empty(3)
-    x = np.empty(dims[0], np.float32)
-    scratch = np.empty(_scratch_size(dims), np.float32)
-    gru_out = np.empty(1 + dims[3], np.float32)
+    work = new_work(P)
     out = np.empty((lat.size, N_POINT_OUT))
     for i in range(lat.size):
-        east, north = _features_point(
-            P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i], x
-        )
-        _decide_point(
-            P,
-            S,
-            H,
-            gp,
-            dims,
-            x,
-            scratch,
-            gru_out,
-            core_out,
-            rec_out,
-            east,
-            north,
-            speed[i],
-            heading[i],
-            out[i],
-        )
+        grad_step(P, S, H, gp, work, dt[i], lat[i], lon[i], speed[i], heading[i], out[i])
     return out
 
 
@@ -420,7 +450,7 @@ def _features_kernel(
     n_features: int,
 ) -> FloatArray:
     core_out = np.empty(_core_width(P))
-    off_out = np.empty(N_OFFSET_FEATURES + N_MOTION_FEATURES)
+    off_out = np.empty(_N_OFF_OUT)
     out = np.empty((lat.size, n_features))
     for i in range(lat.size):
         _features_point(

@@ -67,7 +67,11 @@ bias such as a lagging heading, or the whole step without speed/heading::
   consistent; the K-th consistent flagged point in a row is accepted
   (``level = x[t]``, its residual is its own step, not the jump). Noise
   faults (independent offsets per point) almost never move consistently K
-  times. Warm-up: the first ``ss`` points are accepted unchecked
+  times. **Bounded dead reckoning** (``max_run`` = M > 0): after M flagged
+  points in a row the next point is accepted the same way whatever it does,
+  so no input can keep REMA away from the fixes for longer than M points
+  (dead reckoning drifts; after M points the fix is the better guess, and
+  the memory of a lasting fault is the offset tracker's job). Warm-up: the first ``ss`` points are accepted unchecked
   (``step_ema`` starts at the first residual).
 
   Measured: docs/rema.md (benchmark ``grad`` on driveplotr and tuc test,
@@ -119,8 +123,9 @@ REMA_MODES = ("paper", "trend")
     P_MODE,
     P_RUN_GROWTH,
     P_REACQUIRE,
-) = range(11)
-N_PARAMS = 11
+    P_MAX_RUN,
+) = range(12)
+N_PARAMS = 12
 # Layout of the scalar state array: alpha, points seen, last fed value (paper)
 # or level (trend), step EMA, consecutive outliers and accepted steps (trend).
 # Trend mode also keeps the previous observed value and how many flagged
@@ -150,6 +155,7 @@ class RemaParams:
     mode: str = "paper"
     run_growth: float = 0.0
     reacquire_after: int = 0
+    max_run: int = 0
 
     def checked(self) -> RemaParams:
         if self.mode not in REMA_MODES:
@@ -170,6 +176,10 @@ class RemaParams:
         if not (self.run_growth >= 0 and np.isfinite(self.run_growth)):
             raise ConfigError(
                 f"run_growth must be >= 0 (channel units per point), got {self.run_growth}"
+            )
+        if int(self.max_run) != self.max_run or self.max_run < 0:
+            raise ConfigError(
+                f"max_run must be an integer >= 0 (points; 0 = unbounded), got {self.max_run}"
             )
         if int(self.reacquire_after) != self.reacquire_after or self.reacquire_after < 0:
             raise ConfigError(
@@ -194,6 +204,7 @@ class RemaParams:
                 float(REMA_MODES.index(self.mode)),
                 self.run_growth,
                 float(self.reacquire_after),
+                float(self.max_run),
             ],
             dtype=np.float64,
         )
@@ -217,7 +228,7 @@ class RemaParams:
             extra = sorted(set(data) - names) if isinstance(data, dict) else data
             raise ConfigError(f"unknown REMA parameters {extra}; expected keys {sorted(names)}")
         values = dict(data)
-        for key in ("slide_size", "reacquire_after"):
+        for key in ("slide_size", "reacquire_after", "max_run"):
             if key in values:
                 values[key] = int(values[key])
         return cls(**values).checked()
@@ -350,7 +361,9 @@ def rema_step(
                 state[S_CONSISTENT] += 1.0
             else:
                 state[S_CONSISTENT] = 0.0
-            reacquire = p[P_REACQUIRE] > 0.0 and state[S_CONSISTENT] >= p[P_REACQUIRE]
+            reacquire = (p[P_REACQUIRE] > 0.0 and state[S_CONSISTENT] >= p[P_REACQUIRE]) or (
+                p[P_MAX_RUN] > 0.0 and state[S_RUN] >= p[P_MAX_RUN]
+            )
             if outside and not reacquire:
                 flag = 1.0
                 state[S_LAST] = ema
@@ -480,7 +493,10 @@ def rema_reference(
             own_step = x[t] - x[t - 1] - base_steps[t]
             moved_as_expected = abs(own_step - step_ema) <= max(base, prm.min_margin)
             consistent = consistent + 1 if outside and run > 0 and moved_as_expected else 0
-            if outside and not (prm.reacquire_after > 0 and consistent >= prm.reacquire_after):
+            forced = prm.max_run > 0 and run >= prm.max_run
+            if outside and not (
+                (prm.reacquire_after > 0 and consistent >= prm.reacquire_after) or forced
+            ):
                 flag[t] = 1
                 level = ema[t]
                 run += 1

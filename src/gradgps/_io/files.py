@@ -15,13 +15,29 @@ from pathlib import Path
 
 from .._exceptions import InputError
 
-__all__ = ["MAX_LINE_BYTES", "READ_ERRORS", "check_readable", "open_bytes", "text_lines"]
+__all__ = [
+    "MAX_LINE_BYTES",
+    "READ_ERRORS",
+    "check_readable",
+    "damaged",
+    "open_bytes",
+    "text_lines",
+]
 
 #: Longest line a text table may have (a row of fixes is well under a kilobyte).
 MAX_LINE_BYTES = 2**20
 
 # What reading a (possibly gzip) stream can raise when the file is damaged.
 READ_ERRORS = (OSError, EOFError, zlib.error)
+
+
+def damaged(exc: Exception, source: str) -> InputError:
+    """The error for a file whose (compressed) bytes cannot be read to the end."""
+    return InputError(
+        f"cannot read compressed data: {exc}",
+        source=source,
+        hint="the .gz file is damaged or truncated",
+    )
 
 
 def check_readable(path: Path) -> None:
@@ -83,8 +99,4 @@ def text_lines(raw: io.BufferedIOBase, source: str) -> Iterator[str]:
                     hint="is this a binary file? save it as UTF-8 text or pass the right format",
                 ) from None
     except READ_ERRORS as exc:
-        raise InputError(
-            f"cannot read compressed data: {exc}",
-            source=source,
-            hint="the .gz file is damaged or truncated",
-        ) from None
+        raise damaged(exc, source) from None

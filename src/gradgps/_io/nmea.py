@@ -46,7 +46,7 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._tracks.track import ColumnMap, Table
-from .files import READ_ERRORS, open_bytes
+from .files import READ_ERRORS, damaged, open_bytes
 
 __all__ = [
     "KNOT_MS",
@@ -303,11 +303,7 @@ def read_nmea(path: str | Path) -> Table:
                 for piece in raw_line.decode("ascii", errors="replace").split("$")[1:]:
                     log.add(piece, n_lines)
         except READ_ERRORS as exc:
-            raise InputError(
-                f"cannot read compressed data: {exc}",
-                source=source,
-                hint="the .gz file is damaged or truncated",
-            ) from None
+            raise damaged(exc, source) from None
     epochs, notes, rejected = log.epochs, log.notes, log.rejected
     if rejected > MAX_NOTES:
         notes.append(f"... and {rejected - MAX_NOTES} more rejected sentences")

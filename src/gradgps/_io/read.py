@@ -38,6 +38,7 @@ import pandas as pd
 from .._exceptions import ConfigError, InputError
 from .._tracks.track import ColumnMap, Table, resolve_columns, to_fixes
 from .files import READ_ERRORS, check_readable, open_bytes, text_lines
+from .geojson import read_geojson
 from .gpx import read_gpx
 from .nmea import read_nmea
 from .rosbag import is_rosbag, read_rosbag
@@ -53,7 +54,7 @@ __all__ = [
     "write_table",
 ]
 
-FORMATS: Final = ("csv", "parquet", "gpx", "nmea", "rosbag")
+FORMATS: Final = ("csv", "parquet", "gpx", "nmea", "geojson", "rosbag")
 
 _EXTENSIONS: Final = {
     ".csv": "csv",
@@ -62,6 +63,8 @@ _EXTENSIONS: Final = {
     ".parquet": "parquet",
     ".pq": "parquet",
     ".gpx": "gpx",
+    ".geojson": "geojson",
+    ".json": "geojson",
     ".nmea": "nmea",
     ".nma": "nmea",
     ".log": "nmea",
@@ -77,11 +80,12 @@ MAX_CHUNK_CELLS: Final = 4_000_000
 
 
 def resolve_format(path: str | Path, fmt: str | None = None) -> str:
-    """The format of ``path``: ``fmt`` when given, else from the extension, else from its content.
+    """The format of ``path``: ``fmt`` when given, else from its content, else its extension.
 
-    Content sniffing (only for unknown extensions) looks at the first bytes:
-    ``PAR1`` is Parquet, ``<`` is XML (GPX), ``$``/``!`` is NMEA, anything
-    else is taken as CSV.
+    The content wins over the extension (NMEA saved as ``.txt``, GeoJSON as
+    ``.json``, a CSV named ``.log``): the first bytes say ``PAR1`` (Parquet),
+    ``<`` (XML: GPX), ``{`` (GeoJSON), ``$``/``!`` (NMEA 0183). Anything else
+    is what the extension says, and CSV when it says nothing.
     """
     path = Path(path)
     if fmt is not None:
@@ -90,22 +94,29 @@ def resolve_format(path: str | Path, fmt: str | None = None) -> str:
             raise ConfigError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
         return name
     by_extension = _extension_format(path)
-    if by_extension is not None:
-        return by_extension
-    if is_rosbag(path):  # a ROS 2 bag is a directory
+    if by_extension == "rosbag" or is_rosbag(path):  # binary bags: the extension decides
         return "rosbag"
-    with open_bytes(path) as raw:
-        try:
-            head = raw.read(64).lstrip(b"\xef\xbb\xbf \t\r\n")
-        except READ_ERRORS as exc:
-            raise InputError(f"cannot read compressed data: {exc}", source=str(path)) from None
+    if not path.is_file():
+        return by_extension or "csv"  # the reader says what is wrong with the path
+    try:
+        with open_bytes(path) as raw:
+            head = raw.read(256).lstrip(b"\xef\xbb\xbf \t\r\n")
+    except READ_ERRORS as exc:
+        if by_extension is not None:
+            return by_extension  # the reader reports what is wrong with the file
+        raise InputError(f"cannot read compressed data: {exc}", source=str(path)) from None
     if head.startswith(b"PAR1"):
         return "parquet"
     if head.startswith(b"<"):
         return "gpx"
+    if head.startswith(b"{"):
+        return "geojson"
     if head.startswith((b"$", b"!")):
         return "nmea"
-    return "csv"
+    if by_extension == "nmea":
+        # A CSV named .log is a CSV; a banner line before NMEA sentences is still NMEA.
+        return "csv" if _looks_like_csv(head) else "nmea"
+    return by_extension or "csv"
 
 
 def read_table(path: str | Path, fmt: str | None = None, columns: ColumnMap | None = None) -> Table:
@@ -129,6 +140,8 @@ def read_table(path: str | Path, fmt: str | None = None, columns: ColumnMap | No
         table = _read_parquet(path)
     elif kind == "gpx":
         table = read_gpx(path)
+    elif kind == "geojson":
+        table = read_geojson(path)
     else:
         table = read_nmea(path)
     if columns is not None:
@@ -157,7 +170,7 @@ def write_table(frame: pd.DataFrame, path: str | Path, fmt: str | None = None) -
     if kind is None:
         raise ConfigError(
             f"cannot tell the output format of {str(path)!r} from its extension; "
-            "use .csv, .csv.gz or .parquet, or pass fmt"
+            "name it .csv, .csv.gz or .parquet (from Python, write_table also takes fmt=)"
         )
     if kind not in ("csv", "parquet"):
         raise ConfigError(f"writing {kind} is not supported; write csv or parquet")
@@ -312,6 +325,25 @@ class CsvChunks(Iterator[Table]):
         return next(self.chunks)
 
 
+def _pandas_csv(
+    path: Path, layout: _CsvLayout, columns: ColumnMap | None, source: str, **options: Any
+) -> Any:
+    """``pd.read_csv`` as every CSV reader here calls it (``options``: e.g. ``chunksize``).
+
+    Each frame or chunk is typed as a whole (``low_memory=False``: no
+    mixed-type columns, no DtypeWarning); label columns stay text.
+    """
+    return pd.read_csv(
+        path,
+        sep=layout.delimiter,
+        encoding="utf-8",
+        skiprows=layout.skip,
+        low_memory=False,
+        dtype=_label_dtypes(layout, columns, source),
+        **options,
+    )
+
+
 def _csv_chunks(
     path: Path, layout: _CsvLayout, chunksize: int, columns: ColumnMap
 ) -> Iterator[Table]:
@@ -320,15 +352,7 @@ def _csv_chunks(
     # Memory is rows x columns: a very wide file is read in fewer rows at a time.
     chunksize = max(1, min(chunksize, MAX_CHUNK_CELLS // max(1, len(layout.header))))
     with _pandas_errors(source):
-        reader = pd.read_csv(
-            path,
-            sep=layout.delimiter,
-            encoding="utf-8",
-            chunksize=chunksize,
-            # Type each chunk as a whole: no mixed-type columns, no DtypeWarning.
-            low_memory=False,
-            dtype=_label_dtypes(layout, columns, source),
-        )
+        reader = _pandas_csv(path, layout, columns, source, chunksize=chunksize)
         with reader:
             for chunk in reader:
                 first_line = layout.first_line + offset if layout.lines_regular else None
@@ -340,6 +364,12 @@ def _csv_chunks(
                     row_offset=offset,
                 )
                 offset += len(chunk)
+
+
+def _looks_like_csv(head: bytes) -> bool:
+    """A first line with delimiters and no ``$`` sentence: a header row."""
+    first = head.split(b"\n", 1)[0]
+    return b"$" not in first and any(first.count(d.encode()) >= 2 for d in _DELIMITERS)
 
 
 def _override(base: ColumnMap, given: ColumnMap) -> ColumnMap:
@@ -365,6 +395,7 @@ class _CsvLayout:
     first_line: int  # file line of data row 1 when lines are regular
     n_rows: int
     lines_regular: bool  # data row k sits on line first_line + k - 1 (no blank or multi-line rows)
+    skip: int = 0  # lines before the header (a row-count line)
 
 
 def _is_blank(record: list[str]) -> bool:
@@ -384,6 +415,16 @@ def _scan_csv(path: Path) -> _CsvLayout:
             if text.strip():
                 header_text = text
                 break
+        skip = 0
+        if _is_count_line(header_text):
+            # GPSLogger and others write the number of rows on the first line.
+            skip = header_line
+            header_text = ""
+            for text in lines:
+                header_line += 1
+                if text.strip():
+                    header_text = text
+                    break
         if not header_text:
             raise InputError(
                 "empty file: no header line and no data",
@@ -432,7 +473,13 @@ def _scan_csv(path: Path) -> _CsvLayout:
         first_line=header_line + 1,
         n_rows=n_rows,
         lines_regular=regular,
+        skip=skip,
     )
+
+
+def _is_count_line(text: str) -> bool:
+    """A first line that is one whole number (a row count), not a header."""
+    return text.strip().lstrip("\ufeff").isdigit()
 
 
 def _check_header(header: list[str], source: str, line: int) -> None:
@@ -480,13 +527,7 @@ def _read_csv(path: Path, columns: ColumnMap | None) -> Table:
     source = str(path)
     layout = _scan_csv(path)
     with _pandas_errors(source):
-        frame = pd.read_csv(
-            path,
-            sep=layout.delimiter,
-            encoding="utf-8",
-            low_memory=False,
-            dtype=_label_dtypes(layout, columns, source),
-        )
+        frame = _pandas_csv(path, layout, columns, source)
     regular = layout.lines_regular and len(frame) == layout.n_rows
     return Table(frame=frame, source=source, first_line=layout.first_line if regular else None)
 

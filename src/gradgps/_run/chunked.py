@@ -21,6 +21,7 @@ are flagged, never dropped.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Callable
@@ -31,8 +32,10 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import InputError
-from .._grad.detector import RESULT_DTYPES, TrackStreams
+from .._grad.detector import MultiTrackDetector, load_grad_model
 from .._io.read import TableWriter, iter_csv_tables
+from .._result import RESULT_DTYPES
+from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import ColumnMap, to_fixes
 
 __all__ = ["DetectSummary", "detect_csv_in_chunks"]
@@ -48,6 +51,9 @@ class DetectSummary:
     alerts: int
     tracks: int
     seconds: float
+    #: Where the input is outside what the model was validated on
+    #: (:class:`gradgps._tracks.input_checks.InputChecks`, fed chunk by chunk).
+    warnings: tuple[str, ...] = ()
 
     @property
     def rows_per_second(self) -> float:
@@ -56,7 +62,7 @@ class DetectSummary:
 
 def detect_csv_in_chunks(
     input_path: str | os.PathLike[str],
-    output: str | os.PathLike[str],
+    output: str | os.PathLike[str] | None,
     *,
     columns: ColumnMap | None = None,
     model: str | os.PathLike[str] | None = None,
@@ -64,6 +70,7 @@ def detect_csv_in_chunks(
     chunk_size: int = 200_000,
     on_start: Callable[[int], None] | None = None,
     on_chunk: Callable[[int], None] | None = None,
+    on_result: Callable[[pd.DataFrame, pd.DataFrame], None] | None = None,
 ) -> DetectSummary:
     """Detect faults in every row of a CSV, ``chunk_size`` rows at a time; write ``output``.
 
@@ -71,10 +78,12 @@ def detect_csv_in_chunks(
     column, in order, then the result columns, one row per input row. It is
     written chunk by chunk and appears under its name only when complete.
     ``on_start(total_rows)`` is called once the file's structure is checked,
-    ``on_chunk(rows)`` after each chunk (for progress bars).
+    ``on_chunk(rows)`` after each chunk (for progress bars), ``on_result(fixes,
+    result)`` with each chunk's canonical fixes and result (for events, a
+    report or exports). ``output`` ``None`` writes no table.
     """
     started = time.perf_counter()
-    streams = TrackStreams(model, threshold=threshold)
+    streams = MultiTrackDetector(model, threshold=threshold)
     chunks = iter_csv_tables(Path(input_path), chunk_size, columns)
     clash = [c for c in RESULT_DTYPES if c in chunks.header]
     if clash:
@@ -86,30 +95,40 @@ def detect_csv_in_chunks(
     if on_start is not None:
         on_start(chunks.n_rows)
     counts = np.zeros(3, np.int64)
-    with TableWriter(Path(output)) as writer:
+    checks = InputChecks(*validated_rates(load_grad_model(model).config))
+    rows = 0
+    with contextlib.ExitStack() as stack:
+        writer = None if output is None else stack.enter_context(TableWriter(Path(output)))
         for table in chunks:
-            result = streams.update_fixes(to_fixes(table))
+            fixes = to_fixes(table)
+            checks.add(fixes)
+            result = streams.update_fixes(fixes)
             counts += (
                 int(result["anomaly"].sum()),
                 int((result["invalid_reason"] != "").sum()),
                 int(result["alert"].sum()),
             )
-            out = pd.concat(
-                [table.frame.reset_index(drop=True), result.reset_index(drop=True)], axis=1
-            )
-            writer.write(out)
+            rows += len(result)
+            if writer is not None:
+                out = pd.concat(
+                    [table.frame.reset_index(drop=True), result.reset_index(drop=True)], axis=1
+                )
+                writer.write(out)
+            if on_result is not None:
+                on_result(fixes, result)
             if on_chunk is not None:
-                on_chunk(len(out))
-        if not writer.started:  # no chunk at all: still write the header, with our columns
+                on_chunk(len(result))
+        if writer is not None and not writer.started:  # no chunk: still write our columns
             empty = pd.DataFrame([], columns=list(chunks.header), dtype=object)
             writer.write(pd.concat([empty, streams.update_fixes(_no_fixes())], axis=1))
     return DetectSummary(
-        rows=writer.rows,
+        rows=rows,
         anomalies=int(counts[0]),
         invalid=int(counts[1]),
         alerts=int(counts[2]),
         tracks=len(streams.detectors),
         seconds=time.perf_counter() - started,
+        warnings=tuple(checks.warnings()),
     )
 
 

@@ -26,18 +26,17 @@ place, so a crashed or cancelled run never leaves a truncated file under a
 real name (and :func:`find_partitions` skips hidden names when the output is
 read back as a fleet).
 
-Threads: the batch kernel is a numba ``parallel`` function, and numba's
-default threading layer (workqueue) aborts the process when two Python
-threads enter parallel code at once. :func:`detect_partition` therefore runs
-the detector under a process-wide lock with numba limited to one thread per
-task: parallelism comes from Dask *processes* (``LocalCluster`` with one
-thread per worker, or ``dask worker --nthreads 1`` on a real cluster).
+Threads: :func:`detect_partition` runs ``Detector.detect`` with its default
+``threads=1``, the *serial* batch kernel (a separate compiled function from
+the parallel one, see :mod:`gradgps._grad.pipeline`), so it needs no lock
+and leaves numba's thread setting alone; tasks in threads of one worker run
+side by side. Parallelism comes from Dask *processes* (``LocalCluster`` with
+one thread per worker, or ``dask worker --nthreads 1`` on a real cluster).
 """
 
 from __future__ import annotations
 
 import os
-import threading
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -67,8 +66,6 @@ __all__ = [
 # Track-file suffixes a fleet directory may hold (the tabular formats the
 # readers know; GPX/NMEA logs are per-trip files, not fleet partitions).
 _DATA_SUFFIXES = (".parquet", ".pq", ".csv", ".tsv", ".txt", ".csv.gz", ".tsv.gz", ".txt.gz")
-
-_DETECT_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -199,8 +196,6 @@ def detect_partition(
     The files are joined (rows in file order) and detected as one table,
     then the output is cut back into one file per input file.
     """
-    import numba
-
     from .._grad.detector import Detector
     from .._io.read import read_table, write_table
     from .._tracks.track import to_fixes
@@ -208,9 +203,7 @@ def detect_partition(
     tables = [read_table(path, fmt, columns) for path in partition.files]
     # to_fixes per file, so an error names the file and row it is about.
     fixes = pd.concat([to_fixes(t) for t in tables], ignore_index=True)
-    with _DETECT_LOCK:
-        numba.set_num_threads(1)
-        result = Detector(model, threshold=threshold).detect(fixes).reset_index(drop=True)
+    result = Detector(model, threshold=threshold).detect(fixes).reset_index(drop=True)
     start = 0
     for table, relative in zip(tables, partition.outputs, strict=True):
         frame = table.frame.reset_index(drop=True)

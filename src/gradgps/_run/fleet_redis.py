@@ -72,7 +72,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from .._exceptions import ConfigError, GradGPSError
-from .._result import PointResult
+from .._result import RESULT_COLUMNS, PointResult
 
 if TYPE_CHECKING:
     import redis
@@ -82,19 +82,7 @@ if TYPE_CHECKING:
 __all__ = ["OUTPUT_FIELDS", "READ_SCRIPT", "ROUTE_SCRIPT", "RedisStreamWorker", "StepReport"]
 
 #: Fields of every output message, in order.
-OUTPUT_FIELDS = (
-    "source_id",
-    "vehicle_id",
-    "t",
-    "anomaly",
-    "score",
-    "bias_type",
-    "time_type",
-    "lat_clean",
-    "lon_clean",
-    "alert",
-    "invalid_reason",
-)
+OUTPUT_FIELDS = ("source_id", "vehicle_id", "t", *RESULT_COLUMNS)
 
 _MESSAGE_ID = re.compile(r"[0-9]{1,20}-[0-9]{1,20}")
 

@@ -4,7 +4,7 @@
 ``tail -f drive.csv``, ``gpspipe -r``) from standard input and writes one CSV
 result line per input line, flushed immediately, so another program can act on
 a fix while the car is still at it. The batch reader cannot do this: it reads
-the whole file, sorts each track by time and only then detects.
+the whole file and only then detects.
 
 Input, recognised from the first non-blank line (or named with ``--format``):
 
@@ -41,23 +41,14 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from .._exceptions import ConfigError
-from .._grad.detector import Detector
+from .._grad.detector import Detector, MultiTrackDetector
 from .._io.nmea import Malformed, parse_gga, parse_rmc, split_sentence
-from .._result import PointResult
+from .._result import RESULT_COLUMNS, PointResult
 from .._tracks.track import ColumnMap, resolve_columns
 
 __all__ = ["NMEA_FIELDS", "RESULT_FIELDS", "FollowCounts", "follow_lines", "parse_time"]
 
-RESULT_FIELDS = (
-    "anomaly",
-    "score",
-    "bias_type",
-    "time_type",
-    "lat_clean",
-    "lon_clean",
-    "alert",
-    "invalid_reason",
-)
+RESULT_FIELDS = RESULT_COLUMNS
 NMEA_FIELDS = ("line", "sentence", "time", "lat", "lon", "speed", "heading", "epoch_line")
 _DAY = 86400.0
 
@@ -76,7 +67,8 @@ def _text(value: float | int | str | None) -> str:
     if value is None:
         return ""
     if isinstance(value, float):
-        return "" if math.isnan(value) else f"{value:.10g}"
+        # Shortest exact form, as the file outputs write floats: the same numbers in every mode.
+        return "" if math.isnan(value) else repr(value)
     return str(value)
 
 
@@ -119,7 +111,7 @@ class _CsvFollower:
     """One CSV stream: the header fixes the columns, then one fix per line."""
 
     def __init__(
-        self, header: list[str], columns: ColumnMap | None, new_detector: Callable[[], Detector]
+        self, header: list[str], columns: ColumnMap | None, streams: MultiTrackDetector
     ) -> None:
         self.header = header
         roles = resolve_columns(header, columns, source="<stdin>")
@@ -127,8 +119,7 @@ class _CsvFollower:
             role: (None if name is None else header.index(name))
             for role, name in roles.as_dict().items()
         }
-        self.new_detector = new_detector
-        self.detectors: dict[str, Detector] = {}
+        self.streams = streams
 
     def out_header(self) -> list[str]:
         return [*self.header, *RESULT_FIELDS]
@@ -167,10 +158,7 @@ class _CsvFollower:
                 f"column {self.header[k]!r} ({role}) is not {what}: {fields[k]!r}"
             )
         track = self._value(fields, "track") or ""
-        detector = self.detectors.get(track)
-        if detector is None:
-            detector = self.detectors[track] = self.new_detector()
-        return detector.update(t, lat, lon, speed, heading)
+        return self.streams.detector(track).update(t, lat, lon, speed, heading)
 
     def line(self, text: str) -> tuple[list[str], PointResult | None]:
         fields = next(csv.reader([text]))
@@ -271,7 +259,9 @@ def follow_lines(
             kind = fmt or ("nmea" if text.lstrip().startswith(("$", "!")) else "csv")
             if kind == "csv":
                 follower = _CsvFollower(
-                    next(csv.reader([text])), columns, lambda: Detector(model, threshold=threshold)
+                    next(csv.reader([text])),
+                    columns,
+                    MultiTrackDetector(model, threshold=threshold),
                 )
                 write(_csv_text(follower.out_header()))
                 continue

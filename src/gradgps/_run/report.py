@@ -44,10 +44,13 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from .._grad.core import N_RESULT, core_new_state, core_step
+from .._grad.defaults import grad_points
 from .._grad.pipeline import PipelineParams, segment_period
 from .._grad.rema import N_OUT, O_LOWER, O_UPPER
+from .._result import ResultCounts
 from .._tracks.geo import LocalFrame
-from .._tracks.preprocess import Prepared, preprocess
+from .._tracks.preprocess import Prepared
+from .explore import SCRIPT, track_explorer
 
 __all__ = ["ChannelBounds", "ReportInputs", "figures", "rema_bounds", "write_plots", "write_report"]
 
@@ -92,6 +95,9 @@ class ReportInputs:
     model: str = ""
     elapsed_s: float = math.nan
     extra_summary: Mapping[str, str] = field(default_factory=dict)
+    events: pd.DataFrame | None = None
+    #: Where the input is outside what the model was validated on (one sentence each).
+    warnings: Sequence[str] = ()
 
 
 def rema_bounds(
@@ -268,8 +274,12 @@ def figures(inputs: ReportInputs) -> list[tuple[str, str, Any]]:
     import matplotlib
 
     matplotlib.use("Agg")  # no display needed, and no GUI toolkit imported
-    prepared = preprocess(inputs.fixes, max_gap_s=inputs.params.max_gap_s, interpolate=False)
-    flags = _point_flags(prepared, inputs.result)
+    # The rows the detector used, exactly: nothing merged, nothing sorted.
+    usable = np.flatnonzero(inputs.result["invalid_reason"].to_numpy() == "")
+    prepared = grad_points(
+        inputs.fixes.iloc[usable].reset_index(drop=True), inputs.params.max_gap_s
+    )
+    flags = _point_flags(prepared, inputs.result.iloc[usable].reset_index(drop=True))
     per_segment = pd.Series(flags).groupby(prepared.points["segment"].to_numpy()).sum()
     sizes = prepared.points.groupby("segment").size()
     ranked = sorted(per_segment.index, key=lambda s: (-int(per_segment[s]), -int(sizes[s]), s))
@@ -312,7 +322,7 @@ def write_plots(inputs: ReportInputs, folder: str | Path) -> list[Path]:
     paths = []
     for stem, _, fig in figures(inputs):
         path = out_dir / f"{stem}.png"
-        path.write_bytes(_png(fig, dpi=120))
+        _atomic_write(path, _png(fig, dpi=120))
         paths.append(path)
     return paths
 
@@ -323,17 +333,28 @@ def summary_rows(inputs: ReportInputs) -> list[tuple[str, str]]:
     n = len(result)
     invalid = result["invalid_reason"].to_numpy() != ""
     anomaly = (result["anomaly"].to_numpy() == 1) & ~invalid
+    totals = ResultCounts.of(result)
     rows = [
         ("input rows", f"{n:,}"),
         ("tracks", f"{inputs.fixes['track'].nunique():,}"),
         ("usable fixes", f"{int((~invalid).sum()):,}"),
-        ("invalid fixes", f"{int(invalid.sum()):,}"),
-        ("anomalies", f"{int(anomaly.sum()):,} ({100.0 * anomaly.sum() / max(1, n):.1f} %)"),
+        (
+            "anomalies (anomaly=1 in the CSV)",
+            f"{totals.anomalies:,} ({100.0 * totals.anomalies / max(1, n):.1f} %): "
+            f"{int(anomaly.sum()):,} flagged by the detector, {totals.invalid:,} invalid fixes",
+        ),
     ]
+    reasons = result.loc[invalid, "invalid_reason"].value_counts()
+    if len(reasons):
+        rows.append(
+            ("invalid fixes by reason", ", ".join(f"{k}: {int(v):,}" for k, v in reasons.items()))
+        )
+    if inputs.events is not None:
+        rows.append(("fault events", f"{len(inputs.events):,}"))
     for column, label in (("bias_type", "by bias type"), ("time_type", "by time type")):
         counts = result.loc[anomaly, column].value_counts()
         rows.append((label, ", ".join(f"{k}: {int(v):,}" for k, v in counts.items()) or "none"))
-    rows.append(("alerts (permanent faults)", f"{int(result['alert'].sum()):,}"))
+    rows.append(("alerts (permanent faults)", f"{totals.alerts:,}"))
     if math.isfinite(inputs.elapsed_s) and inputs.elapsed_s > 0:
         rows.append(
             (
@@ -346,6 +367,7 @@ def summary_rows(inputs: ReportInputs) -> list[tuple[str, str]]:
         rows.append(("model", inputs.model))
     rows.append(("anomaly threshold", f"{inputs.params.threshold:g}"))
     rows.extend(inputs.extra_summary.items())
+    rows.extend(("warning", w) for w in inputs.warnings)
     return rows
 
 
@@ -356,10 +378,12 @@ h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:1px solid #ddd;padding-bo
 table{border-collapse:collapse;font-size:.92em}td,th{padding:.25em .8em;border-bottom:1px solid #eee;
 text-align:left}th{background:#f6f6f6}figure{margin:1em 0}img{max-width:100%;height:auto}
 figcaption{color:#555;font-size:.9em}.muted{color:#777;font-size:.9em}
+.track-svg{width:100%;height:560px;border:1px solid #ddd;background:#fcfcfc;cursor:grab}
+#explorer button{min-width:2.2em}
 """
 
 
-def _table(header: Sequence[str] | None, rows: Sequence[Sequence[str]]) -> str:
+def _table(header: Sequence[str] | None, rows: Sequence[Sequence[str]], table_id: str = "") -> str:
     head = (
         ""
         if header is None
@@ -368,9 +392,13 @@ def _table(header: Sequence[str] | None, rows: Sequence[Sequence[str]]) -> str:
         )
     )
     body = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows
+        "<tr>"
+        + "".join(f"<td>{c if isinstance(c, _Html) else html.escape(str(c))}</td>" for c in row)
+        + "</tr>"
+        for row in rows
     )
-    return f"<table>{head}<tbody>{body}</tbody></table>"
+    attr = f" id='{html.escape(table_id)}'" if table_id else ""
+    return f"<table{attr}>{head}<tbody>{body}</tbody></table>"
 
 
 def _anomaly_rows(inputs: ReportInputs) -> tuple[list[str], list[list[str]], int]:
@@ -384,7 +412,7 @@ def _anomaly_rows(inputs: ReportInputs) -> tuple[list[str], list[list[str]], int
             [
                 str(i),
                 str(fixes["track"].iloc[i]),
-                f"{fixes['t'].iloc[i]:.1f}",
+                readable_time(float(fixes["t"].iloc[i])),
                 f"{fixes['lat'].iloc[i]:.6f}",
                 f"{fixes['lon'].iloc[i]:.6f}",
                 f"{result['score'].iloc[i]:.3f}",
@@ -397,7 +425,7 @@ def _anomaly_rows(inputs: ReportInputs) -> tuple[list[str], list[list[str]], int
     header = [
         "row",
         "track",
-        "t (s)",
+        "time",
         "lat",
         "lon",
         "score",
@@ -407,6 +435,66 @@ def _anomaly_rows(inputs: ReportInputs) -> tuple[list[str], list[list[str]], int
         "lon clean",
     ]
     return header, rows, int(sel.size)
+
+
+def readable_time(t: float) -> str:
+    """Unix seconds as ``2026-11-23 12:00:05.2 UTC``; small numbers (relative clocks) as seconds."""
+    if not math.isfinite(t):
+        return ""
+    if abs(t) < 1e8:  # not an epoch: seconds since some start
+        return f"{t:,.1f} s"
+    stamp = pd.Timestamp(t, unit="s", tz="UTC")
+    return stamp.strftime("%Y-%m-%d %H:%M:%S") + f".{stamp.microsecond // 100_000} UTC"
+
+
+#: Rows of the events table.
+MAX_EVENT_ROWS = 500
+
+
+class _Html(str):
+    """Table cell text that is already HTML (not escaped again)."""
+
+
+def _time_cell(t: float) -> str:
+    """A ``<time>`` element: UTC text, rewritten in the viewer's local time by the page's script."""
+    text = html.escape(readable_time(t))
+    if not math.isfinite(t):
+        return text
+    return f"<time data-t='{t!r}'>{text}</time>"
+
+
+def _event_rows(events: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+    header = [
+        "track",
+        "start",
+        "end",
+        "duration (s)",
+        "fixes",
+        "bias type",
+        "time type",
+        "peak offset (m)",
+        "peak score",
+        "alert",
+        "rows",
+    ]
+    records: list[dict[Any, Any]] = events.head(MAX_EVENT_ROWS).to_dict("records")
+    rows = [
+        [
+            str(ev["track"]),
+            _Html(_time_cell(float(ev["start"]))),
+            _Html(_time_cell(float(ev["end"]))),
+            f"{float(ev['duration_s']):,.1f}",
+            f"{int(ev['fixes']):,}",
+            str(ev["bias_type"]),
+            str(ev["time_type"]),
+            f"{float(ev['peak_offset_m']):,.1f}",
+            f"{float(ev['peak_score']):.3f}",
+            "yes" if int(ev["alert"]) else "",
+            f"{int(ev['first_row'])}-{int(ev['last_row'])}",
+        ]
+        for ev in records
+    ]
+    return header, rows
 
 
 def render_html(inputs: ReportInputs) -> str:
@@ -420,6 +508,10 @@ def render_html(inputs: ReportInputs) -> str:
         parts.append(f"<p class='muted'>input: {html.escape(inputs.source)}</p>")
     parts.append("<h2 id='summary'>Summary</h2>")
     parts.append(_table(None, summary_rows(inputs)))
+    explorer = track_explorer(inputs.fixes, inputs.result)
+    if explorer:
+        parts.append("<h2 id='explore'>Tracks, one at a time</h2>")
+        parts.append(explorer)
     drawn = figures(inputs)
     for k, (stem, caption, fig) in enumerate(drawn):
         if k == 0:
@@ -436,6 +528,18 @@ def render_html(inputs: ReportInputs) -> str:
             f"<figure><img alt='{html.escape(stem)}' src='data:image/png;base64,{data}'>"
             f"<figcaption>{html.escape(caption)}</figcaption></figure>"
         )
+    if inputs.events is not None:
+        ev_header, ev_rows = _event_rows(inputs.events)
+        parts.append("<h2 id='events'>Fault events</h2>")
+        n_ev = len(inputs.events)
+        shown_ev = (
+            f"the first {len(ev_rows)} of {n_ev:,}" if n_ev > len(ev_rows) else f"all {n_ev:,}"
+        )
+        parts.append(
+            f"<p class='muted'>{shown_ev} runs of consecutive flagged fixes per track "
+            "(rows = input rows, from 0).</p>"
+        )
+        parts.append(_table(ev_header, ev_rows, table_id="events-table"))
     header, rows, total = _anomaly_rows(inputs)
     parts.append("<h2 id='anomalies'>Anomalies</h2>")
     shown = f"the first {len(rows)} of {total:,}" if total > len(rows) else f"all {total:,}"
@@ -443,7 +547,7 @@ def render_html(inputs: ReportInputs) -> str:
     parts.append(_table(header, rows))
     parts.append(
         "<p class='muted'>Made by gradgps; no network access needed to view this "
-        "file.</p></body></html>"
+        f"file.</p><script>{SCRIPT}</script></body></html>"
     )
     return "".join(parts)
 
@@ -452,5 +556,15 @@ def write_report(inputs: ReportInputs, path: str | Path) -> Path:
     """Write :func:`render_html` to ``path`` (folders created); returns the path."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(render_html(inputs), encoding="utf-8")
+    _atomic_write(out, render_html(inputs).encode("utf-8"))
     return out
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    """Write beside ``path`` and rename: a stopped run never leaves a half-written file."""
+    partial = path.with_name(path.name + ".partial")
+    try:
+        partial.write_bytes(data)
+        partial.replace(path)
+    finally:
+        partial.unlink(missing_ok=True)

@@ -37,12 +37,18 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError
+from .._result import NULL_ISLAND, STEP_TOLERANCE_S, invalid_reasons
 from .geo import LocalFrame, radius_splits
 
-__all__ = ["NULL_ISLAND", "Prepared", "invalid_reasons", "preprocess"]
-
-#: Reason for a fix at exactly (0, 0), what receivers report before they have a position.
-NULL_ISLAND = "position exactly (0, 0): no fix yet"
+__all__ = [
+    "MIN_STEP_S",
+    "NULL_ISLAND",
+    "STEP_TOLERANCE_S",
+    "Prepared",
+    "invalid_reasons",
+    "preprocess",
+    "stream_reasons",
+]
 
 _CORE = ("track", "t", "lat", "lon")
 
@@ -99,24 +105,52 @@ class Prepared:
         return out
 
 
-def invalid_reasons(fixes: pd.DataFrame) -> np.ndarray:
-    """Per row: ``""`` for a usable fix, else why it cannot be used (first problem found)."""
-    n = len(fixes)
-    reason = np.full(n, "", dtype=object)
+#: Shortest time step between two usable fixes of a track (1 kHz): closer is one instant.
+MIN_STEP_S = 1e-3
+#: Reasons :func:`stream_reasons` gives for a fix that is out of time order in its track.
+NOT_AFTER = "time not after the previous fix"
+TOO_CLOSE = "time less than 1 ms after the previous fix"
+
+
+def stream_reasons(fixes: pd.DataFrame, *, min_step_s: float = MIN_STEP_S) -> np.ndarray:
+    """Per row, why a fix cannot be used when each track is read in row order (``""`` if usable).
+
+    The one rule every detection mode applies (whole file, chunks, follow,
+    Python, report): the value checks of :func:`invalid_reasons`, then, per
+    track in row order, a fix whose time is not after the previous *usable*
+    fix of its track (a repeated or backward timestamp) or less than
+    ``min_step_s`` after it is unusable. A repeated timestamp is never
+    merged or averaged: no position is invented. Steps are compared with a
+    tolerance of :data:`STEP_TOLERANCE_S` (timestamps like 1.7e9 + 0.001 s
+    are not exact in float64), the same one :func:`gradgps._result.fix_reason`
+    uses, so every mode draws the line at the same place.
+    """
+    reason = invalid_reasons(fixes)
+    ok = np.flatnonzero(reason == "")
+    if ok.size < 2:
+        return reason
     t = fixes["t"].to_numpy(dtype=np.float64)
-    lat = fixes["lat"].to_numpy(dtype=np.float64)
-    lon = fixes["lon"].to_numpy(dtype=np.float64)
-    checks = (
-        ((lat == 0.0) & (lon == 0.0), NULL_ISLAND),
-        (~np.isfinite(lon), "longitude missing or not finite"),
-        (np.isfinite(lon) & (np.abs(lon) > 180.0), "longitude outside +-180"),
-        (~np.isfinite(lat), "latitude missing or not finite"),
-        (np.isfinite(lat) & (np.abs(lat) > 90.0), "latitude outside +-90"),
-        (~np.isfinite(t), "time missing or not finite"),
-    )
-    # Later checks overwrite earlier ones, so the most basic problem (time) wins.
-    for mask, text in checks:
-        reason[mask] = text
+    shortest = min_step_s - STEP_TOLERANCE_S if min_step_s > 0 else 0.0
+    codes, _ = pd.factorize(pd.Series(fixes["track"].to_numpy(dtype=object)[ok], dtype=object))
+    rows = ok[np.argsort(codes, kind="stable")]
+    bounds = np.flatnonzero(np.r_[True, np.diff(np.sort(codes, kind="stable")) != 0, True])
+    for a, b in itertools.pairwise(bounds.tolist()):
+        r = rows[a:b]
+        tt = t[r]
+        before = np.r_[-np.inf, np.maximum.accumulate(tt)[:-1]]
+        late = tt > before
+        close = late & (tt - before < shortest)
+        if not close.any():
+            reason[r[~late]] = NOT_AFTER
+            continue
+        last = -np.inf  # a close fix is not usable, so the running maximum is not the rule here
+        for i, ti in zip(r.tolist(), tt.tolist(), strict=True):
+            if ti <= last:
+                reason[i] = NOT_AFTER
+            elif ti - last < shortest:
+                reason[i] = TOO_CLOSE
+            else:
+                last = ti
     return reason
 
 

@@ -5,9 +5,9 @@ tracks and fixes, at what rate, with which dropouts, where, how fast, and how
 much of it is unusable. :func:`summarize` computes that from canonical fixes.
 
 It works on :func:`gradgps.preprocess` points (one segment per track, no
-interpolation), so the rate and gaps are measured on time-ordered fixes with
-repeated timestamps merged, exactly what the detectors will see, and invalid
-rows are counted with the same reasons the detectors give them.
+interpolation) of the usable fixes, exactly what the detector uses: invalid
+rows are counted with the same reasons the detector gives them, a repeated or
+backward timestamp included (each track is read in row order).
 
 Definitions (per track; *steps* are the time differences between
 consecutive distinct timestamps of valid fixes):
@@ -36,7 +36,8 @@ import numpy as np
 import pandas as pd
 
 from .geo import haversine_m
-from .preprocess import preprocess
+from .input_checks import VALIDATED_DEFAULT, input_warnings
+from .preprocess import MIN_STEP_S, preprocess, stream_reasons
 
 __all__ = ["GAP_FACTOR", "SpeedStats", "Summary", "TrackSummary", "summarize"]
 
@@ -89,6 +90,37 @@ class TrackSummary:
     lon_min: float | None
     lon_max: float | None
     speed: SpeedStats | None
+    start_s: float | None = None
+    end_s: float | None = None
+
+
+#: Faster than this (m/s; 324 km/h) is no road vehicle: positions jump or the unit is wrong.
+IMPOSSIBLE_SPEED = 90.0
+#: Rates outside this band (Hz) are worth a second look.
+RATE_BAND = (0.01, 50.0)
+
+
+def warnings_of(tracks: list[TrackSummary], rows: int) -> list[str]:
+    """Plain-language warnings: impossible speeds, odd rates, many unusable rows."""
+    out = []
+    for s in tracks:
+        if s.speed is not None and s.speed.max > IMPOSSIBLE_SPEED:
+            what = "reported speed" if s.speed.source == "reported" else "speed between fixes"
+            out.append(
+                f"track {s.track}: {what} up to {s.speed.max:,.0f} m/s "
+                f"(over {IMPOSSIBLE_SPEED:.0f} m/s: position jumps"
+                + (", or speed not in m/s" if s.speed.source == "reported" else "")
+                + ")"
+            )
+        if s.rate_hz is not None and not (RATE_BAND[0] <= s.rate_hz <= RATE_BAND[1]):
+            out.append(f"track {s.track}: {s.rate_hz:g} Hz is an unusual rate (time unit right?)")
+    invalid = sum(s.invalid for s in tracks)
+    if rows and invalid > 0.1 * rows:
+        out.append(
+            f"{invalid:,} of {rows:,} rows ({100 * invalid / rows:.0f} %) are unusable "
+            "(see the reasons above)"
+        )
+    return out
 
 
 @dataclass(frozen=True)
@@ -101,6 +133,7 @@ class Summary:
     invalid_reasons: dict[str, int]
     rejected: int = 0
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, object]:
         """Plain JSON-able data (NaN never appears: missing values are ``None``)."""
@@ -113,6 +146,7 @@ class Summary:
             "invalid_reasons": dict(self.invalid_reasons),
             "rejected": self.rejected,
             "notes": list(self.notes),
+            "warnings": list(self.warnings),
         }
 
 
@@ -150,6 +184,7 @@ def _summary_of(
     steps: list[np.ndarray],
     box: tuple[float, float, float, float] | None,
     speed: SpeedStats | None,
+    span: tuple[float, float] | None = None,
 ) -> TrackSummary:
     """One summary from facts that may come from one track or many (``steps`` per track)."""
     all_steps = np.concatenate(steps) if steps else np.empty(0)
@@ -177,10 +212,19 @@ def _summary_of(
         lon_min=box[2] if box else None,
         lon_max=box[3] if box else None,
         speed=speed,
+        start_s=span[0] if span else None,
+        end_s=span[1] if span else None,
     )
 
 
-def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None = None) -> Summary:
+def summarize(
+    fixes: pd.DataFrame,
+    *,
+    rejected: int = 0,
+    notes: list[str] | None = None,
+    min_rate_hz: float = VALIDATED_DEFAULT["min_rate_hz"],
+    max_rate_hz: float = VALIDATED_DEFAULT["max_rate_hz"],
+) -> Summary:
     """Summarise canonical fixes (see the module docstring for every definition).
 
     ``rejected``/``notes`` pass on what a lenient reader skipped (NMEA
@@ -188,11 +232,16 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
     """
     # One segment per track (no gap is too long) and no filling: the summary
     # measures the fixes as recorded and finds gaps itself.
-    prepared = preprocess(fixes, max_gap_s=sys.float_info.max, interpolate=False)
+    # Invalid rows by the rule every detection mode applies (rows in order per
+    # track; a repeated or backward timestamp is unusable), so info and detect agree.
+    row_reason = stream_reasons(fixes, min_step_s=MIN_STEP_S)
+    invalid_rows = row_reason != ""
+    prepared = preprocess(
+        fixes.iloc[np.flatnonzero(~invalid_rows)], max_gap_s=sys.float_info.max, interpolate=False
+    )
     points = prepared.points
     has_speed = "speed" in points.columns
     row_tracks = fixes["track"].astype(str).to_numpy(dtype=object)
-    invalid_rows = prepared.row_reason != ""
     track_of_point = points["track"].astype(str).to_numpy(dtype=object)
 
     summaries: list[TrackSummary] = []
@@ -215,6 +264,7 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
                 [facts.steps],
                 box,
                 speed,
+                (float(t[0]), float(t[-1])) if t.size else None,
             )
         )
         step_lists.append(facts.steps)
@@ -227,6 +277,8 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
         source = speed_sources.pop() if len(speed_sources) == 1 else "mixed"
         total_speed = SpeedStats.of(np.concatenate(speed_parts), source)
     durations = [s.duration_s for s in summaries if s.duration_s is not None]
+    starts = [s.start_s for s in summaries if s.start_s is not None]
+    ends = [s.end_s for s in summaries if s.end_s is not None]
     total = _summary_of(
         "total",
         len(fixes),
@@ -235,8 +287,9 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
         step_lists,
         _box(points),
         total_speed,
+        (min(starts), max(ends)) if starts else None,
     )
-    reasons = Counter(str(r) for r in prepared.row_reason if r != "")
+    reasons = Counter(str(r) for r in row_reason if r != "")
     return Summary(
         source=str(fixes.attrs.get("source", "<data>")),
         tracks=summaries,
@@ -244,6 +297,8 @@ def summarize(fixes: pd.DataFrame, *, rejected: int = 0, notes: list[str] | None
         invalid_reasons=dict(reasons.most_common()),
         rejected=rejected,
         notes=list(notes or []),
+        warnings=warnings_of(summaries, len(fixes))
+        + input_warnings(fixes, min_rate_hz=min_rate_hz, max_rate_hz=max_rate_hz),
     )
 
 

@@ -44,6 +44,7 @@ __all__ = [
     "Table",
     "resolve_columns",
     "to_fixes",
+    "track_rows",
 ]
 
 OPTIONAL_CHANNELS = ("speed", "heading", "alt", "hdop")
@@ -71,6 +72,11 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "timesec",
         "times",
         "timestamps",
+        "timestampms",
+        "timems",
+        "tms",
+        "epochms",
+        "unixtimems",
     ),
     "lat": (
         "lat",
@@ -81,6 +87,7 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "latitudedeg",
         "y_lat",
         "latwgs84",
+        "y",
     ),
     "lon": (
         "lon",
@@ -94,6 +101,7 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "londeg",
         "longitudedeg",
         "lonwgs84",
+        "x",
     ),
     "track": (
         "track",
@@ -110,7 +118,20 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "segment",
         "id",
     ),
-    "speed": ("speed", "speedmps", "speedms", "velocity", "gpsspeed", "spd"),
+    "speed": (
+        "speed",
+        "speedmps",
+        "speedms",
+        "velocity",
+        "gpsspeed",
+        "spd",
+        "speedkmh",
+        "speedkph",
+        "speedmph",
+        "speedknots",
+        "speedkn",
+        "speedkt",
+    ),
     "heading": (
         "heading",
         "headingdeg",
@@ -174,14 +195,24 @@ class Table:
     row_offset: int = 0
 
 
+_CLI_FLAGS = {"time": "--time-col", "lat": "--lat-col", "lon": "--lon-col"}
+
+
 def resolve_columns(
-    names: Iterable[str], overrides: ColumnMap | None = None, *, source: str = "<data>"
+    names: Iterable[str],
+    overrides: ColumnMap | None = None,
+    *,
+    source: str = "<data>",
+    arg_names: Mapping[str, str] | None = None,
 ) -> ColumnMap:
     """Auto-detect the role of each column, honouring explicit overrides.
 
     Raises :class:`InputError` when a named column does not exist or when time,
     latitude or longitude cannot be found, listing the available columns.
+    ``arg_names`` says how the caller names the options in hints (the CLI's
+    ``--time-col`` by default; ``time=`` from Python).
     """
+    flags = _CLI_FLAGS if arg_names is None else arg_names
     names = list(names)
     by_norm: dict[str, str] = {}
     for n in names:
@@ -214,7 +245,8 @@ def resolve_columns(
         chosen[role] = found
         if found is not None:
             used.add(found)
-    for role, flag in (("time", "--time-col"), ("lat", "--lat-col"), ("lon", "--lon-col")):
+    for role in ("time", "lat", "lon"):
+        flag = flags[role]
         if chosen[role] is None:
             raise InputError(
                 f"cannot find the {role} column",
@@ -224,8 +256,47 @@ def resolve_columns(
     return ColumnMap(**chosen)
 
 
+#: A decimal comma (``48,1375``; semicolon CSVs from European locales).
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+(?:[eE][+-]?\d+)?$")
+
+
+def _decimal_commas(as_str: pd.Series, blank: pd.Series) -> pd.Series | None:
+    """The column with decimal commas read as points, when every non-blank value has one or none."""
+    text = as_str[~blank]
+    if text.empty or not bool(text.str.contains(",", regex=False).any()):
+        return None
+    if not bool(
+        text.str.match(_DECIMAL_COMMA).fillna(False).where(text.str.contains(","), True).all()
+    ):
+        return None
+    return as_str.str.replace(",", ".", regex=False)
+
+
+#: Speed column names that say their unit, and the factor to m/s.
+_SPEED_UNITS = {
+    "kmh": 1 / 3.6,
+    "kph": 1 / 3.6,
+    "mph": 0.44704,
+    "knots": 0.514444,
+    "kn": 0.514444,
+    "kt": 0.514444,
+}
+
+
+def speed_factor(name: str) -> float:
+    """Factor from the unit a speed column's name says (``speed_kmh``) to m/s; 1 if none."""
+    norm = _norm(name)
+    for unit, factor in _SPEED_UNITS.items():
+        if norm.endswith(unit) and norm != unit:
+            return factor
+    return 1.0
+
+
 def _numeric(frame: pd.DataFrame, col: str, table: Table, *, what: str) -> np.ndarray:
-    """Column as float64; text that is not a number raises naming the first bad row."""
+    """Column as float64; text that is not a number raises naming the first bad row.
+
+    Decimal commas (``48,1375``) are read as decimal points when the whole
+    column uses them."""
     series = frame[col]
     if pd.api.types.is_bool_dtype(series.dtype):
         raise InputError(f"expected {what}, found booleans", source=table.source, column=col)
@@ -235,6 +306,11 @@ def _numeric(frame: pd.DataFrame, col: str, table: Table, *, what: str) -> np.nd
     blank = series.isna() | (as_str == "") | as_str.str.lower().isin(["nan", "na", "null", "none"])
     values = pd.to_numeric(as_str.where(~blank, None), errors="coerce")
     bad = values.isna() & ~blank
+    if bool(bad.any()):
+        dotted = _decimal_commas(as_str, blank)
+        if dotted is not None:
+            values = pd.to_numeric(dotted.where(~blank, None), errors="coerce")
+            bad = values.isna() & ~blank
     if bool(bad.any()):
         pos = int(np.flatnonzero(bad.to_numpy())[0])
         raise _row_error(table, pos, col, f"not a number ({what}): {series.iloc[pos]!r}")
@@ -259,9 +335,10 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
     if pd.api.types.is_datetime64_any_dtype(series.dtype):
         dt = pd.to_datetime(series, utc=True)
         return _datetime_seconds(dt)
+    in_ms = _norm(col).endswith("ms") and _norm(col) not in ("times", "timestamps")
     if pd.api.types.is_numeric_dtype(series.dtype) and not pd.api.types.is_bool_dtype(series.dtype):
         t = np.asarray(series.to_numpy(dtype=np.float64, na_value=np.nan), dtype=np.float64)
-        return _scale_epoch(t)
+        return t / 1e3 if in_ms else _scale_epoch(t)
     as_str = series.astype("string").str.strip()
     numeric = pd.to_numeric(as_str, errors="coerce")
     if bool(numeric.notna().all()) or bool(
@@ -282,6 +359,9 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
         parsed = pd.Series(pd.NaT, index=series.index, dtype="datetime64[ns, UTC]")
     bad = parsed.isna() & ~blank
     if bool(bad.any()):
+        parsed = _day_first(as_str.where(~blank, None), parsed)
+        bad = parsed.isna() & ~blank
+    if bool(bad.any()):
         pos = int(np.flatnonzero(bad.to_numpy())[0])
         raise _row_error(table, pos, col, f"not a time (seconds or ISO-8601): {series.iloc[pos]!r}")
     # ISO-8601 allows years far outside what nanosecond times (1677-2262) can hold.
@@ -293,6 +373,22 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
             table, pos, col, f"time out of range (years 1678-2261): {series.iloc[pos]!r}"
         )
     return _datetime_seconds(parsed)
+
+
+#: Day-first dates (``23.11.2026 10:00:05``, ``23/11/2026``), read when ISO-8601 does not fit.
+_DAY_FIRST = re.compile(r"^\d{1,2}[./-]\d{1,2}[./-]\d{4}")
+
+
+def _day_first(text: pd.Series, iso: pd.Series) -> pd.Series:
+    """Times written day first, as most of the world writes them; ``iso`` where that fails."""
+    present = text.dropna()
+    if present.empty or not bool(present.str.match(_DAY_FIRST).all()):
+        return iso
+    try:
+        parsed = pd.to_datetime(text, utc=True, dayfirst=True, format="mixed", errors="coerce")
+    except (ValueError, TypeError):
+        return iso
+    return parsed if int(parsed.notna().sum()) >= int(iso.notna().sum()) else iso
 
 
 def _datetime_seconds(dt: pd.Series) -> np.ndarray:
@@ -327,6 +423,7 @@ def to_fixes(
     columns: ColumnMap | None = None,
     *,
     channels: Iterable[str] = (),
+    arg_names: Mapping[str, str] | None = None,
 ) -> pd.DataFrame:
     """Convert a table to the canonical fixes frame (see the module docstring).
 
@@ -341,7 +438,9 @@ def to_fixes(
     base = table.columns.as_dict()
     if columns is not None:
         base.update({k: v for k, v in columns.as_dict().items() if v is not None})
-    cmap = resolve_columns(frame.columns, ColumnMap(**base), source=table.source)
+    cmap = resolve_columns(
+        frame.columns, ColumnMap(**base), source=table.source, arg_names=arg_names
+    )
     n = len(frame)
     out: dict[str, object] = {}
     if cmap.track is not None:
@@ -353,9 +452,20 @@ def to_fixes(
     assert cmap.time is not None
     assert cmap.lat is not None
     assert cmap.lon is not None
-    out["t"] = _times(frame, cmap.time, table)
+    date_col = _date_partner(frame, cmap.time)
+    if date_col is not None:
+        joined = (
+            frame[date_col].astype("string").str.strip()
+            + " "
+            + frame[cmap.time].astype("string").str.strip()
+        )
+        out["t"] = _times(pd.DataFrame({cmap.time: joined}), cmap.time, table)
+    else:
+        out["t"] = _times(frame, cmap.time, table)
     out["lat"] = _numeric(frame, cmap.lat, table, what="latitude in degrees")
     out["lon"] = _numeric(frame, cmap.lon, table, what="longitude in degrees")
+    if _norm(cmap.lat) == "y" or _norm(cmap.lon) == "x":
+        _check_degrees(out["lat"], out["lon"], cmap, table)
     for role in OPTIONAL_CHANNELS:
         col = getattr(cmap, role)
         if col is not None:
@@ -363,6 +473,8 @@ def to_fixes(
             if role == "heading":
                 # An infinite heading has no direction: NaN, quietly (no RuntimeWarning).
                 values = np.mod(np.where(np.isinf(values), np.nan, values), 360.0)
+            if role == "speed":
+                values = values * speed_factor(col)  # speed_kmh, speed_mph...: to m/s
             out[role] = values
     for col in channels:
         if col not in frame.columns:
@@ -379,6 +491,56 @@ def to_fixes(
     return fixes
 
 
+_TIME_OF_DAY = re.compile(r"^\d{1,2}:\d{2}(:\d{2}(\.\d+)?)?$")
+
+
+def _date_partner(frame: pd.DataFrame, time_col: str) -> str | None:
+    """A ``date`` column to join with ``time_col`` when that holds only times of day."""
+    series = frame[time_col]
+    if pd.api.types.is_numeric_dtype(series.dtype) or pd.api.types.is_datetime64_any_dtype(
+        series.dtype
+    ):
+        return None
+    text = series.dropna().astype("string").str.strip()
+    if text.empty or not bool(text.head(50).str.match(_TIME_OF_DAY).all()):
+        return None
+    for name in frame.columns:
+        if _norm(str(name)) in ("date", "gpsdate", "utcdate", "day") and name != time_col:
+            return str(name)
+    return None
+
+
+def _check_degrees(lat: object, lon: object, cmap: ColumnMap, table: Table) -> None:
+    """``X``/``Y`` columns are taken as longitude/latitude only when they hold degrees."""
+    lat_a = np.asarray(lat, dtype=np.float64)
+    lon_a = np.asarray(lon, dtype=np.float64)
+    ok = np.isfinite(lat_a) & np.isfinite(lon_a)
+    if ok.any() and (np.abs(lat_a[ok]).max() > 90 or np.abs(lon_a[ok]).max() > 180):
+        raise InputError(
+            f"columns {cmap.lon!r}/{cmap.lat!r} hold projected coordinates, not degrees",
+            source=table.source,
+            hint="convert them to WGS84 longitude/latitude first (in Python: pass a "
+            "GeoDataFrame with its CRS to gradgps.detect)",
+        )
+
+
 def with_columns(table: Table, columns: Mapping[str, str | None]) -> Table:
     """A copy of ``table`` whose column map has the given roles set."""
     return replace(table, columns=replace(table.columns, **columns))
+
+
+def track_rows(fixes: pd.DataFrame, usable: np.ndarray | None = None) -> list[np.ndarray]:
+    """Row positions of each track's (``usable``) fixes in time order; tracks in order of appearance.
+
+    The one place where canonical fixes are split by track: ties in time keep
+    their input order (a stable sort).
+    """
+    rows = np.arange(len(fixes)) if usable is None else np.flatnonzero(usable)
+    if rows.size == 0:
+        return []
+    tracks = fixes["track"].to_numpy(dtype=object)[rows]
+    t = fixes["t"].to_numpy(dtype=np.float64)[rows]
+    codes = pd.factorize(pd.Series(tracks, dtype=object), sort=False)[0]
+    order = np.lexsort((t, codes))
+    cuts = np.flatnonzero(np.diff(codes[order])) + 1
+    return np.split(rows[order], cuts)

@@ -20,10 +20,8 @@ filter and loading cached models never needs it.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
-import os
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -49,7 +47,9 @@ from .._exceptions import ConfigError, ModelError
 from .._grad.features import FeatureParams
 from .._grad.gru import GRUModel
 from .._grad.rema import RemaParams
+from .._result import f1_score
 from .._tracks.track import ColumnMap, to_fixes
+from .cache import cached_path
 
 if TYPE_CHECKING:
     from torch import nn
@@ -222,7 +222,7 @@ def train_window_model(
     import torch
     from torch import nn
 
-    from .torch_gru import _best_threshold, _class_weights, _f1, _fit_scaler, _optimise
+    from .torch_gru import _best_threshold, _class_weights, _fit_scaler, _optimise
 
     if architecture not in NETS:
         raise ConfigError(
@@ -275,7 +275,7 @@ def train_window_model(
                     if time.perf_counter() - began > recipe.time_budget_s:
                         out_of_time = True
                         break
-                val_f1 = _f1(val_truth, val_probability() >= 0.5)
+                val_f1 = f1_score(val_truth, val_probability() >= 0.5)
                 history.append(
                     {
                         "epoch": epoch,
@@ -320,22 +320,8 @@ def train_window_model(
 def _cache_dir(
     kind: str, dataset: str, protocol: str, recipe: BaselineRecipe, data_dir: str | Path | None
 ) -> Path:
-    from .._data.datasets import find_data_dir
-    from .._version import __version__
-
-    key: dict[str, Any] = {
-        "version": __version__,
-        "kind": kind,
-        "dataset": dataset,
-        "protocol": protocol,
-        "recipe": asdict(recipe),
-    }
-    if dataset != "simulated":
-        folder = find_data_dir(data_dir)
-        key["files"] = sorted((p.name, p.stat().st_size) for p in folder.glob("*.csv"))
-    digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16]
-    cache = Path(os.environ.get("GRADGPS_CACHE", Path.home() / ".cache" / "gradgps"))
-    return cache / "baselines" / f"{kind}-{dataset}-{protocol}-{digest}"
+    settings = {"kind": kind, "dataset": dataset, "protocol": protocol, "recipe": asdict(recipe)}
+    return cached_path("baselines", f"{kind}-{dataset}-{protocol}", settings, dataset, data_dir)
 
 
 def _splits(dataset: str, data_dir: str | Path | None) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -434,25 +420,16 @@ def dataset_channel_grad(
 
     ``recipe`` is a :class:`gradgps._train.baselines.BaselineRecipe` (seeds, budget, stopping).
     """
-    from .._data.datasets import find_data_dir
-    from .._version import __version__
 
     rec = recipe or BaselineRecipe()
     features, rema = FeatureParams(speed_heading=False), RemaParams()
-    key: dict[str, Any] = {
-        "version": __version__,
+    settings = {
         "recipe": asdict(rec),
         "dataset": dataset,
         "features": asdict(features),
         "rema": asdict(rema),
     }
-    if dataset != "simulated":
-        key["files"] = sorted(
-            (p.name, p.stat().st_size) for p in find_data_dir(data_dir).glob("*.csv")
-        )
-    digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16]
-    cache = Path(os.environ.get("GRADGPS_CACHE", Path.home() / ".cache" / "gradgps"))
-    target = cache / "baselines" / f"channel-grad-{dataset}-{digest}"
+    target = cached_path("baselines", f"channel-grad-{dataset}", settings, dataset, data_dir)
     if not (target / "config.json").is_file():
         from .torch_gru import TrainConfig, train_model  # torch only when training
 

@@ -23,17 +23,18 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .._data.inject import inject_grad
+from .._data.inject import inject_freeze, inject_grad
 from .._exceptions import ConfigError
+from .._grad.defaults import grad_points
 from .._grad.model_io import save_model
 from .._grad.pipeline import PipelineParams, grad_features, pipeline_feature_names
-from .._tracks.preprocess import preprocess
 from .._tracks.track import ColumnMap, to_fixes
+from .cache import cached_path
 
 __all__ = ["GradTrainingSet", "labelled_sequences", "train_grad"]
 
 LabelledSequence = tuple[np.ndarray, np.ndarray, np.ndarray]
-GRAD_BIAS_CLASSES = ("none", "noise", "jump")
+GRAD_BIAS_CLASSES = ("none", "noise", "jump", "freeze")
 
 
 def labelled_sequences(
@@ -54,7 +55,7 @@ def labelled_sequences(
                 f"labelled table lacks {col!r}; produce it with an injection protocol"
             )
     fixes = to_fixes(labelled, columns)
-    prepared = preprocess(fixes, max_gap_s=params.max_gap_s, interpolate=False)
+    prepared = grad_points(fixes, params.max_gap_s)
     n_pts = len(prepared.points)
     ok = prepared.row_point >= 0
     anomaly = np.zeros(n_pts, np.int64)
@@ -75,12 +76,11 @@ def labelled_sequences(
     t = pts["t"].to_numpy(np.float64)
     lat = pts["lat"].to_numpy(np.float64)
     lon = pts["lon"].to_numpy(np.float64)
-    tracks = pts["track"].to_numpy(object)
     out: list[LabelledSequence] = []
-    for _, sl in prepared.segment_slices():
+    for k, sl in prepared.segment_slices():
         feats = grad_features(
             params,
-            prepared.frames[str(tracks[sl.start])],
+            prepared.segment_frames[k],
             t[sl],
             lat[sl],
             lon[sl],
@@ -102,6 +102,10 @@ class GradTrainingSet:
     seeds: tuple[int, ...] = tuple(range(101, 111))
     scales: tuple[float, ...] = (1.0,)
     val_seed: int = 7
+    freeze_share: float = 0.0
+    """Share of fixes frozen on top of protocol ``grad`` (:func:`inject_freeze`); 0 = none."""
+    stale_start: float = 0.0
+    """Probability that a track starts with stale, repeated fixes (:func:`inject_freeze`)."""
 
 
 @dataclass(frozen=True)
@@ -121,6 +125,7 @@ def _sequences(
     params: PipelineParams,
     seeds: Sequence[int],
     scales: Sequence[float],
+    spec: GradTrainingSet,
 ) -> list[LabelledSequence]:
     out: list[LabelledSequence] = []
     for table in tables:
@@ -128,6 +133,14 @@ def _sequences(
         for seed in seeds:
             for scale in scales:
                 labelled = inject_grad(table, seed=seed, scale=scale, columns=cmap)
+                if spec.freeze_share > 0 or spec.stale_start > 0:
+                    labelled = inject_freeze(
+                        labelled,
+                        seed=seed,
+                        share=spec.freeze_share,
+                        stale_start=spec.stale_start,
+                        columns=cmap,
+                    )
                 out += labelled_sequences(labelled, params, cmap)
     return out
 
@@ -150,6 +163,7 @@ def train_grad(
     max_epochs: int = 400,
     early_stopping: str = "loss",
     batch_size: int = 32,
+    validated: dict[str, Any] | None = None,
 ) -> TrainReport:
     """Train on clean tables with injected ``grad`` faults and write a model directory.
 
@@ -176,8 +190,8 @@ def train_grad(
 
     prm = params or PipelineParams()
     spec = data or GradTrainingSet()
-    train = _sequences(train_tables, prm, spec.seeds, spec.scales)
-    val = _sequences(val_tables, prm, (spec.val_seed,), (1.0,))
+    train = _sequences(train_tables, prm, spec.seeds, spec.scales, spec)
+    val = _sequences(val_tables, prm, (spec.val_seed,), (1.0,), spec)
     if not train or not val:
         raise ConfigError("training needs at least one training and one validation segment")
     config = TrainConfig(
@@ -206,6 +220,10 @@ def train_grad(
         "val_seed": spec.val_seed,
         **(notes or {}),
     }
+    if validated is not None:
+        # What the model was trained and validated on (rates, columns), so
+        # callers can warn when a file is outside it (issue 13, honest inputs).
+        cfg["validated"] = validated
     save_model(Path(directory), export_torch(trained.network), cfg)
     return TrainReport(
         n_train_points=sum(len(s[1]) for s in train),
@@ -226,25 +244,12 @@ def dataset_model(dataset: str, data_dir: str | Path | None = None) -> Path:
     its file size. ``gradgps bench --detector grad`` uses it, so benchmarks
     re-run in seconds after the first time.
     """
-    import hashlib
-    import json
-
-    from .._data.datasets import find_data_dir
-    from .._version import __version__
-
-    params = PipelineParams()
-    recipe: dict[str, Any] = {
-        "version": __version__,
-        "pipeline": params.to_dict(),
+    settings = {
+        "pipeline": PipelineParams().to_dict(),
         "data": GradTrainingSet().__dict__,
         "dataset": dataset,
     }
-    if dataset != "simulated":
-        folder = find_data_dir(data_dir)
-        recipe["files"] = sorted((p.name, p.stat().st_size) for p in folder.glob("*.csv"))
-    key = hashlib.sha256(json.dumps(recipe, sort_keys=True, default=str).encode()).hexdigest()[:16]
-    cache = Path(os.environ.get("GRADGPS_CACHE", Path.home() / ".cache" / "gradgps"))
-    target = cache / "models" / f"{dataset}-{key}"
+    target = cached_path("models", dataset, settings, dataset, data_dir)
     if not (target / "config.json").is_file():
         from .._data.datasets import load_dataset
 

@@ -114,6 +114,18 @@ def build_onnx(
             w, layer, hidden
         )
     node = helper.make_node
+
+    def gru_layer(k: int, x: str, hidden: int, out: str) -> list[Any]:
+        """GRU layer ``k`` over ``x``, its output squeezed to ``out``: (T, 1, B, H) -> (T, B, H)."""
+        gru = node(
+            "GRU",
+            [x, f"gru{k}_W", f"gru{k}_R", f"gru{k}_B", "", f"h{k}_in"],
+            [f"y{k}", f"h{k}_out"],
+            hidden_size=hidden,
+            linear_before_reset=1,
+        )
+        return [gru, node("Squeeze", [f"y{k}", "axis1"], [out])]
+
     nodes = [
         node("Sub", ["features", "scaler_mean"], ["centred"]),
         node("Mul", ["centred", "scaler_inv_std"], ["scaled_raw"]),
@@ -122,22 +134,8 @@ def build_onnx(
         node("IsInf", ["scaled_raw"], ["is_inf"]),
         node("Or", ["is_nan", "is_inf"], ["not_finite"]),
         node("Where", ["not_finite", "zero", "scaled_raw"], ["scaled"]),
-        node(
-            "GRU",
-            ["scaled", "gru1_W", "gru1_R", "gru1_B", "", "h1_in"],
-            ["y1", "h1_out"],
-            hidden_size=hidden1,
-            linear_before_reset=1,
-        ),
-        node("Squeeze", ["y1", "axis1"], ["x2"]),  # (T, 1, B, H1) -> (T, B, H1)
-        node(
-            "GRU",
-            ["x2", "gru2_W", "gru2_R", "gru2_B", "", "h2_in"],
-            ["y2", "h2_out"],
-            hidden_size=hidden2,
-            linear_before_reset=1,
-        ),
-        node("Squeeze", ["y2", "axis1"], ["top"]),
+        *gru_layer(1, "scaled", hidden1, "x2"),
+        *gru_layer(2, "x2", hidden2, "top"),
         node("MatMul", ["top", "anomaly_head_wt"], ["anomaly_mm"]),
         node("Add", ["anomaly_mm", "anomaly_head_b"], ["anomaly_logits"]),
         node("Softmax", ["anomaly_logits"], ["anomaly_softmax"], axis=-1),

@@ -45,6 +45,7 @@ from torch import nn
 from .._exceptions import ConfigError
 from .._grad.gru import MODES
 from .._grad.model_io import export_torch
+from .._result import f1_score
 
 __all__ = ["EpochMetrics", "GRADNet", "TrainConfig", "TrainedModel", "train_model"]
 
@@ -437,18 +438,12 @@ def _predict_packed(
         )
 
 
-def _f1(truth: np.ndarray, predicted: np.ndarray) -> float:
-    tp = int(np.sum(truth & predicted))
-    denominator = int(np.sum(truth)) + int(np.sum(predicted))
-    return 2.0 * tp / denominator if denominator else 1.0
-
-
 def _best_threshold(truth: np.ndarray, probability: np.ndarray) -> float:
     """Anomaly threshold with the best validation F1 (0.5 when there is nothing to tune on)."""
     if not truth.any():
         return 0.5
     grid = np.round(np.arange(0.05, 0.96, 0.01), 2)
-    scores = np.array([_f1(truth, probability >= t) for t in grid])
+    scores = np.array([f1_score(truth, probability >= t) for t in grid])
     best = np.flatnonzero(scores == scores.max())
     return float(grid[best[np.argmin(np.abs(grid[best] - 0.5))]])
 
@@ -583,7 +578,7 @@ def _train(
             la, lb, a_true, b_true = _predict_packed(net, val, config)
             val_loss = float(loss_fn(la, lb, torch.from_numpy(a_true), torch.from_numpy(b_true)))
             p_anomaly = torch.softmax(la, -1)[:, 1].numpy()
-            val_f1 = _f1(a_true == 1, p_anomaly >= 0.5)
+            val_f1 = f1_score(a_true == 1, p_anomaly >= 0.5)
             on_anomaly = a_true == 1
             bias_acc = (
                 float(np.mean(lb.argmax(-1).numpy()[on_anomaly] == b_true[on_anomaly]))

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._exceptions import ConfigError
 from .._grad.rema import REMA_MODES, RemaParams, rema_batch
 from .._grad.time_classifier import TIME_TYPES, TimeParams, classify_time
+from .._result import f1_score
 
 __all__ = [
     "DEFAULT_GRID",
@@ -77,16 +78,10 @@ DEFAULT_TIME_GRID: dict[str, tuple[int, ...]] = {
 
 
 def f1_scores(pred: ArrayLike, truth: ArrayLike) -> tuple[float, float]:
-    """(anomaly F1, normal F1) of 0/1 predictions; F1 of a class absent from both is 1."""
+    """(anomaly F1, normal F1) of 0/1 predictions (:func:`gradgps._result.f1_score`)."""
     p = np.asarray(pred).astype(bool)
     y = np.asarray(truth).astype(bool)
-
-    def f1(pp: NDArray[np.bool_], yy: NDArray[np.bool_]) -> float:
-        tp = int(np.sum(pp & yy))
-        denom = int(np.sum(pp)) + int(np.sum(yy))
-        return 1.0 if denom == 0 else 2.0 * tp / denom
-
-    return f1(p, y), f1(~p, ~y)
+    return f1_score(y, p), f1_score(~y, ~p)
 
 
 def _combinations(grid: Mapping[str, Sequence[object]], base: RemaParams) -> list[RemaParams]:
