@@ -33,8 +33,8 @@ test: $(VENV)/.stamp-test
 	$(PY) -m mypy
 	$(PY) -m pytest -q
 
-# The long fuzz run (tests/test_fuzz.py): 2,500 cases for each of its 6 tests,
-# 15,000 in all; make test runs the same tests with a few dozen cases each.
+# The long fuzz run (tests/test_fuzz.py): 2,500 cases for each of its 9 tests,
+# 22,500 in all; make test runs the same tests with a few dozen cases each.
 fuzz: $(VENV)/.stamp-test
 	GRADGPS_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(PY) -m pytest -q tests/test_fuzz.py
 FUZZ_EXAMPLES ?= 2500

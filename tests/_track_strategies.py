@@ -67,8 +67,12 @@ def messy_tracks(draw: st.DrawFn, max_rows: int = 40) -> pd.DataFrame:
 
 
 def expected_reasons(fixes: pd.DataFrame) -> np.ndarray:
-    """True where a row is invalid by its own values (time/lat/lon missing, infinite or out of range)."""
+    """True where a row is invalid by its own values (time/lat/lon missing, infinite or out of
+    range, or the position exactly (0, 0))."""
     t = fixes["t"].to_numpy(float)
     lat = fixes["lat"].to_numpy(float)
     lon = fixes["lon"].to_numpy(float)
-    return np.asarray(~np.isfinite(t) | ~(np.abs(lat) <= 90.0) | ~(np.abs(lon) <= 180.0))
+    null_island = (lat == 0.0) & (lon == 0.0)
+    return np.asarray(
+        ~np.isfinite(t) | ~(np.abs(lat) <= 90.0) | ~(np.abs(lon) <= 180.0) | null_island
+    )

@@ -19,7 +19,6 @@ from _detector_checks import (
     BATCH_CHECKS,
     STREAM_CHECKS,
     check_batch_schema_index_and_invalid_rows,
-    check_state_rejected,
 )
 from gradgps import Detector, LocalFrame, RemaDetector, SpeedGate
 from gradgps._baselines.base import input_names
@@ -128,20 +127,13 @@ for _peer in PEER_NAMES:
     if _peer not in _OWN_VENV:
         MAKERS[_peer] = lambda name=_peer: PeerDetector(name)
 
-_GRAD_STATE = pytest.mark.xfail(strict=False, reason="issue 18 adds GRAD state validation")
-
 
 def _cases() -> list[Any]:
     cases = []
     for name, make in MAKERS.items():
         streams = hasattr(make(), "update")
         for check in BATCH_CHECKS + (STREAM_CHECKS if streams else ()):
-            marks = (
-                [_GRAD_STATE]
-                if name in ("grad", "grad-default") and check is check_state_rejected
-                else []
-            )
-            cases.append(pytest.param(name, check, id=f"{name}-{check.__name__}", marks=marks))
+            cases.append(pytest.param(name, check, id=f"{name}-{check.__name__}"))
     return cases
 
 

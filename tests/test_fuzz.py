@@ -9,7 +9,8 @@ pytest turns into an error) is a bug. When no error is raised, every input
 row must come back as exactly one result row.
 
 ``make test`` runs a few dozen cases per test; ``make fuzz`` sets
-``GRADGPS_FUZZ_EXAMPLES`` (2,500 per test, 15,000 in all).
+``GRADGPS_FUZZ_EXAMPLES`` (2,500 per test, 22,500 in all). Beyond files, ROS bags,
+Redis messages and checkpoint states are fuzzed too.
 """
 
 from __future__ import annotations
@@ -428,3 +429,203 @@ def test_fuzz_tampered_model_directory(
     for i in range(3):
         result = det.update(float(i), 41.0 + 1e-4 * i, -96.0, 10.0, 90.0)
         assert result.invalid_reason == ""
+
+
+# --- checkpoint states ----------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def saved_states() -> list[dict[str, object]]:
+    """States of one stream at several points: fresh, warming up (provisional period),
+    steady, and just after a gap."""
+    import json
+
+    det = Detector()
+    states = [json.loads(json.dumps(det.get_state()))]
+    times = [0.0, 0.0011, 0.1, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 20.0, 21.0, 22.0]
+    for i, t in enumerate([*times, *[23.0 + k for k in range(30)]]):
+        det.update(1.7e9 + t, 48.1 + 1e-5 * (i % 3), 11.5 + 1e-4 * i, 10.0 if i % 2 else None)
+        if i in (0, 2, 5, 9, 11, 40):
+            states.append(json.loads(json.dumps(det.get_state())))
+    return states
+
+
+_STATE_NUMBER = st.one_of(
+    st.floats(allow_nan=False),
+    st.integers(-(10**30), 10**30),
+    st.sampled_from(["nan", "inf", "-inf", "x", 0.5, -1, 2**53, 1e300, True, None]),
+)
+
+
+@fuzz
+@given(data=st.data())
+def test_fuzz_checkpoint_states(saved_states: list[dict[str, object]], data: st.DataObject) -> None:
+    """A tampered state is refused with ConfigError, or restores a detector that works:
+    never a crash, a hang or an out-of-bounds access in the compiled step (issue 18)."""
+    import copy
+
+    from gradgps import ConfigError
+
+    state = copy.deepcopy(data.draw(st.sampled_from(saved_states)))
+    for _ in range(data.draw(st.integers(1, 3))):
+        key = data.draw(st.sampled_from(sorted(state)))
+        value = state[key]
+        how = data.draw(
+            st.sampled_from(["element", "element", "truncate", "extend", "replace", "delete"])
+        )
+        if how == "delete":
+            del state[key]
+        elif how == "replace" or not isinstance(value, list) or not value:
+            state[key] = data.draw(_JSON | _STATE_NUMBER)
+        elif how == "truncate":
+            state[key] = value[: data.draw(st.integers(0, len(value) - 1))]
+        elif how == "extend":
+            state[key] = value + data.draw(st.lists(_STATE_NUMBER, min_size=1, max_size=3))
+        else:
+            at = data.draw(st.integers(0, len(value) - 1))
+            if isinstance(value[at], list) and value[at]:
+                inner = list(value[at])
+                inner[data.draw(st.integers(0, len(inner) - 1))] = data.draw(_STATE_NUMBER)
+                value[at] = inner
+            else:
+                value[at] = data.draw(_STATE_NUMBER)
+    det = Detector()
+    refused = _gradgps_error(lambda: det.set_state(state))
+    if isinstance(refused, GradGPSError):
+        assert isinstance(refused, ConfigError)
+        assert str(refused)
+        return
+    t0 = det._last_t if det._last_t is not None else 1.7e9
+    for i in range(1, 25):
+        r = det.update(t0 + i, 48.1, 11.5 + 1e-4 * i)
+        assert r.invalid_reason == "" or r.anomaly == 1
+        assert r.invalid_reason != "" or 0.0 <= r.score <= 1.0
+
+
+# --- Redis messages ---------------------------------------------------------------
+
+_FIELD_NAMES = st.sampled_from(
+    [b"vehicle_id", b"t", b"lat", b"lon", b"speed", b"heading", b"self", b"t\xff", b"", b"extra"]
+)
+_FIELD_VALUES = st.one_of(
+    st.sampled_from([b"a", b"b", b"\xff", b"\xc3(", b"", b"nan", b"inf", b"-0", b"1e400"]),
+    st.floats(-200, 200).map(lambda x: repr(x).encode()),
+    st.integers(0, 60).map(lambda x: str(1000 + x).encode()),
+    st.binary(max_size=6),
+)
+
+
+@st.composite
+def _redis_message(draw: st.DrawFn) -> list[bytes]:
+    """A message's fields, flat: usually a well-formed fix, sometimes with any field
+    repeated, dropped, or given a hostile name or value."""
+    vehicle = draw(st.sampled_from([b"a", b"b", b"c"]))
+    i = draw(st.integers(0, 60))
+    fields = [
+        b"vehicle_id",
+        vehicle,
+        b"t",
+        str(1000 + i).encode(),
+        b"lat",
+        repr(48.1 + 1e-5 * i).encode(),
+        b"lon",
+        repr(11.5 + 1e-4 * i).encode(),
+    ]
+    for _ in range(draw(st.integers(0, 3))):
+        how = draw(st.sampled_from(["add", "replace", "drop"]))
+        if how == "add":
+            fields += [draw(_FIELD_NAMES), draw(_FIELD_VALUES)]
+        elif how == "replace":
+            at = 2 * draw(st.integers(0, len(fields) // 2 - 1))
+            fields[at + draw(st.integers(0, 1))] = draw(_FIELD_NAMES | _FIELD_VALUES)
+        elif len(fields) > 2:
+            at = 2 * draw(st.integers(0, len(fields) // 2 - 1))
+            del fields[at : at + 2]
+    return fields
+
+
+@fuzz
+@given(messages=st.lists(_redis_message(), min_size=1, max_size=12), workers=st.integers(1, 2))
+def test_fuzz_redis_messages(messages: list[list[bytes]], workers: int) -> None:
+    """Whatever producers write, every input message gets exactly one result, no worker
+    stops and nothing stays pending (issue 18, items 2 and 3)."""
+    fakeredis = pytest.importorskip("fakeredis")
+    pytest.importorskip("lupa")
+    from gradgps._run.fleet_redis import RedisStreamWorker
+
+    server = fakeredis.FakeServer()
+    raw = fakeredis.FakeRedis(server=server)
+    ids = [raw.execute_command("XADD", "in", "*", *fields).decode() for fields in messages]
+    pool = []
+    for k in range(workers):
+        client = fakeredis.FakeRedis(server=server, decode_responses=True)
+        worker = RedisStreamWorker(client, "in", "out", "g", f"w{k}", batch_size=5)
+        worker.ensure_group()
+        pool.append(worker)
+    for _ in range(50):
+        reports = [w.step() for w in pool]
+        if not any(r.routed_here or r.processed or r.taken_over for r in reports):
+            break
+    client = fakeredis.FakeRedis(server=server, decode_responses=True)
+    out = [fields for _, fields in client.xrange("out")]
+    assert sorted(f["source_id"] for f in out) == sorted(ids)
+    assert client.xpending("in", "g")["pending"] == 0
+
+
+# --- ROS bags -----------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def ros1_bag(tmp_path_factory: pytest.TempPathFactory) -> bytes:
+    """A small ROS 1 bag: 20 NavSatFix at 1 Hz, one without a fix, and a TwistStamped topic."""
+    pytest.importorskip("rosbags")
+    import numpy as np
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from gradgps._io.rosbag import NAVSATFIX, TWIST_STAMPED
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    types = store.types
+    path = tmp_path_factory.mktemp("bag") / "drive.bag"
+
+    def header(sec: int) -> object:
+        return types["std_msgs/msg/Header"](
+            seq=0, stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=0), frame_id="gps"
+        )
+
+    with Writer(path) as writer:
+        fix = writer.add_connection("/gps/fix", NAVSATFIX, typestore=store)
+        vel = writer.add_connection("/gps/vel", TWIST_STAMPED, typestore=store)
+        v3 = types["geometry_msgs/msg/Vector3"]
+        for i in range(20):
+            ns = (1_700_000_000 + i) * 10**9
+            msg = types[NAVSATFIX](
+                header=header(1_700_000_000 + i),
+                status=types["sensor_msgs/msg/NavSatStatus"](status=-1 if i == 7 else 0, service=1),
+                latitude=48.0 + i * 9e-5,
+                longitude=11.0,
+                altitude=500.0,
+                position_covariance=np.zeros(9),
+                position_covariance_type=0,
+            )
+            writer.write(fix, ns, store.serialize_ros1(msg, NAVSATFIX))
+            twist = types[TWIST_STAMPED](
+                header=header(1_700_000_000 + i),
+                twist=types["geometry_msgs/msg/Twist"](
+                    linear=v3(x=6.0, y=8.0, z=0.0), angular=v3(x=0.0, y=0.0, z=0.0)
+                ),
+            )
+            writer.write(vel, ns, store.serialize_ros1(twist, TWIST_STAMPED))
+    return path.read_bytes()
+
+
+@fuzz
+@given(data=st.data())
+def test_fuzz_ros_bag_bytes(tmp_path: Path, ros1_bag: bytes, data: st.DataObject) -> None:
+    """A damaged ROS 1 bag (cut off, bytes spliced in or flipped) is read or refused with
+    an InputError, never a traceback from the bag library (issue 18, item 7)."""
+    bag = data.draw(_mutated(st.just(ros1_bag)))
+    path = tmp_path / "in.bag"
+    path.write_bytes(bag)
+    _survives(path)

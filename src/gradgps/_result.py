@@ -31,8 +31,10 @@ import pandas as pd
 from numpy.typing import ArrayLike
 
 __all__ = [
+    "NULL_ISLAND",
     "RESULT_COLUMNS",
     "RESULT_DTYPES",
+    "STEP_TOLERANCE_S",
     "PointResult",
     "ResultCounts",
     "as_number",
@@ -107,6 +109,13 @@ def reading(value: object) -> float:
     return number if math.isfinite(number) else math.nan
 
 
+#: Reason for a fix at exactly (0, 0), what receivers report before they have a position.
+NULL_ISLAND = "position exactly (0, 0): no fix yet"
+#: Tolerance on a time step compared with a minimum step: timestamps such as
+#: 1.7e9 + 0.001 s are not exact in float64, so a 1 ms step may read 0.99999 ms.
+STEP_TOLERANCE_S = 1e-5
+
+
 def fix_reason(
     t: float, lat: float, lon: float, last_t: float | None = None, min_step_s: float = 0.0
 ) -> str:
@@ -127,12 +136,14 @@ def fix_reason(
         return "longitude missing or not finite"
     if abs(lon) > 180.0:
         return "longitude outside +-180"
+    if lat == 0.0 and lon == 0.0:
+        return NULL_ISLAND
     if last_t is not None:
         if min_step_s > 0.0 and t <= last_t:
             return "time not after the previous fix"
         if t < last_t:
             return "time before the previous fix"
-        if t - last_t < min_step_s:
+        if min_step_s > 0.0 and t - last_t < min_step_s - STEP_TOLERANCE_S:
             return f"time less than {min_step_s * 1000:g} ms after the previous fix"
     return ""
 
@@ -145,6 +156,7 @@ def invalid_reasons(fixes: pd.DataFrame) -> np.ndarray:
     lat = fixes["lat"].to_numpy(dtype=np.float64)
     lon = fixes["lon"].to_numpy(dtype=np.float64)
     checks = (
+        ((lat == 0.0) & (lon == 0.0), NULL_ISLAND),
         (~np.isfinite(lon), "longitude missing or not finite"),
         (np.isfinite(lon) & (np.abs(lon) > 180.0), "longitude outside +-180"),
         (~np.isfinite(lat), "latitude missing or not finite"),

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from .._result import STEP_TOLERANCE_S
 from .._tracks.preprocess import Prepared, preprocess
 from .rema import RemaParams
 from .time_classifier import TimeParams
@@ -48,18 +49,33 @@ def grad_time_params() -> TimeParams:
 
 
 #: Shortest time step between two fixes of a track. A segment's sampling
-#: period is its first step and its windows hold ``window_s / period`` fixes,
-#: so a step of a nanosecond (clock jitter, a corrupted timestamp) would ask
-#: for billions of slots. No receiver reports faster than 1 kHz: closer fixes
-#: are one instant (merged in batch, invalid in a stream).
+#: period comes from its first steps and its windows hold ``window_s / period``
+#: fixes, so a step of a nanosecond (clock jitter, a corrupted timestamp) would
+#: ask for billions of slots. No receiver reports faster than 1 kHz: a closer
+#: fix is flagged invalid, in every mode (see ``stream_reasons``).
 MIN_STEP_S = 1e-3
+
+#: A fix farther than this from its segment's first fix starts a new segment
+#: (with its own local frame): the projection is exact to 1 mm within 100 km.
+FRAME_RADIUS_M = 100_000.0
 
 
 def grad_points(fixes: pd.DataFrame, max_gap_s: float) -> Prepared:
     """GRAD's preprocessing, the one spelling that detection, training and the report share.
 
     Each track in time order, fixes less than :data:`MIN_STEP_S` apart merged,
-    segments cut at gaps longer than ``max_gap_s``; short gaps are *not*
+    segments cut at gaps longer than ``max_gap_s`` and at a fix more than
+    :data:`FRAME_RADIUS_M` from the segment's first one (each segment in its
+    own frame: ``Prepared.segment_frames``); short gaps are *not*
     interpolated (the Detector sees the fixes as they came, as a stream does).
+    Steps are compared with :data:`gradgps._result.STEP_TOLERANCE_S`, as
+    :func:`gradgps._tracks.preprocess.stream_reasons` does, so rows it
+    passes are never merged here.
     """
-    return preprocess(fixes, max_gap_s=max_gap_s, interpolate=False, min_step_s=MIN_STEP_S)
+    return preprocess(
+        fixes,
+        max_gap_s=max_gap_s,
+        interpolate=False,
+        min_step_s=MIN_STEP_S - STEP_TOLERANCE_S,
+        frame_radius_m=FRAME_RADIUS_M,
+    )

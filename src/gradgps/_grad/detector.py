@@ -25,16 +25,33 @@ fix is still used. A gap longer than the model's
 ``max_gap_s`` starts a new segment: every state is reset, because nothing
 learnt before a long dropout says anything about the fixes after it.
 
-A segment's first fix is scored before its sampling period is known; when
-the second fix arrives the segment is rebuilt with the period (its first time
-step) and the first fix replayed. The first fix's own verdict cannot change
-by this: with one point, no feature depends on the period.
+A segment's sampling period is the median of its first 5 time steps; until
+they have arrived it is provisional, and the segment is rebuilt and its
+fixes so far replayed whenever the estimate changes (see
+:mod:`gradgps._grad.pipeline`; batch does exactly the same).
+
+Each segment is measured in its own local frame, centred on its first fix: a
+new segment starts after a gap longer than ``max_gap_s`` *or* at a fix more
+than :data:`FRAME_RADIUS_M` (100 km) from the segment's first fix. So a
+track whose first fix is bogus, that jumps to another place and drives on
+there, or that drives across a country, is never measured (and repaired)
+through a tangent plane thousands of kilometres away. A fix at exactly
+(0, 0), what receivers report before they have a position, is invalid.
+
+The state (:meth:`Detector.get_state`) holds only what cannot be derived:
+the segment's parameters are rebuilt from the model, the frame and the
+period, and :meth:`Detector.set_state` checks every array's size and every
+counter that the compiled step uses as an index against the model, so a
+damaged or foreign state is refused (``ConfigError``), never run.
 
 ``gradgps.MultiTrackDetector`` (below) keeps one streaming Detector per track id.
 """
 
 from __future__ import annotations
 
+import hashlib
+import itertools
+import json
 import math
 import os
 from collections.abc import Mapping
@@ -51,6 +68,7 @@ from numpy.typing import NDArray
 from .._exceptions import ConfigError, GradGPSError, ModelError
 from .._result import (
     RESULT_DTYPES,
+    STEP_TOLERANCE_S,
     PointResult,
     as_number,
     decode_floats,
@@ -60,12 +78,16 @@ from .._result import (
     result_frame,
     results_frame,
 )
-from .._tracks.geo import LocalFrame
+from .._tracks.geo import LocalFrame, far_apart_scalar
 from .._tracks.preprocess import stream_reasons
-from .defaults import MIN_STEP_S, grad_points
+from .core import N_CORE_PARAMS, _layout
+from .defaults import FRAME_RADIUS_M, MIN_STEP_S, grad_points
 from .events import fault_events
-from .model_io import gru_model, load_model
+from .model_io import CONFIG_FILE, WEIGHTS_FILE, gru_model, load_model
+from .motion import N_MOTION_STATE
+from .offset import N_OFFSET_STATE
 from .pipeline import (
+    _N_TAIL_STATE,
     N_POINT_OUT,
     O_ALERT,
     O_BIAS,
@@ -74,23 +96,33 @@ from .pipeline import (
     O_LON,
     O_SCORE,
     O_TIME,
+    PERIOD_STEPS,
     PipelineParams,
     grad_segments,
     grad_step,
     new_state,
     new_work,
     pipeline_feature_names,
+    warmup_periods,
 )
-from .time_classifier import TIME_TYPES
+from .recovery import N_RECOVERY_STATE
+from .rema import N_STATE as N_REMA_STATE
+from .rema import S_COUNT as REMA_COUNT
+from .rema import S_NSTEPS as REMA_NSTEPS
+from .time_classifier import N_TIME_STATE, TIME_TYPES
 
 __all__ = [
     "DEFAULT_MODEL",
+    "FRAME_RADIUS_M",
     "MIN_STEP_S",
     "Detector",
     "GradModel",
     "MultiTrackDetector",
     "load_grad_model",
 ]
+
+#: The shortest step a stored warm-up may hold (see :data:`gradgps._result.STEP_TOLERANCE_S`).
+_MIN_STEP = MIN_STEP_S - STEP_TOLERANCE_S
 
 #: Name of the model shipped inside the package, used by ``Detector()``.
 DEFAULT_MODEL = "default"
@@ -180,11 +212,72 @@ def load_grad_model(model: str | os.PathLike[str] | None = None) -> GradModel:
             "'gradgps train' (or nothing, for the default model)"
         )
     resolved = str(path.resolve())
-    stamp = max((p.stat().st_mtime_ns for p in path.iterdir()), default=0)
-    return _load_cached(resolved, stamp)
+    # Only the model's own files count: an editor's lock file (a dangling symlink) or an
+    # unreadable stray file in the folder must not stop the load.
+    stamps = []
+    for name in (CONFIG_FILE, WEIGHTS_FILE):
+        try:
+            stamps.append((path / name).stat().st_mtime_ns)
+        except OSError:
+            stamps.append(0)
+    return _load_cached(resolved, max(stamps))
 
 
-_STATE_FORMAT = 2
+_STATE_FORMAT = 3
+_NON_FINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
+
+
+def _decode_float(value: Any) -> float:
+    """One number of a stored state (see :func:`gradgps._result.decode_floats`)."""
+    decoded = decode_floats([value])
+    assert decoded is not None
+    return decoded[0]
+
+
+def _decode_list(values: Any) -> list[float]:
+    """A stored list of numbers; ``TypeError`` for anything else (``None`` included)."""
+    decoded = decode_floats(values)
+    if decoded is None:
+        raise TypeError("a list of numbers is missing")
+    return decoded
+
+
+def _settings_checksum(model: GradModel) -> str:
+    """SHA-256 of everything besides the weights that shapes a detector's state and verdicts."""
+    settings = {
+        "weights": model.checksum,
+        "pipeline": model.params.to_dict(),
+        "dims": [int(d) for d in model.dims],
+        "bias_classes": list(model.bias_classes),
+        "state_format": _STATE_FORMAT,
+    }
+    text = json.dumps(settings, sort_keys=True, default=str, allow_nan=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _check_counters(P: NDArray[np.float64], S: NDArray[np.float64], seg_count: int) -> None:
+    """Refuse a state whose counters (used by the compiled step as ring indices) are not
+    what ``seg_count`` fixes leave: the step has no bounds checks."""
+
+    def count(name: str, value: float, low: float, high: float) -> None:
+        if not (math.isfinite(value) and value == int(value) and low <= value <= high):
+            raise ValueError(f"state counter {name} = {value!r}, expected {low:g}..{high:g}")
+
+    rs_e, _, rs_n, _, _, _, cnt, _, _ = _layout(P[:N_CORE_PARAMS])
+    count("points", S[cnt], seg_count, seg_count)
+    for name, at in (("east", rs_e), ("north", rs_n)):
+        count(f"rema {name} points", S[at + REMA_COUNT], seg_count, seg_count)
+        count(f"rema {name} steps", S[at + REMA_NSTEPS], 0, seg_count)
+    tail = S.size - _N_TAIL_STATE
+    count("offset points", S[tail], 0, seg_count)
+    time_at = tail + N_OFFSET_STATE
+    for k in (0, 2):  # run length, bursts
+        count(f"time classifier [{k}]", S[time_at + k], 0, seg_count)
+    rec_count = time_at + N_TIME_STATE + N_RECOVERY_STATE - 1
+    count("recovery points", S[rec_count], 0, seg_count)
+    count("motion points", S[S.size - N_MOTION_STATE], 0, seg_count)
+    if N_REMA_STATE <= REMA_NSTEPS:
+        raise AssertionError("REMA state layout changed")
 
 
 def _time_number(value: Any) -> float:
@@ -235,6 +328,7 @@ class Detector:
                 }
             )
         self.model_ = loaded
+        self._settings = _settings_checksum(loaded)
         self._out = np.zeros(N_POINT_OUT)
         self._reset()
 
@@ -243,16 +337,19 @@ class Detector:
     def _reset(self) -> None:
         self._frame: LocalFrame | None = None
         self._last_t: float | None = None
+        self._period = 1.0
         self._P: NDArray[np.float64] | None = None
         self._S: NDArray[np.float64] | None = None
         self._H: NDArray[np.float32] | None = None
         self._work: Any = None
         self._seg_count = 0
-        self._first: tuple[float, float, float, float, float] | None = None
+        # The segment's fixes while its period is provisional: (t, lat, lon, speed, heading).
+        self._warm: list[tuple[float, float, float, float, float]] = []
 
     def _new_segment(self, period: float) -> None:
         assert self._frame is not None
         m = self.model_
+        self._period = period
         self._P = m.params.array(period, self._frame, m.dims)
         self._S = new_state(self._P)
         self._H = np.zeros(int(m.dims[1] + m.dims[2]), np.float32)
@@ -298,24 +395,32 @@ class Detector:
         reason = fix_reason(t_f, lat_f, lon_f, self._last_t, MIN_STEP_S)
         if reason:
             return PointResult.invalid(reason)
-        sp, hd = reading(speed), reading(heading)
-        if self._frame is None:
-            self._frame = LocalFrame(lat_f, lon_f)
+        fix = (t_f, lat_f, lon_f, reading(speed), reading(heading))
         dt = 0.0 if self._last_t is None else t_f - self._last_t
-        if self._last_t is None or dt > self.model_.params.max_gap_s:
+        if (
+            self._frame is None
+            or self._last_t is None
+            or dt > self.model_.params.max_gap_s
+            or far_apart_scalar(self._frame.lat0, self._frame.lon0, lat_f, lon_f, FRAME_RADIUS_M)
+        ):
+            self._frame = LocalFrame(lat_f, lon_f)
+            self._warm = [fix]
             self._seg_count = 0
-        if self._seg_count == 0:
             self._new_segment(1.0)
-            self._first = (t_f, lat_f, lon_f, sp, hd)
-            self._step(0.0, lat_f, lon_f, sp, hd)
-        elif self._seg_count == 1:
-            assert self._first is not None
-            _, lat0, lon0, sp0, hd0 = self._first
-            self._new_segment(dt)
-            self._step(0.0, lat0, lon0, sp0, hd0)
-            self._step(dt, lat_f, lon_f, sp, hd)
+            self._step(0.0, *fix[1:])
+        elif self._warm:
+            self._warm.append(fix)
+            period = warmup_periods([w[0] for w in self._warm])[-1]
+            if period != self._period:
+                self._new_segment(period)
+                for j, w in enumerate(self._warm):
+                    self._step(w[0] - self._warm[j - 1][0] if j else 0.0, *w[1:])
+            else:
+                self._step(dt, *fix[1:])
+            if len(self._warm) > PERIOD_STEPS:
+                self._warm = []  # the period is final
         else:
-            self._step(dt, lat_f, lon_f, sp, hd)
+            self._step(dt, *fix[1:])
         self._seg_count += 1
         self._last_t = t_f
         o = self._out
@@ -339,63 +444,129 @@ class Detector:
         allow_nan=False)`` works and any JSON parser reads it back. For bytes,
         ``json.dumps(det.get_state()).encode()``; restoring gives the same
         outputs as an uninterrupted run, bit for bit (floats round-trip
-        exactly through JSON).
+        exactly through JSON). The segment's parameters are not stored: they
+        follow from the model, ``frame`` and ``period``.
         """
 
         return {
             "format": _STATE_FORMAT,
             "model_checksum": self.model_.checksum,
+            "settings_checksum": self._settings,
             "threshold": self.model_.params.threshold,
             "frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
             "last_t": self._last_t,
             "segment_count": self._seg_count,
-            "first": encode_floats(self._first),
-            "P": encode_floats(self._P),
+            "period": self._period,
+            "warm": [encode_floats(w) for w in self._warm],
             "S": encode_floats(self._S),
             "H": encode_floats(self._H),
         }
 
     def set_state(self, state: Mapping[str, Any]) -> Detector:
-        """Restore a state from :meth:`get_state` (same model); returns self."""
+        """Restore a state from :meth:`get_state` (same model and settings); returns self.
+
+        A state that is not one this detector could have written (another
+        model, configuration or threshold; a wrong size, a counter out of
+        range, inconsistent fields) raises :class:`ConfigError` and leaves
+        the detector as it was.
+        """
         try:
-            if state["format"] != _STATE_FORMAT:
-                raise ConfigError(
-                    f"detector state format {state['format']!r} is not supported "
-                    f"(this gradgps writes format {_STATE_FORMAT})"
-                )
-            if state["model_checksum"] != self.model_.checksum:
-                raise ConfigError(
-                    "detector state was saved with another model; "
-                    "restore it into a Detector of the same model"
-                )
-            if float(state["threshold"]) != self.model_.params.threshold:
-                raise ConfigError("detector state was saved with another threshold")
-
-            def arr(values: Any, dtype: Any) -> Any:
-                decoded = decode_floats(values)
-                return None if decoded is None else np.array(decoded, dtype=dtype)
-
-            frame = state["frame"]
-            new_frame = None if frame is None else LocalFrame(float(frame[0]), float(frame[1]))
-            last_t = None if state["last_t"] is None else float(state["last_t"])
-            seg_count = int(state["segment_count"])
-            first = state["first"]
-            new_first = None if first is None else tuple(decode_floats(first) or ())
-            if new_first is not None and len(new_first) != 5:
-                raise ValueError(f"'first' holds {len(new_first)} values, expected 5")
-            P, S, H = (
-                arr(state["P"], np.float64),
-                arr(state["S"], np.float64),
-                arr(state["H"], np.float32),
-            )
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            restored = self._parse_state(state)
+        except ConfigError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError, OverflowError, GradGPSError) as exc:
             raise ConfigError(f"not a detector state: {exc}") from exc
-        # Assigned only once everything parsed: a bad state leaves this detector as it was.
-        self._frame, self._last_t, self._seg_count = new_frame, last_t, seg_count
-        self._first = new_first
-        self._P, self._S, self._H = P, S, H
-        self._work = None
+        # Assigned only once everything checked out: a bad state leaves this detector as it was.
+        (
+            self._frame,
+            self._last_t,
+            self._seg_count,
+            self._period,
+            self._warm,
+            self._P,
+            self._S,
+            self._H,
+        ) = restored
+        self._work = None  # made for the restored P on the first step
         return self
+
+    def _parse_state(self, state: Mapping[str, Any]) -> tuple[Any, ...]:
+        if not isinstance(state, Mapping):
+            raise TypeError(f"expected a mapping, got {type(state).__name__}")
+        if state["format"] != _STATE_FORMAT:
+            raise ConfigError(
+                f"not a detector state of this gradgps: format {state['format']!r} "
+                f"(this gradgps writes format {_STATE_FORMAT}); start a fresh detector"
+            )
+        if state["model_checksum"] != self.model_.checksum:
+            raise ConfigError(
+                "detector state was saved with another model; "
+                "restore it into a Detector of the same model"
+            )
+        if state["settings_checksum"] != self._settings:
+            raise ConfigError(
+                "detector state was saved with the same weights but other settings "
+                "(another config.json or threshold); restore it into a Detector of that model"
+            )
+        if _decode_float(state["threshold"]) != self.model_.params.threshold:
+            raise ConfigError("detector state was saved with another threshold")
+        m = self.model_
+        seg_count = state["segment_count"]
+        if isinstance(seg_count, bool) or not isinstance(seg_count, int) or seg_count < 0:
+            raise ValueError(f"segment_count {seg_count!r} is not a count")
+        if seg_count == 0:
+            if any(state[k] not in (None, []) for k in ("frame", "last_t", "warm", "S", "H")):
+                raise ValueError("segment_count 0 (a fresh detector) with a stored segment")
+            return None, None, 0, 1.0, [], None, None, None
+        frame_values = [_decode_float(v) for v in state["frame"]]
+        if len(frame_values) != 2:
+            raise ValueError("'frame' must hold latitude and longitude")
+        frame = LocalFrame(frame_values[0], frame_values[1])
+        last_t = _decode_float(state["last_t"])
+        if not math.isfinite(last_t):
+            raise ValueError("'last_t' is not a finite time")
+        warm = [tuple(_decode_float(v) for v in w) for w in state["warm"]]
+        if seg_count <= PERIOD_STEPS and len(warm) != seg_count:
+            raise ValueError(f"{seg_count} fixes in the segment but {len(warm)} kept")
+        if seg_count > PERIOD_STEPS and warm:
+            raise ValueError(f"{seg_count} fixes in the segment: none should be kept")
+        for w in warm:
+            if len(w) != 5:
+                raise ValueError(f"a kept fix holds {len(w)} values, expected 5")
+            if fix_reason(w[0], w[1], w[2]) or not all(
+                math.isnan(v) or math.isfinite(v) for v in w[3:]
+            ):
+                raise ValueError(f"a kept fix {w} is not a usable fix")
+            if far_apart_scalar(frame.lat0, frame.lon0, w[1], w[2], FRAME_RADIUS_M):
+                raise ValueError("a kept fix lies outside the segment's frame")
+        if warm:
+            times = [w[0] for w in warm]
+            steps = [b - a for a, b in itertools.pairwise(times)]
+            if any(not (_MIN_STEP <= d <= m.params.max_gap_s) for d in steps):
+                raise ValueError("the kept fixes are not one segment in time order")
+            if times[-1] != last_t or (warm[0][1], warm[0][2]) != (frame.lat0, frame.lon0):
+                raise ValueError("the kept fixes do not match 'last_t' and 'frame'")
+            period = warmup_periods(times)[-1]
+        else:
+            period = _decode_float(state["period"])
+            if not (_MIN_STEP <= period <= m.params.max_gap_s):
+                raise ValueError(f"period {period!r} is not a possible sampling period")
+        if _decode_float(state["period"]) != period:
+            raise ValueError("'period' does not follow from the kept fixes")
+        P = m.params.array(period, frame, m.dims)
+        S = np.array(_decode_list(state["S"]), np.float64)
+        H64 = np.array(_decode_list(state["H"]), np.float64)
+        expected = new_state(P).size
+        if S.shape != (expected,):
+            raise ValueError(f"'S' holds {S.size} values, this model's state has {expected}")
+        h_len = int(m.dims[1] + m.dims[2])
+        if H64.shape != (h_len,):
+            raise ValueError(f"'H' holds {H64.size} values, this model's GRU has {h_len}")
+        if not np.all(np.abs(H64) <= 1.0):  # NaN compares False
+            raise ValueError("'H' is not a GRU hidden state (values outside [-1, 1])")
+        H = H64.astype(np.float32)
+        _check_counters(P, S, seg_count)
+        return frame, last_t, seg_count, period, warm, P, S, H
 
     # -- batch -------------------------------------------------------------
 
@@ -471,11 +642,11 @@ class Detector:
         nan = np.full(n, np.nan)
         speed = _readings(pts["speed"].to_numpy(np.float64)) if "speed" in pts else nan
         heading = _readings(pts["heading"].to_numpy(np.float64)) if "heading" in pts else nan
-        tracks = pts["track"].to_numpy(object)
-        slices = [sl for _, sl in prepared.segment_slices()]
-        if slices:
+        segments = list(prepared.segment_slices())
+        if segments:
+            slices = [sl for _, sl in segments]
             starts = np.array([sl.start for sl in slices] + [slices[-1].stop], np.int64)
-            frames = [prepared.frames[str(tracks[sl.start])] for sl in slices]
+            frames = [prepared.segment_frames[k] for k, _ in segments]
             out = grad_segments(
                 m.params,
                 frames,

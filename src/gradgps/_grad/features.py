@@ -69,6 +69,11 @@ CROSS_FEATURES = ("speed_gap", "heading_gap")
 MIN_COURSE_SPEED = 0.5  # m/s; below it a course from two fixes is noise
 
 
+#: Most fixes a feature window holds (the long window at up to 33 Hz with the default
+#: 30 s): a segment's state stays a few tens of kilobytes however close its fixes are.
+MAX_WINDOW_POINTS = 1_000
+
+
 @dataclass(frozen=True)
 class FeatureParams:
     """Window lengths in seconds; ``speed_heading`` adds the two cross-channel cues."""
@@ -86,8 +91,16 @@ class FeatureParams:
                 "need 0 < short_window_s <= long_window_s, got "
                 f"{self.short_window_s} and {self.long_window_s}"
             )
-        long_n = max(3, round(self.long_window_s / period))
-        short_n = max(2, round(self.short_window_s / period))
+        # Capped so memory is bounded whatever the timestamps: at very high rates the
+        # windows cover fewer seconds (the short one keeps its share of the long one).
+        long_n = max(3, min(round(self.long_window_s / period), MAX_WINDOW_POINTS))
+        short_n = max(
+            2,
+            min(
+                round(self.short_window_s / period),
+                round(MAX_WINDOW_POINTS * self.short_window_s / self.long_window_s),
+            ),
+        )
         return long_n, short_n
 
 

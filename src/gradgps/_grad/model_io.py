@@ -26,6 +26,7 @@ import hashlib
 import io
 import json
 import os
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -240,9 +241,18 @@ def load_model(directory: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray]
             f"and {WEIGHTS_FILE}; {_RETRAIN}"
         )
     try:
-        config = json.loads(config_path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        text = config_path.read_text(encoding="utf-8")
+    except OSError as error:
+        raise ModelError(f"{config_path}: cannot be read ({error.strerror or error})") from None
+    except UnicodeDecodeError as error:
         raise ModelError(f"{config_path}: not valid JSON ({error}); {_RETRAIN}") from None
+    try:
+        config = json.loads(text)
+    except (ValueError, RecursionError) as error:
+        # ValueError: bad syntax, or an integer of more than 4,300 digits;
+        # RecursionError: arrays or objects nested thousands deep.
+        what = "nested too deep" if isinstance(error, RecursionError) else str(error)[:200]
+        raise ModelError(f"{config_path}: not valid JSON ({what}); {_RETRAIN}") from None
     if not isinstance(config, dict):
         raise ModelError(f"{config_path}: expected a JSON object; {_RETRAIN}")
     version = config.get("format_version")
@@ -260,21 +270,48 @@ def load_model(directory: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray]
     weights_path = folder / WEIGHTS_FILE
     if not weights_path.is_file():
         raise ModelError(f"{weights_path}: file not found; {_RETRAIN}")
-    data = weights_path.read_bytes()
+    try:
+        data = weights_path.read_bytes()
+    except OSError as error:
+        raise ModelError(f"{weights_path}: cannot be read ({error.strerror or error})") from None
     if _sha256(data) != config.get("weights_sha256"):
         raise ModelError(
             f"{weights_path}: sha256 checksum does not match config.json (the file is "
             f"truncated or was modified); {_RETRAIN}"
         )
+    _check_archive(data, weights_path)
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as archive:
             weights = {name: np.asarray(archive[name]) for name in archive.files}
-    except (ValueError, OSError, KeyError, EOFError) as error:
+    except (ValueError, OSError, KeyError, EOFError, zipfile.BadZipFile) as error:
         raise ModelError(
             f"{weights_path}: not a readable weights archive ({error}); {_RETRAIN}"
         ) from None
     _check_weights(weights, config, str(weights_path))
     return {name: weights[name].astype(np.float32) for name in WEIGHT_NAMES}, config
+
+
+#: Largest array a weights archive may hold, uncompressed (the shipped model's are kilobytes).
+_MAX_ARRAY_BYTES = 64 * 2**20
+
+
+def _check_archive(data: bytes, path: Path) -> None:
+    """Refuse an archive with other arrays than the weights, or a huge one, before any array
+    is decompressed (an 8 GiB array of zeros compresses to a few megabytes)."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as archive:
+            members = archive.infolist()
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as error:
+        raise ModelError(f"{path}: not a readable weights archive ({error}); {_RETRAIN}") from None
+    names = {m.filename.removesuffix(".npy") for m in members}
+    extra = sorted(names - set(WEIGHT_NAMES))
+    if extra:
+        raise ModelError(f"{path}: unexpected arrays {extra[:5]}; {_RETRAIN}")
+    big = [m.filename for m in members if m.file_size > _MAX_ARRAY_BYTES]
+    if big:
+        raise ModelError(
+            f"{path}: array {big[0]!r} is larger than {_MAX_ARRAY_BYTES // 2**20} MiB; {_RETRAIN}"
+        )
 
 
 def gru_model(weights: Mapping[str, np.ndarray], config: Mapping[str, Any]) -> GRUModel:

@@ -19,9 +19,25 @@ training simple (features are computed once, then the network is fitted) and
 makes the verdict of one fix unable to corrupt the features of the next. The
 GRU's decisions drive the time classifier and the recovery.
 
-A segment's sampling period (which turns window lengths in seconds into
-points) is its first time step: known after the second fix, so streaming can
-use it; see :class:`gradgps.Detector` for how the first fix is handled.
+**A segment's sampling period** (which turns window lengths in seconds into
+points, and drives the recovery's dead reckoning) is the median of its first
+:data:`PERIOD_STEPS` (5) time steps (:func:`segment_period`). One odd step
+(a fix 0.1 s or 1 ms after the first, as a receiver emits while it locks on)
+cannot set it: a GNSS engineer reads a receiver's rate off its steady steps,
+not off its first. A stream only knows those steps as they arrive, so while
+a segment has fewer than ``PERIOD_STEPS`` steps its period is *provisional*:
+the median of the steps seen so far (1 s for the lone first fix). Whenever
+that estimate changes, the segment is rebuilt from a fresh state with the
+new period and its fixes so far are replayed (at most ``PERIOD_STEPS + 1``
+fixes are kept for this); each fix's verdict is the one computed when it
+arrived. From the ``PERIOD_STEPS``-th step on the period is fixed. Batch
+detection (:func:`grad_segments`) reproduces exactly this sequence, so batch
+equals streaming bit for bit.
+
+Memory is bounded whatever the timestamps: a window holds ``window_s /
+period`` fixes, capped at :data:`gradgps._grad.features.MAX_WINDOW_POINTS`
+(the window then covers fewer seconds at very high rates), and fixes less
+than 1 ms apart never form a step (see :data:`gradgps._grad.detector.MIN_STEP_S`).
 
 Features are compressed with a signed ``log1p`` before the network's scaler
 (see :func:`_compress`).
@@ -33,6 +49,7 @@ Layout of ``S``: core state, offset state, time state, recovery state.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -76,6 +93,7 @@ from .time_classifier import N_TIME_STATE, T_GAP, TimeParams, time_step
 
 __all__ = [
     "N_POINT_OUT",
+    "PERIOD_STEPS",
     "PipelineParams",
     "grad_features",
     "grad_segment",
@@ -84,6 +102,8 @@ __all__ = [
     "new_state",
     "new_work",
     "pipeline_feature_names",
+    "segment_period",
+    "warmup_periods",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -108,6 +128,8 @@ _N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_MOTION_STAT
 # Per-point outputs.
 O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT = range(7)
 N_POINT_OUT = 7
+#: Time steps a segment's sampling period is the median of (see the module docstring).
+PERIOD_STEPS = 5
 
 
 @dataclass(frozen=True)
@@ -442,10 +464,11 @@ def _batch_segment(
     k: int,
     Ps: FloatArray,
     Ss: FloatArray,
-    s_len: NDArray[np.int64],
+    s_off: NDArray[np.int64],
     gp: Any,
-    h_len: int,
-    starts: NDArray[np.int64],
+    Hs: Any,
+    begin: NDArray[np.int64],
+    end: NDArray[np.int64],
     dt: FloatArray,
     lat: FloatArray,
     lon: FloatArray,
@@ -453,10 +476,14 @@ def _batch_segment(
     heading: FloatArray,
     out: FloatArray,
 ) -> None:
-    """Segment ``k`` of a batch, exactly as :func:`_segment_kernel`, into its rows of ``out``."""
-    a, b = starts[k], starts[k + 1]
-    S = Ss[k, : s_len[k]].copy()
-    H = np.zeros(h_len, np.float32)
+    """Rows ``begin[k]:end[k]`` of segment ``k`` from its state (``Ss[s_off[k]:s_off[k+1]]``:
+    the states lie end to end, never padded to the largest) and ``Hs[k]``, exactly as
+    :func:`_segment_kernel`, into ``out``."""
+    a, b = begin[k], end[k]
+    if b <= a:
+        return
+    S = Ss[s_off[k] : s_off[k + 1]].copy()
+    H = Hs[k].copy()
     out[a:b] = _segment_kernel(
         Ps[k], S, H, gp, dt[a:b], lat[a:b], lon[a:b], speed[a:b], heading[a:b]
     )
@@ -471,40 +498,40 @@ def _batch_segment(
 def _batch_serial(
     Ps: FloatArray,
     Ss: FloatArray,
-    s_len: NDArray[np.int64],
+    s_off: NDArray[np.int64],
     gp: Any,
-    h_len: int,
-    starts: NDArray[np.int64],
+    Hs: Any,
+    begin: NDArray[np.int64],
+    end: NDArray[np.int64],
     dt: FloatArray,
     lat: FloatArray,
     lon: FloatArray,
     speed: FloatArray,
     heading: FloatArray,
-) -> FloatArray:
-    out = np.empty((lat.size, N_POINT_OUT))
-    for k in range(starts.size - 1):
-        _batch_segment(k, Ps, Ss, s_len, gp, h_len, starts, dt, lat, lon, speed, heading, out)
-    return out
+    out: FloatArray,
+) -> None:
+    for k in range(begin.size):
+        _batch_segment(k, Ps, Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
 
 
 @numba.njit(cache=True, parallel=True)
 def _batch_parallel(
     Ps: FloatArray,
     Ss: FloatArray,
-    s_len: NDArray[np.int64],
+    s_off: NDArray[np.int64],
     gp: Any,
-    h_len: int,
-    starts: NDArray[np.int64],
+    Hs: Any,
+    begin: NDArray[np.int64],
+    end: NDArray[np.int64],
     dt: FloatArray,
     lat: FloatArray,
     lon: FloatArray,
     speed: FloatArray,
     heading: FloatArray,
-) -> FloatArray:
-    out = np.empty((lat.size, N_POINT_OUT))
-    for k in numba.prange(starts.size - 1):
-        _batch_segment(k, Ps, Ss, s_len, gp, h_len, starts, dt, lat, lon, speed, heading, out)
-    return out
+    out: FloatArray,
+) -> None:
+    for k in numba.prange(begin.size):
+        _batch_segment(k, Ps, Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
 
 
 def grad_segments(
@@ -520,45 +547,104 @@ def grad_segments(
     heading: FloatArray,
     threads: int = 1,
 ) -> FloatArray:
-    """:func:`grad_segment` over many segments (``starts`` = their boundaries, one frame
-    each); with ``threads`` > 1 on that many numba threads. Same numbers either way."""
+    """Per-point outputs (n, 7) for many segments (``starts`` = their boundaries, one frame
+    each), exactly as a stream scores them (see the module docstring on the period); with
+    ``threads`` > 1 the segments are spread over that many numba threads. Same numbers
+    either way."""
     n_seg = starts.size - 1
+    out = np.empty((t.size, N_POINT_OUT))
     if n_seg <= 0:
-        return np.empty((0, N_POINT_OUT))
+        return out
+    h_len = int(dims[1] + dims[2])
     Ps = []
     states = []
+    Hs = np.zeros((n_seg, h_len), np.float32)
+    begin = np.empty(n_seg, np.int64)
+    end = starts[1:].astype(np.int64)
     dt = np.empty(t.size)
     for k in range(n_seg):
-        seg = slice(int(starts[k]), int(starts[k + 1]))
-        P = params.array(segment_period(t[seg]), frames[k], dims)
+        a, b = int(starts[k]), int(starts[k + 1])
+        dt[a:b] = _segment_dt(t[a:b])
+        periods = warmup_periods(t[a : min(b, a + PERIOD_STEPS + 1)])
+        if all(p == periods[-1] for p in periods[1:]):
+            # The period never changes after the first step: the stream's rebuilds are
+            # no-ops (the lone first fix's verdict does not depend on the period).
+            P = params.array(periods[-1], frames[k], dims)
+            states.append(new_state(P))
+            begin[k] = a
+        else:
+            P, S, H = _warm_up(
+                params, frames[k], gp, dims, periods, a, dt, lat, lon, speed, heading, out
+            )
+            states.append(S)
+            Hs[k] = H
+            begin[k] = a + len(periods)
         Ps.append(P)
-        states.append(new_state(P))
-        dt[seg] = _segment_dt(t[seg])
-    s_len = np.array([len(x) for x in states], np.int64)
-    Ss = np.zeros((n_seg, int(s_len.max())))
-    for k, x in enumerate(states):
-        Ss[k, : x.size] = x
-    args = (
-        np.array(Ps),
-        Ss,
-        s_len,
-        gp,
-        int(dims[1] + dims[2]),
-        starts.astype(np.int64),
-        dt,
-        lat,
-        lon,
-        speed,
-        heading,
-    )
+    s_off = np.r_[0, np.cumsum([x.size for x in states])].astype(np.int64)
+    Ss = np.concatenate(states)
+    args = (np.array(Ps), Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
     if threads <= 1:
-        return np.asarray(_batch_serial(*args))
+        _batch_serial(*args)
+        return out
     previous = numba.get_num_threads()
     numba.set_num_threads(min(threads, int(numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
     try:
-        return np.asarray(_batch_parallel(*args))
+        _batch_parallel(*args)
     finally:
         numba.set_num_threads(previous)
+    return out
+
+
+def _warm_up(
+    params: PipelineParams,
+    frame: LocalFrame,
+    gp: NDArray[np.float32],
+    dims: NDArray[np.int64],
+    periods: list[float],
+    a: int,
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    out: FloatArray,
+) -> tuple[FloatArray, FloatArray, NDArray[np.float32]]:
+    """Rows ``a .. a + len(periods) - 1`` of a segment as a stream scores them while its
+    period is provisional: rebuilt and replayed whenever the estimate changes. Returns
+    the segment's (P, S, H) after them."""
+    h_len = int(dims[1] + dims[2])
+    P = S = np.zeros(0)
+    H = np.zeros(h_len, np.float32)
+    current = math.nan
+    for j, period in enumerate(periods):
+        if period != current:
+            current = period
+            P = params.array(period, frame, dims)
+            S, H = new_state(P), np.zeros(h_len, np.float32)
+            rows = slice(a, a + j + 1)
+        else:
+            rows = slice(a + j, a + j + 1)
+        d = dt[rows].copy()
+        if rows.start == a:
+            d[0] = 0.0
+        o = _segment_kernel(P, S, H, gp, d, lat[rows], lon[rows], speed[rows], heading[rows])
+        out[a + j] = o[-1]
+    return P, S, H
+
+
+def _median(values: list[float]) -> float:
+    """Median of a short list (the mean of the middle two for an even count)."""
+    v = sorted(values)
+    m = len(v) // 2
+    return v[m] if len(v) % 2 else (v[m - 1] + v[m]) / 2.0
+
+
+def warmup_periods(t: FloatArray | list[float]) -> list[float]:
+    """The period in force at each of a segment's first fixes ``t`` (at most
+    ``PERIOD_STEPS + 1`` are used): 1 s at the first, then the median of the steps so far."""
+    times = [float(x) for x in t[: PERIOD_STEPS + 1]]
+    steps = [b - a for a, b in itertools.pairwise(times)]
+    return [1.0] + [_median(steps[:j]) for j in range(1, len(steps) + 1)]
 
 
 def _segment_dt(t: FloatArray) -> FloatArray:
@@ -566,8 +652,9 @@ def _segment_dt(t: FloatArray) -> FloatArray:
 
 
 def segment_period(t: FloatArray) -> float:
-    """A segment's period: its first time step (1 s for a one-fix segment)."""
-    return float(t[1] - t[0]) if t.size >= 2 else 1.0
+    """A segment's sampling period: the median of its first :data:`PERIOD_STEPS` time steps
+    (1 s for a one-fix segment). See the module docstring."""
+    return warmup_periods(t)[-1]
 
 
 def grad_features(

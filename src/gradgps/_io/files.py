@@ -15,7 +15,17 @@ from pathlib import Path
 
 from .._exceptions import InputError
 
-__all__ = ["READ_ERRORS", "check_readable", "damaged", "open_bytes", "text_lines"]
+__all__ = [
+    "MAX_LINE_BYTES",
+    "READ_ERRORS",
+    "check_readable",
+    "damaged",
+    "open_bytes",
+    "text_lines",
+]
+
+#: Longest line a text table may have (a row of fixes is well under a kilobyte).
+MAX_LINE_BYTES = 2**20
 
 # What reading a (possibly gzip) stream can raise when the file is damaged.
 READ_ERRORS = (OSError, EOFError, zlib.error)
@@ -61,7 +71,15 @@ def text_lines(raw: io.BufferedIOBase, source: str) -> Iterator[str]:
     the mark of a binary file or of UTF-16 text (Excel's "Unicode text").
     """
     try:
-        for number, line in enumerate(raw, start=1):
+        for number, line in enumerate(iter(lambda: raw.readline(MAX_LINE_BYTES + 1), b""), 1):
+            if len(line) > MAX_LINE_BYTES:
+                raise InputError(
+                    f"a line longer than {MAX_LINE_BYTES // 2**20} MiB",
+                    source=source,
+                    line=number,
+                    hint="no table of fixes has such lines: is this the right file? "
+                    "(a line is read only up to the limit, so memory stays bounded)",
+                )
             if number == 1 and line.startswith(b"\xef\xbb\xbf"):
                 line = line[3:]
             if b"\x00" in line:

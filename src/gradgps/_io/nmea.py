@@ -74,6 +74,10 @@ class Malformed(Exception):
     """A field that cannot be what the sentence type says it is (internal)."""
 
 
+#: Longest sentence accepted (the standard's limit is 82; some receivers exceed it a little).
+MAX_SENTENCE_CHARS = 200
+
+
 def nmea_checksum(body: str) -> int:
     """XOR of the characters of ``body`` (the text between ``$`` and ``*``)."""
     value = 0
@@ -226,6 +230,9 @@ def split_sentence(text: str) -> tuple[str, list[str]] | None:
     kind = address[2:]
     if len(address) != 5 or address.startswith("P") or kind not in ("GGA", "RMC"):
         return None
+    if len(text) > MAX_SENTENCE_CHARS:
+        # NMEA 0183 sentences are at most 82 characters; a 400-digit field is damage.
+        raise Malformed(f"{kind} sentence of {len(text):,} characters (NMEA allows 82)")
     star = text.rfind("*")
     if star < 0:
         raise Malformed(f"{kind} sentence has no checksum (cut off?)")

@@ -75,6 +75,8 @@ _EXTENSIONS: Final = {
 
 # Delimiters tried on the header line; the most frequent one wins.
 _DELIMITERS: Final = (",", ";", "\t", "|")
+#: Most cells (rows x columns) of one CSV chunk: a chunk of a very wide file has fewer rows.
+MAX_CHUNK_CELLS: Final = 4_000_000
 
 
 def resolve_format(path: str | Path, fmt: str | None = None) -> str:
@@ -218,6 +220,11 @@ class TableWriter:
         else:
             self.partial.unlink(missing_ok=True)
 
+    @property
+    def started(self) -> bool:
+        """Whether a frame (perhaps an empty one, fixing the columns) was written."""
+        return self._columns is not None
+
     def write(self, frame: pd.DataFrame) -> None:
         """Append ``frame``'s rows (without its index)."""
         columns = [str(c) for c in frame.columns]
@@ -342,6 +349,8 @@ def _csv_chunks(
 ) -> Iterator[Table]:
     source = str(path)
     offset = 0
+    # Memory is rows x columns: a very wide file is read in fewer rows at a time.
+    chunksize = max(1, min(chunksize, MAX_CHUNK_CELLS // max(1, len(layout.header))))
     with _pandas_errors(source):
         reader = _pandas_csv(path, layout, columns, source, chunksize=chunksize)
         with reader:

@@ -170,6 +170,14 @@ def read_rosbag(
             source=source,
             hint="is this a ROS 1 .bag, or a ROS 2 bag directory / .mcap / .db3?",
         ) from None
+    except Exception as exc:
+        # rosbags parses with assertions, str.decode and struct.unpack: a damaged bag
+        # surfaces as AssertionError, UnicodeDecodeError, struct.error, IndexError, ...
+        raise InputError(
+            f"cannot read the ROS bag, it is damaged ({type(exc).__name__}: {str(exc)[:200]})",
+            source=source,
+            hint="re-record or repair it (rosbag reindex for ROS 1)",
+        ) from None
     frame = pd.DataFrame(rows)
     if speed_topic is not None:
         frame["speed"] = _speeds(

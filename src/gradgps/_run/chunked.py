@@ -118,8 +118,8 @@ def detect_csv_in_chunks(
                 on_result(fixes, result)
             if on_chunk is not None:
                 on_chunk(len(result))
-        if writer is not None and writer.rows == 0:  # header only: still write our columns
-            empty = pd.DataFrame({name: pd.Series(dtype=object) for name in chunks.header})
+        if writer is not None and not writer.started:  # no chunk: still write our columns
+            empty = pd.DataFrame([], columns=list(chunks.header), dtype=object)
             writer.write(pd.concat([empty, streams.update_fixes(_no_fixes())], axis=1))
     return DetectSummary(
         rows=rows,

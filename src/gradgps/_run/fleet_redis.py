@@ -42,6 +42,21 @@ pending is taken over by the next worker that runs the script: all its
 pending messages and the vehicles they belong to move to that worker in one
 atomic step, and it is deleted from the group. Consumer names must be
 unique among running workers.
+
+**Hostile messages and states.** Nothing a producer writes stops a worker.
+Pages are read through :data:`READ_SCRIPT`, which hands every field over as
+hex, so the worker sees the exact bytes whatever the client's decoding: a
+message with a field name or value that is not UTF-8, or with a field
+repeated (``vehicle_id`` twice), gets its own result, flagged with the
+reason, and never reaches a detector. A message belongs to the vehicle of
+its *first* ``vehicle_id`` field, as raw bytes, in the router and in the
+worker alike (so ownership, ordering and deduplication agree). Fields other
+than the position fields are ignored (they are never passed on as keyword
+arguments). A stored state that cannot be restored (damaged JSON, another
+model, a hand-edited array) is replaced by a fresh detector for that vehicle
+and reported on the dead-letter stream ``<key_prefix>dead-letter``, in the
+same transaction; so is a message whose processing raised, which also gets a
+flagged result.
 """
 
 from __future__ import annotations
@@ -49,13 +64,14 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from .._exceptions import ConfigError
+from .._exceptions import ConfigError, GradGPSError
 from .._result import RESULT_COLUMNS, PointResult
 
 if TYPE_CHECKING:
@@ -63,12 +79,38 @@ if TYPE_CHECKING:
 
     from .._grad.detector import Detector
 
-__all__ = ["OUTPUT_FIELDS", "ROUTE_SCRIPT", "RedisStreamWorker", "StepReport"]
+__all__ = ["OUTPUT_FIELDS", "READ_SCRIPT", "ROUTE_SCRIPT", "RedisStreamWorker", "StepReport"]
 
 #: Fields of every output message, in order.
 OUTPUT_FIELDS = ("source_id", "vehicle_id", "t", *RESULT_COLUMNS)
 
-_POSITION_FIELDS = ("vehicle_id", "t", "lat", "lon", "speed", "heading")
+_MESSAGE_ID = re.compile(r"[0-9]{1,20}-[0-9]{1,20}")
+
+#: Reads the caller's pending messages (``XREADGROUP ... 0``) and returns them as
+#: ``{id, {hex(field name or value), ...}}``: the raw bytes whatever the client's decoding
+#: (a non-UTF-8 byte must not make redis-py raise). A deleted entry has no fields.
+READ_SCRIPT = """
+local reply = redis.call('XREADGROUP', 'GROUP', ARGV[1], ARGV[2], 'COUNT', tonumber(ARGV[3]),
+                         'STREAMS', KEYS[1], '0')
+local entries = {}
+if reply and type(reply[1]) == 'table' then
+  entries = reply[1][2]
+elseif reply and reply[2] then
+  entries = reply[2]
+end
+local function hex(text)
+  return (string.gsub(text, '.', function(c) return string.format('%02x', string.byte(c)) end))
+end
+local out = {}
+for i, entry in ipairs(entries) do
+  local fields = {}
+  if entry[2] then
+    for j, value in ipairs(entry[2]) do fields[j] = hex(value) end
+  end
+  out[i] = {entry[1], fields}
+end
+return out
+"""
 
 #: Reads new messages for the calling consumer and routes them to their
 #: vehicles' owners, atomically (see the module docstring). Also takes over
@@ -184,8 +226,37 @@ class _VehicleTrack:
 @dataclass(frozen=True)
 class _Message:
     id: str
-    vehicle: str  # '' when the message has none
-    fields: Mapping[str, str]
+    vehicle: bytes  # the first vehicle_id field's raw bytes; b'' when the message has none
+    fields: Mapping[str, str]  # UTF-8 fields, first occurrence of each name
+    problem: str = ""  # why the message cannot be used ('' when it can)
+
+
+def _decode_message(message_id: str, hex_fields: list[str]) -> _Message:
+    """A message read by :data:`READ_SCRIPT`: its raw fields checked and decoded."""
+    raw = [bytes.fromhex(x) for x in hex_fields]
+    names, values = raw[0::2], raw[1::2]
+    vehicle = b""
+    fields: dict[str, str] = {}
+    problems: list[str] = []
+    seen: set[bytes] = set()
+    for name, value in zip(names, values, strict=False):
+        shown = name.decode("utf-8", "backslashreplace")
+        if name == b"vehicle_id" and name not in seen:
+            vehicle = value
+        if name in seen:
+            problems.append(f"field {shown!r} appears more than once")
+            continue
+        seen.add(name)
+        try:
+            fields[name.decode("utf-8")] = value.decode("utf-8")
+        except UnicodeDecodeError:
+            problems.append(f"field {shown!r} is not UTF-8 text")
+    if len(names) != len(values):
+        problems.append("message has a field name without a value")
+    problem = ""
+    if raw and problems:
+        problem = "bad message: " + "; ".join(dict.fromkeys(problems))
+    return _Message(message_id, vehicle, fields, problem)
 
 
 def _id_key(message_id: str) -> tuple[int, int]:
@@ -198,7 +269,7 @@ def _number(text: str | None) -> float:
         return math.nan
     try:
         return float(text)
-    except ValueError:
+    except (ValueError, OverflowError):
         return math.nan
 
 
@@ -209,7 +280,7 @@ def _text(value: float) -> str:
 def _output(message: _Message, result: PointResult) -> dict[str, str]:
     return {
         "source_id": message.id,
-        "vehicle_id": message.vehicle,
+        "vehicle_id": message.vehicle.decode("utf-8", "backslashreplace"),
         "t": message.fields.get("t", ""),
         "anomaly": str(int(result.anomaly)),
         "score": _text(result.score),
@@ -264,8 +335,10 @@ class RedisStreamWorker:
         self.cache_size = cache_size
         self.key_prefix = f"gradgps:{input_stream}:{group}:" if key_prefix is None else key_prefix
         self._check()
-        self._tracks: OrderedDict[str, _VehicleTrack] = OrderedDict()
+        self._tracks: OrderedDict[bytes, _VehicleTrack] = OrderedDict()
         self._route = client.register_script(ROUTE_SCRIPT)
+        self._read = client.register_script(READ_SCRIPT)
+        self._dead: list[dict[str, str]] = []
 
     def _check(self) -> None:
         kwargs = self.client.connection_pool.connection_kwargs
@@ -281,8 +354,13 @@ class RedisStreamWorker:
 
     # -- keys ----------------------------------------------------------------
 
-    def _state_key(self, vehicle: str) -> str:
-        return f"{self.key_prefix}state:{vehicle}"
+    def _state_key(self, vehicle: bytes) -> bytes:
+        return f"{self.key_prefix}state:".encode() + vehicle
+
+    @property
+    def dead_letter_stream(self) -> str:
+        """Stream where unrestorable states and messages whose processing failed are reported."""
+        return f"{self.key_prefix}dead-letter"
 
     def _alive_key(self, consumer: str) -> str:
         return f"{self.key_prefix}alive:{consumer}"
@@ -322,14 +400,12 @@ class RedisStreamWorker:
         """
         processed = skipped = 0
         while True:
-            # decode_responses: [[stream, [(id, {field: value}), ...]]]; typed loosely by redis-py
-            reply: Any = self.client.xreadgroup(
-                self.group, self.consumer, {self.input_stream: "0"}, count=self.batch_size
+            entries: Any = self._read(
+                keys=[self.input_stream], args=[self.group, self.consumer, self.batch_size]
             )
-            entries = reply[0][1] if reply else []
             if not entries:
                 return processed, skipped
-            done, dropped = self._commit([self._message(i, f) for i, f in entries])
+            done, dropped = self._commit([_decode_message(str(i), list(f)) for i, f in entries])
             processed += done
             skipped += dropped
             self.heartbeat()
@@ -395,27 +471,47 @@ class RedisStreamWorker:
 
     # -- one page --------------------------------------------------------------
 
-    @staticmethod
-    def _message(message_id: str, fields: Mapping[str, str] | None) -> _Message:
-        fields = fields or {}  # an entry deleted from the stream while pending has no fields
-        return _Message(message_id, fields.get("vehicle_id", ""), fields)
-
     def _new_detector(self) -> Detector:
         from .._grad.detector import Detector
 
         return Detector(self.model, threshold=self.threshold)
 
-    def _track(self, vehicle: str, stored: str | None) -> _VehicleTrack:
-        """The vehicle's detector as of its stored state (the cached one when that is current)."""
-        saved = None if stored is None else json.loads(stored)
-        last_id = "0-0" if saved is None else str(saved["last_id"])
+    def _track(self, vehicle: bytes, stored: str | None) -> _VehicleTrack:
+        """The vehicle's detector as of its stored state (the cached one when that is current).
+
+        A stored state that cannot be restored gives a fresh detector (and keeps its last
+        message id when that is readable), reported on the dead-letter stream.
+        """
+        last_id, saved, problem = "0-0", None, ""
+        if stored is not None:
+            try:
+                record = json.loads(stored)
+                saved = record["detector"]
+                last_id = str(record["last_id"])
+                if not _MESSAGE_ID.fullmatch(last_id):
+                    last_id = "0-0"
+                    raise ValueError("'last_id' is not a stream message id")
+            except (ValueError, KeyError, TypeError, RecursionError) as exc:
+                problem = f"stored state is not readable ({type(exc).__name__}: {exc})"
+                saved = None
         cached = self._tracks.get(vehicle)
-        if cached is not None and cached.last_id == last_id:
+        if not problem and cached is not None and cached.last_id == last_id:
             self._tracks.move_to_end(vehicle)
             return cached
         detector = self._new_detector()
         if saved is not None:
-            detector.set_state(saved["detector"])
+            try:
+                detector.set_state(saved)
+            except GradGPSError as exc:
+                problem = f"stored detector state refused ({exc})"
+                detector = self._new_detector()
+        if problem:
+            self._dead.append(
+                {
+                    "key": self._state_key(vehicle).decode("utf-8", "backslashreplace"),
+                    "problem": problem[:2000] + ": the vehicle restarts with a fresh detector",
+                }
+            )
         return _VehicleTrack(last_id, detector)
 
     def _commit(self, messages: list[_Message]) -> tuple[int, int]:
@@ -427,6 +523,7 @@ class RedisStreamWorker:
         for _ in range(_MAX_CONFLICTS):
             with self.client.pipeline(transaction=True) as pipe:
                 try:
+                    self._dead = []
                     if keys:
                         pipe.watch(*keys)  # type: ignore[no-untyped-call]
                     stored: list[Any] = pipe.mget(keys) if keys else []
@@ -435,6 +532,8 @@ class RedisStreamWorker:
                     pipe.multi()
                     for fields in outputs:
                         pipe.xadd(self.output_stream, fields)  # type: ignore[arg-type]
+                    for entry in self._dead:
+                        pipe.xadd(self.dead_letter_stream, entry)  # type: ignore[arg-type]
                     for vehicle in changed:
                         track = tracks[vehicle]
                         pipe.set(
@@ -465,31 +564,38 @@ class RedisStreamWorker:
     def _run_detectors(
         self,
         messages: list[_Message],
-        tracks: Mapping[str, _VehicleTrack],
-    ) -> tuple[list[dict[str, str]], set[str]]:
+        tracks: Mapping[bytes, _VehicleTrack],
+    ) -> tuple[list[dict[str, str]], set[bytes]]:
         outputs: list[dict[str, str]] = []
-        changed: set[str] = set()
+        changed: set[bytes] = set()
         for message in messages:
             track = tracks[message.vehicle]
             if _id_key(message.id) <= _id_key(track.last_id):
                 continue  # already in the output stream: processed before a takeover
             f = message.fields
-            if not f:
+            if message.problem:
+                result = PointResult.invalid(message.problem)
+            elif not f:
                 result = PointResult.invalid(
                     "message deleted from the stream before it was processed"
                 )
             elif not message.vehicle:
                 result = PointResult.invalid("message has no vehicle_id")
             else:
-                channels = {k: _number(v) for k, v in f.items() if k not in _POSITION_FIELDS}
-                result = track.detector.update(
-                    _number(f.get("t")),
-                    _number(f.get("lat")),
-                    _number(f.get("lon")),
-                    _number(f.get("speed")),
-                    _number(f.get("heading")),
-                    **channels,
-                )
+                # Other fields (sensor channels) are not used by the position model.
+                try:
+                    result = track.detector.update(
+                        _number(f.get("t")),
+                        _number(f.get("lat")),
+                        _number(f.get("lon")),
+                        _number(f.get("speed")),
+                        _number(f.get("heading")),
+                    )
+                except Exception as exc:  # a bug must not stop the fleet: report it, go on
+                    text = f"{type(exc).__name__}: {exc}"[:2000]
+                    result = PointResult.invalid(f"could not be processed ({text})")
+                    track.detector = self._new_detector()
+                    self._dead.append({"source_id": message.id, "problem": text})
             outputs.append(_output(message, result))
             track.last_id = message.id
             changed.add(message.vehicle)

@@ -4,7 +4,7 @@
 ``tail -f drive.csv``, ``gpspipe -r``) from standard input and writes one CSV
 result line per input line, flushed immediately, so another program can act on
 a fix while the car is still at it. The batch reader cannot do this: it reads
-the whole file, sorts each track by time and only then detects.
+the whole file and only then detects.
 
 Input, recognised from the first non-blank line (or named with ``--format``):
 

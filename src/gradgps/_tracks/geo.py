@@ -30,6 +30,7 @@ __all__ = [
     "WGS84_A",
     "WGS84_F",
     "LocalFrame",
+    "far_apart_scalar",
     "haversine_m",
     "to_geodetic_scalar",
     "to_local_scalar",
@@ -180,3 +181,34 @@ def to_geodetic_scalar(c: FloatArray, east: float, north: float) -> tuple[float,
     return math.degrees(math.atan2(z, math.hypot(x, y) * (1.0 - _E2))), math.degrees(
         math.atan2(y, x)
     )
+
+
+@numba.njit(cache=True)
+def far_apart_scalar(lat0: float, lon0: float, lat: float, lon: float, radius_m: float) -> bool:
+    """Whether two positions are more than ``radius_m`` apart on the sphere of
+    :func:`haversine_m` (one compiled function, so a stream and a batch decide alike)."""
+    p1 = math.radians(lat0)
+    p2 = math.radians(lat)
+    s_dp = math.sin(0.5 * (p2 - p1))
+    s_dl = math.sin(0.5 * math.radians(lon - lon0))
+    h = s_dp * s_dp + math.cos(p1) * math.cos(p2) * s_dl * s_dl
+    h = min(max(h, 0.0), 1.0)
+    return 2.0 * 6371008.8 * math.asin(math.sqrt(h)) > radius_m
+
+
+@numba.njit(cache=True)
+def radius_splits(
+    lat: FloatArray, lon: FloatArray, gap: NDArray[np.bool_], radius_m: float
+) -> NDArray[np.bool_]:
+    """Where a track (points in time order; ``gap[i]``: a new segment starts at point
+    ``i + 1``) also starts a new segment because point ``i + 1`` is more than ``radius_m``
+    from its segment's first point, which then becomes the next segment's first point."""
+    out = gap.copy()
+    centre = 0
+    for i in range(1, lat.size):
+        if gap[i - 1]:
+            centre = i
+        elif far_apart_scalar(lat[centre], lon[centre], lat[i], lon[i], radius_m):
+            out[i - 1] = True
+            centre = i
+    return out

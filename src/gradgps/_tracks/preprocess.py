@@ -14,7 +14,12 @@ so :func:`preprocess` turns canonical fixes (see :mod:`gradgps._tracks.track`) i
    than ``max_gap_s`` are filled by linear interpolation at that period; the
    filled points are marked ``interpolated``. Longer gaps start a new segment.
 5. Positions are projected to the track's own tangent plane (origin: its
-   first valid fix in time) as ``east``/``north`` metres.
+   first valid fix in time) as ``east``/``north`` metres. With
+   ``frame_radius_m`` (the detector's choice), a fix farther than that from
+   its segment's first point also starts a new segment, and every segment
+   gets its own plane at its first point (:attr:`Prepared.segment_frames`):
+   a projection is only exact near its origin, and a track that starts at a
+   bogus place or drives across a continent must not be measured from it.
 
 Nothing is lost: :attr:`Prepared.row_point` maps every input row to the point
 that represents it (``-1`` for an invalid row, whose reason is in
@@ -26,16 +31,24 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError
-from .._result import invalid_reasons
-from .geo import LocalFrame
+from .._result import NULL_ISLAND, STEP_TOLERANCE_S, invalid_reasons
+from .geo import LocalFrame, radius_splits
 
-__all__ = ["MIN_STEP_S", "Prepared", "invalid_reasons", "preprocess", "stream_reasons"]
+__all__ = [
+    "MIN_STEP_S",
+    "NULL_ISLAND",
+    "STEP_TOLERANCE_S",
+    "Prepared",
+    "invalid_reasons",
+    "preprocess",
+    "stream_reasons",
+]
 
 _CORE = ("track", "t", "lat", "lon")
 
@@ -56,6 +69,8 @@ class Prepared:
     row_reason: np.ndarray
     frames: dict[str, LocalFrame]
     nominal_period: dict[str, float]
+    segment_frames: list[LocalFrame] = field(default_factory=list)
+    """The frame ``east``/``north`` of each segment (by global segment id) are in."""
 
     @property
     def n_rows(self) -> int:
@@ -105,13 +120,17 @@ def stream_reasons(fixes: pd.DataFrame, *, min_step_s: float = MIN_STEP_S) -> np
     track in row order, a fix whose time is not after the previous *usable*
     fix of its track (a repeated or backward timestamp) or less than
     ``min_step_s`` after it is unusable. A repeated timestamp is never
-    merged or averaged: no position is invented.
+    merged or averaged: no position is invented. Steps are compared with a
+    tolerance of :data:`STEP_TOLERANCE_S` (timestamps like 1.7e9 + 0.001 s
+    are not exact in float64), the same one :func:`gradgps._result.fix_reason`
+    uses, so every mode draws the line at the same place.
     """
     reason = invalid_reasons(fixes)
     ok = np.flatnonzero(reason == "")
     if ok.size < 2:
         return reason
     t = fixes["t"].to_numpy(dtype=np.float64)
+    shortest = min_step_s - STEP_TOLERANCE_S if min_step_s > 0 else 0.0
     codes, _ = pd.factorize(pd.Series(fixes["track"].to_numpy(dtype=object)[ok], dtype=object))
     rows = ok[np.argsort(codes, kind="stable")]
     bounds = np.flatnonzero(np.r_[True, np.diff(np.sort(codes, kind="stable")) != 0, True])
@@ -120,7 +139,7 @@ def stream_reasons(fixes: pd.DataFrame, *, min_step_s: float = MIN_STEP_S) -> np
         tt = t[r]
         before = np.r_[-np.inf, np.maximum.accumulate(tt)[:-1]]
         late = tt > before
-        close = late & (tt - before < min_step_s)
+        close = late & (tt - before < shortest)
         if not close.any():
             reason[r[~late]] = NOT_AFTER
             continue
@@ -128,7 +147,7 @@ def stream_reasons(fixes: pd.DataFrame, *, min_step_s: float = MIN_STEP_S) -> np
         for i, ti in zip(r.tolist(), tt.tolist(), strict=True):
             if ti <= last:
                 reason[i] = NOT_AFTER
-            elif ti - last < min_step_s:
+            elif ti - last < shortest:
                 reason[i] = TOO_CLOSE
             else:
                 last = ti
@@ -144,6 +163,18 @@ def _circular_mean_deg(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     k = np.add.reduceat(finite.astype(np.int64), starts)
     out = np.mod(np.degrees(np.arctan2(s, c)), 360.0)
     return np.where(k > 0, out, np.nan)
+
+
+def _group_mean_lon(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """:func:`_group_mean` of longitudes, taken around the group's first one: two fixes
+    either side of the antimeridian (179.9, -179.9) average to 180, not to 0."""
+    first = values[starts]
+    offset = np.repeat(first, np.diff(np.r_[starts, values.size]))
+    wrapped = np.mod(values - offset + 180.0, 360.0) - 180.0
+    mean = _group_mean(wrapped, starts) + first
+    single = np.diff(np.r_[starts, values.size]) == 1
+    mean = np.where(mean > 180.0, mean - 360.0, np.where(mean < -180.0, mean + 360.0, mean))
+    return np.asarray(np.where(single, first, mean), dtype=np.float64)
 
 
 def _group_mean(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -168,6 +199,7 @@ def preprocess(
     max_gap_s: float = 5.0,
     interpolate: bool = True,
     min_step_s: float = 0.0,
+    frame_radius_m: float | None = None,
 ) -> Prepared:
     """Order, merge, fill and split canonical fixes; project to metres. See the module docstring.
 
@@ -176,6 +208,7 @@ def preprocess(
     than this after the previous one (in time order) is merged into its
     point, like a repeated timestamp; the default 0 merges only exact
     repeats. A chain of close fixes merges into one point, at the first time.
+    ``frame_radius_m``: see step 5 of the module docstring.
     """
     if not np.isfinite(max_gap_s) or max_gap_s <= 0:
         raise ConfigError(f"max_gap_s must be a positive number of seconds, got {max_gap_s}")
@@ -203,6 +236,7 @@ def preprocess(
 
     pieces: list[dict[str, np.ndarray]] = []
     frames: dict[str, LocalFrame] = {}
+    segment_frames: list[LocalFrame] = []
     periods: dict[str, float] = {}
     offset = 0
     segment_base = 0
@@ -223,19 +257,30 @@ def preprocess(
         t_u = t_sorted[starts]
         n_rows_u = np.diff(np.r_[starts, rows.size])
         lat_u = _group_mean(lat_all[rows], starts)
-        lon_u = _group_mean(lon_all[rows], starts)
+        lon_u = _group_mean_lon(lon_all[rows], starts)
         chan_u = {
             c: (_circular_mean_deg if c == "heading" else _group_mean)(v[rows], starts)
             for c, v in chan_all.items()
         }
         frame = LocalFrame(float(lat_u[0]), float(lon_u[0]))
         frames[str(track)] = frame
-        east_u, north_u = frame.to_local(lat_u, lon_u)
-
         dt = np.diff(t_u)
         period = float(np.median(dt)) if dt.size else 1.0
         periods[str(track)] = period
         split = dt > max_gap_s
+        if frame_radius_m is None:
+            east_u, north_u = frame.to_local(lat_u, lon_u)
+            seg_frames = [frame] * (int(split.sum()) + 1)
+        else:
+            split = radius_splits(lat_u, lon_u, split, float(frame_radius_m))
+            east_u, north_u = np.empty(t_u.size), np.empty(t_u.size)
+            seg_frames = []
+            bounds_u = np.r_[0, np.flatnonzero(split) + 1, t_u.size]
+            for a, b in itertools.pairwise(bounds_u):
+                seg_frame = LocalFrame(float(lat_u[a]), float(lon_u[a]))
+                seg_frames.append(seg_frame)
+                east_u[a:b], north_u[a:b] = seg_frame.to_local(lat_u[a:b], lon_u[a:b])
+        segment_frames.extend(seg_frames)
         fill = np.zeros(dt.size, dtype=np.int64)
         if interpolate and period > 0:
             gap = (~split) & (dt > 1.5 * period)
@@ -255,7 +300,13 @@ def preprocess(
             east = np.interp(t_full, t_u, east_u)
             north = np.interp(t_full, t_u, north_u)
             east[pos_u], north[pos_u] = east_u, north_u
-            lat, lon = frame.to_geodetic(east, north)
+            lat, lon = np.empty(total), np.empty(total)
+            seg_full = np.empty(total, dtype=np.int64)
+            seg_full[pos_u] = np.r_[0, np.cumsum(split)]
+            seg_full[is_interp] = np.r_[0, np.cumsum(split)][gap_idx]
+            for s_id, seg_frame in enumerate(seg_frames):
+                here = seg_full == s_id
+                lat[here], lon[here] = seg_frame.to_geodetic(east[here], north[here])
             lat[pos_u], lon[pos_u] = lat_u, lon_u
         else:  # nothing filled: the unique points are the points
             east, north, lat, lon = east_u, north_u, lat_u, lon_u
@@ -306,7 +357,12 @@ def preprocess(
     else:
         points = pd.DataFrame({c: pd.Series(dtype=_empty_dtype(c)) for c in columns})
     return Prepared(
-        points=points, row_point=row_point, row_reason=reason, frames=frames, nominal_period=periods
+        points=points,
+        row_point=row_point,
+        row_reason=reason,
+        frames=frames,
+        nominal_period=periods,
+        segment_frames=segment_frames,
     )
 
 

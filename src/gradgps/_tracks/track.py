@@ -392,9 +392,16 @@ def _day_first(text: pd.Series, iso: pd.Series) -> pd.Series:
 
 
 def _datetime_seconds(dt: pd.Series) -> np.ndarray:
-    ns = dt.dt.tz_convert("UTC").dt.tz_localize(None).astype("datetime64[ns]")
-    out = ns.to_numpy().astype("int64").astype(np.float64) / 1e9
-    out[ns.isna().to_numpy()] = np.nan
+    """Unix seconds of UTC datetimes, in their own unit: a Parquet or GPX time in year 1
+    (a logger's placeholder) or 3000 does not fit nanoseconds, but is still a time."""
+    naive = dt.dt.tz_convert("UTC").dt.tz_localize(None).to_numpy()
+    unit, _ = np.datetime_data(naive.dtype)
+    per_second = {"s": 1, "ms": 10**3, "us": 10**6, "ns": 10**9}.get(unit)
+    if per_second is None:
+        naive = naive.astype("datetime64[us]")
+        per_second = 10**6
+    out = naive.astype("int64").astype(np.float64) / per_second
+    out[np.isnat(naive)] = np.nan
     return np.asarray(out, dtype=np.float64)
 
 

@@ -76,12 +76,11 @@ def labelled_sequences(
     t = pts["t"].to_numpy(np.float64)
     lat = pts["lat"].to_numpy(np.float64)
     lon = pts["lon"].to_numpy(np.float64)
-    tracks = pts["track"].to_numpy(object)
     out: list[LabelledSequence] = []
-    for _, sl in prepared.segment_slices():
+    for k, sl in prepared.segment_slices():
         feats = grad_features(
             params,
-            prepared.frames[str(tracks[sl.start])],
+            prepared.segment_frames[k],
             t[sl],
             lat[sl],
             lon[sl],
