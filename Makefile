@@ -1,8 +1,12 @@
 # Two commands on a fresh machine: `make demo` and `make test`.
 # Each creates .venv on first use and installs what it needs (idempotent: a stamp
 # file per extras set is rebuilt only when pyproject.toml changes).
-# Any Python >= 3.11: the newest found on PATH.
-PYTHON ?= $(shell command -v python3.13 || command -v python3.12 || command -v python3.11 || command -v python3)
+# Any Python >= 3.11 that runs: python3.11 first (what CI and the pinned wheels are
+# tested with), then newer ones, then python3. A name on PATH is not enough: pyenv
+# puts shims for every version it knows on PATH, and an inactive one fails to run.
+PYTHON ?= $(shell for p in python3.11 python3.12 python3.13 python3; do \
+	if $$p -c 'import sys; sys.exit(sys.version_info < (3, 11))' >/dev/null 2>&1; then \
+	command -v $$p; break; fi; done)
 VENV := .venv
 PY := $(VENV)/bin/python
 export OMP_NUM_THREADS ?= 1
@@ -13,6 +17,7 @@ export NUMBA_NUM_THREADS ?= 1
 .PHONY: demo test fuzz bench lint clean default-model
 
 $(PY):
+	@test -n "$(PYTHON)" || { echo "gradgps needs Python >= 3.11 on PATH (python3.11, python3.12, python3.13 or python3); or set PYTHON=/path/to/python3.11+"; exit 1; }
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "gradgps needs Python >= 3.11; found " + sys.version.split()[0] + " ($(PYTHON)); set PYTHON=/path/to/python3.11+")'
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
