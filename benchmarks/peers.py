@@ -86,9 +86,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         for p in (args.peer or PEER_NAMES)
         if not (args.quick and p == "skmob-filter" and not args.peer)
     ]
-    datasets = args.dataset or list(peer_datasets())
     tuned_path: Path = args.tuned or TUNED_FILE
     tuned: dict[str, Any] = json.loads(tuned_path.read_text()) if tuned_path.is_file() else {}
+    # Without --dataset: the data sets the peers are tuned for (tuning one takes about
+    # half an hour here); --tune tunes every one.
+    datasets = args.dataset or [d for d in peer_datasets() if args.tune or d in tuned]
+    untuned = [d for d in peer_datasets() if d not in datasets]
+    if untuned:
+        _log(f"peers not tuned for {', '.join(untuned)}: left out (--tune, or --dataset NAME)")
     changed = False
     for ds in datasets:
         have = tuned.get(ds, {})

@@ -41,7 +41,7 @@ from .._baselines.peers import (
     peer_stream,
     threshold_of,
 )
-from .._data.datasets import DATASETS, SPLITS, load_dataset
+from .._data.datasets import DATASETS, SPLITS, TEST_ONLY, load_dataset
 from .._data.inject import inject_grad
 from .._exceptions import ConfigError
 from .._tracks.track import ColumnMap, to_fixes
@@ -64,8 +64,9 @@ _NOT_SHARED = ("simulated",)
 
 
 def peer_datasets() -> tuple[str, ...]:
-    """Every shared data set :func:`load_dataset` knows (new names are picked up automatically)."""
-    return tuple(d for d in DATASETS if d not in _NOT_SHARED)
+    """Every shared data set :func:`load_dataset` knows that has a validation split to tune
+    the peers on (new names are picked up automatically; test-only sets are left out)."""
+    return tuple(d for d in DATASETS if d not in _NOT_SHARED and d not in TEST_ONLY)
 
 
 PEER_DATASETS = peer_datasets()
