@@ -27,11 +27,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
 import argparse  # noqa: E402
 import datetime  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
+
+from gradgps._eval.robustness import machine  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 START, END = "<!-- peers:start -->", "<!-- peers:end -->"
@@ -51,21 +52,6 @@ TITLES = {
 
 def _log(msg: str) -> None:
     print(f"[peers] {msg}", file=sys.stderr, flush=True)
-
-
-def _machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return (
-        f"{cpu}, {os.cpu_count()} logical CPUs, {platform.system()} {platform.release()}, "
-        f"Python {platform.python_version()}"
-    )
 
 
 def _load() -> str:
@@ -118,7 +104,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         tables[ds]["seconds"] = time.perf_counter() - began
     return {
         "date": datetime.date.today().isoformat(),
-        "machine": _machine(),
+        "machine": machine(),
         "load": _load(),
         "quick": args.quick,
         "model": _model_version(),

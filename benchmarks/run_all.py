@@ -42,12 +42,13 @@ import argparse  # noqa: E402
 import copy  # noqa: E402
 import datetime  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
+
+from gradgps._eval.robustness import machine  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 TABLES = ("grad-driveplotr", "grad-tuc", "sensor-grid", "sweep", "speed", "robustness")
@@ -449,21 +450,6 @@ def robustness_table(args: argparse.Namespace) -> dict[str, Any]:
     return report
 
 
-def _machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return (
-        f"{cpu}, {os.cpu_count()} logical CPUs, {platform.system()} {platform.release()}, "
-        f"Python {platform.python_version()}"
-    )
-
-
 def _lead_summary(grad_reports: dict[str, dict[str, Any]]) -> list[str]:
     out = []
     for title, report in grad_reports.items():
@@ -501,7 +487,7 @@ def write_markdown(
         )
         + (" (**quick mode: tiny data, not results**)" if quick else "")
         + ".",
-        f"Machine: {_machine()}; every table in one run, one core (threads pinned to 1).",
+        f"Machine: {machine()}; every table in one run, one core (threads pinned to 1).",
         "Wall time per table (s, training of uncached models included): "
         + ", ".join(f"{k} {v:.0f}" for k, v in seconds.items())
         + ".",
@@ -658,7 +644,7 @@ def main() -> None:
         json.dumps(
             {
                 "seconds": seconds,
-                "machine": _machine(),
+                "machine": machine(),
                 "date": datetime.date.today().isoformat(),
                 "results": results,
             },
