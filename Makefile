@@ -59,7 +59,7 @@ bench: $(VENV)/.stamp-test
 default-model: $(VENV)/.stamp-test
 	$(VENV)/bin/gradgps train --dataset recipe --max-epochs $(DEFAULT_EPOCHS) --time-budget 3600 \
 		-o src/gradgps/models/default
-DEFAULT_EPOCHS ?= 20
+DEFAULT_EPOCHS ?= 30
 
 # numba caches compiled kernels next to the sources and does not notice when a
 # kernel's callee in another module changes: clear them after editing kernels.

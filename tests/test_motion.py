@@ -97,3 +97,85 @@ def test_dropped_fix_is_not_a_fault() -> None:
 def test_params_are_checked(bad: dict[str, float]) -> None:
     with pytest.raises(ConfigError):
         MotionParams(**bad).checked()
+
+
+def _braking(period: float, noise: float, seed: int):
+    """Straight road: 28 m/s, a hard stop at 5 m/s² to walking pace, 20 s there,
+    then 2.5 m/s² back to 28 m/s (a motorway exit queue)."""
+    dt = 0.01
+    phases = [
+        (28.0, 0.0, 60.0),
+        (28.0, -5.0, 5.0),
+        (3.0, 0.0, 20.0),
+        (3.0, 2.5, 10.0),
+        (28.0, 0.0, 60.0),
+    ]
+    speeds = np.concatenate([np.clip(v0 + a * np.arange(0, d, dt), 3, 28) for v0, a, d in phases])
+    x = np.cumsum(speeds) * dt
+    t = np.arange(0, speeds.size * dt, period)
+    idx = np.minimum((t / dt).astype(int), x.size - 1)
+    rng = np.random.default_rng(seed)
+    return t, x[idx] + rng.normal(0, noise, t.size), rng.normal(0, noise, t.size)
+
+
+@pytest.mark.parametrize("period", [1.0, 2.0])
+def test_hard_braking_is_followed_not_dead_reckoned(period: float) -> None:
+    """A real 0.5 Hz drive braking hard must not lock the model out for max_run_s.
+
+    Found on the Nevada drive: a step that the model did not expect was gated,
+    the model dead-reckoned at the old speed while the fixes slowed, and no
+    later fix agreed with the dead-reckoned motion, so it stayed lost for
+    max_run_s, again and again. Fixes that agree among themselves bring it back.
+    """
+    t, east, north = _braking(period, noise=1.0, seed=4)
+    feats = motion_batch(t, east, north, period)
+    assert feats[:, RUN_S].max() <= period  # never more than one fix dead-reckoned
+    assert np.mean(feats[:, RUN_S] > 0) < 0.03
+
+
+def test_a_curve_after_a_jump_is_followed_at_once() -> None:
+    """0.5 Hz, 30 m/s on a 600 m curve, a 150 m jump of 100 fixes: within two fixes
+    of either edge the model follows the fixes again, turning (not in max_run_s)."""
+    t, east, north = _curve(600, 2.0, 30.0, 600.0, noise=0.3, seed=1)
+    east = east.copy()
+    east[200:300] += 150.0
+    feats = motion_batch(t, east, north, 2.0)
+    for start in (200, 300):
+        assert feats[start, NIS] > MotionParams().gate
+        assert np.all(feats[start + 3 : start + 100, RUN_S] == 0.0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), jumps=st.integers(0, 8))
+def test_turn_rate_never_exceeds_what_a_car_can_pull(seed: int, jumps: int) -> None:
+    """Whatever the fixes, |turn rate| x speed stays within max_accel (no circles)."""
+    rng = np.random.default_rng(seed)
+    n = 200
+    t = np.cumsum(rng.choice([0.1, 1.0, 2.0], n))
+    east = np.cumsum(rng.normal(10, 8, n))
+    north = np.cumsum(rng.normal(0, 8, n))
+    if jumps:
+        east[rng.integers(0, n, jumps)] += rng.normal(0, 100, jumps)
+    feats = motion_batch(t, east, north, 1.0)
+    lateral = feats[:, MOTION_FEATURES.index("motion_lateral_accel")]
+    assert np.all(lateral <= MotionParams().max_accel + 1e-9)
+
+
+@pytest.mark.parametrize("period", [0.1, 1.0, 2.0])
+def test_a_frozen_fix_stops_harder_than_any_car(period: float) -> None:
+    """A car braking to a stop at 3 m/s² and a receiver freezing its fix at 20 m/s
+    both stand still afterwards; stop_decel tells them apart at every rate."""
+    decel = MOTION_FEATURES.index("stop_decel")
+    still = MOTION_FEATURES.index("still_s")
+    rng = np.random.default_rng(5)
+    t = np.arange(0, 60, period)
+    speed = np.clip(20 - 3 * np.clip(t - 20, 0, None), 0, None)  # stops at t = 26.7 s
+    x = np.cumsum(speed) * period
+    braking = motion_batch(t, x + rng.normal(0, 0.05, t.size), np.zeros(t.size), period)
+    assert braking[-1, still] > 20  # stood still since the stop
+    assert braking[:, decel].max() < 3.5
+    frozen_x = 20.0 * t
+    frozen_x[t >= 20] = frozen_x[t >= 20][0]  # the fix freezes at 20 m/s
+    frozen = motion_batch(t, frozen_x, np.zeros(t.size), period)
+    assert frozen[-1, still] > 20
+    assert frozen[-1, decel] > 8  # beyond what a car pulls (about 0.6-0.9 g)

@@ -127,3 +127,23 @@ def test_thinning_tolerates_jittered_stamps() -> None:
     assert thin_mask(tracks, t, 1.0).all()
     assert thin_mask(tracks, t, 2.0).sum() == 10
     assert not thin_mask(tracks, np.full(3, np.nan), 1.0).any()
+
+
+def test_freeze_holds_start_on_a_moving_vehicle() -> None:
+    """A hold that starts as the car brakes to a stop is a real stop, not a fault:
+    every hold starts after a step of at least 2 m/s."""
+    from gradgps._tracks.geo import haversine_m
+
+    labelled = _labelled(3)
+    frozen = inject_freeze(labelled, seed=0, share=0.05, stale_start=0.0)
+    held = frozen["label_bias"].to_numpy() == "freeze"
+    starts = np.flatnonzero(np.diff(held.astype(int)) == 1) + 1  # first held fix
+    assert starts.size > 0
+    lat = labelled["lat"].to_numpy()
+    lon = labelled["lon"].to_numpy()
+    t = labelled["t"].to_numpy()
+    # The true step into the first held fix (the car's speed when the fix froze).
+    speed = haversine_m(lat[starts - 1], lon[starts - 1], lat[starts], lon[starts]) / (
+        t[starts] - t[starts - 1]
+    )
+    assert (speed >= 1.5).all()

@@ -96,6 +96,7 @@ def train(
         )
     spec = None
     validated = None
+    schedule: dict[str, Any] = {}
     if dataset == "recipe":
         from .._train.grad import GradTrainingSet
         from .._train.recipe import recipe_tables, recipe_validated
@@ -105,6 +106,8 @@ def train(
         spec = GradTrainingSet(seeds=RECIPE_SEEDS, freeze_share=0.02, stale_start=0.1)
         source = "recipe (gradgps._train.recipe.DefaultRecipe)"
         validated = recipe_validated()
+        # Many small noisy batches from mixed sources: decay the rate, clip steps.
+        schedule = {"lr_schedule": "cosine", "grad_clip": 1.0}
     elif dataset is not None:
         from .._data.datasets import load_dataset
 
@@ -128,6 +131,7 @@ def train(
         seed=seed,
         max_epochs=max_epochs,
         notes={"source": source, "protocol": protocol},
+        **schedule,
     )
     click.echo(
         f"wrote {output}: {report.n_train_points:,} training points, "

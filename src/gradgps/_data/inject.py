@@ -577,8 +577,9 @@ def inject_freeze(
     ``stale_offset_m`` away, until the first real fix). Held fixes are
     labelled ``label_anomaly = 1`` with bias ``freeze`` (time type
     ``transient``); the jump back to the truth is *not* a fault. Holds are
-    placed where the vehicle moves (a frozen fix of a parked car is a true
-    fix) and only on fixes without a label, about ``share`` of each track's
+    placed where the vehicle moves at 2 m/s or more when the fix freezes and
+    for most of the hold (a frozen fix of a parked or crawling car is a true
+    fix, and a hold that starts as the car brakes to a stop is a real stop) and only on fixes without a label, about ``share`` of each track's
     fixes. Seeded: the same input and seed give the same bytes.
     """
     if not (0 <= share < 1 and 0 <= stale_start <= 1):
@@ -603,7 +604,10 @@ def inject_freeze(
         t = t_all[rows]
         frame = LocalFrame(float(lat[rows[0]]), float(lon[rows[0]]))
         east, north = frame.to_local(lat[rows], lon[rows])
-        moving = np.r_[np.hypot(np.diff(east), np.diff(north)) > 0.5, False]
+        # A step "moves" at 2 m/s or more: a hold over a car crawling or
+        # stopped looks like the real stop it is, and no one could call it a fault.
+        step_dt = np.maximum(np.diff(t), 1e-9)
+        moving = np.r_[np.hypot(np.diff(east), np.diff(north)) / step_dt >= 2.0, False]
         free = anomaly[rows] == 0
         if rng.random() < stale_start:
             end = int(np.searchsorted(t, t[0] + rng.uniform(*hold_s)))
@@ -626,8 +630,14 @@ def inject_freeze(
             stop = int(np.searchsorted(t, t[start] + rng.uniform(*hold_s)))
             stop = min(stop, rows.size - 1)
             span = slice(start + 1, stop)
-            # The vehicle must move during the hold, and one clean fix must follow it.
-            if stop - start < 2 or not free[start : stop + 1].all() or not moving[span].any():
+            # The vehicle must be moving when the fix freezes and for most of the
+            # hold (else the hold is a real stop), and one clean fix must follow it.
+            if (
+                stop - start < 2
+                or not free[start : stop + 1].all()
+                or not moving[start]
+                or moving[span].mean() < 0.5
+            ):
                 continue
             held = rows[span]
             lat[held], lon[held] = lat[rows[start]], lon[rows[start]]

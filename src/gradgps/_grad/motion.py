@@ -28,6 +28,16 @@ for never staying lost:
   it rejected. (The memory of a lasting offset is the offset tracker's job,
   :mod:`gradgps._grad.offset`; this model only says how surprising each step is.)
 
+* **Standing still**: ``still_s`` counts the seconds the fixes have moved
+  slower than :data:`STILL_SPEED`, and ``stop_decel`` is the deceleration
+  the stop implied: the speed of the step before the first still fix over
+  the still step's time (at least 1 s; the observed step, not the model's
+  velocity, which lags a braking car by a second or two). A car brakes to a stop (a few m/s²); a
+  receiver that freezes its fix while the car drives on "stops" from full
+  speed within one step (still: under :data:`STILL_SPEED` or
+  :data:`STILL_STEP_M`, whichever is more) (10-30 m/s²). While the fixes stand still, the
+  two look the same; this is what tells them apart.
+
 Speed and heading are not used: this is the witness that exists in every
 file. ``dt_ratio`` (the step over the segment's nominal period) is emitted
 too, so the network knows a dropped fix from a fast one.
@@ -53,6 +63,7 @@ __all__ = [
     "N_MOTION_FEATURES",
     "N_MOTION_PARAMS",
     "N_MOTION_STATE",
+    "STILL_SPEED",
     "MotionParams",
     "motion_batch",
     "motion_new_state",
@@ -72,16 +83,55 @@ MOTION_FEATURES = (
     "motion_speed",
     "motion_lateral_accel",
     "dt_ratio",
+    "still_s",
+    "stop_decel",
 )
 N_MOTION_FEATURES = len(MOTION_FEATURES)
 
-P_GATE, P_FLOOR, P_MEMORY, P_VEL_TAU, P_TURN_TAU, P_MAX_RUN, P_MAX_TURN, P_PERIOD, P_INIT = range(9)
-N_MOTION_PARAMS = 9
+(
+    P_GATE,
+    P_FLOOR,
+    P_MEMORY,
+    P_VEL_TAU,
+    P_TURN_TAU,
+    P_MAX_RUN,
+    P_MAX_TURN,
+    P_PERIOD,
+    P_INIT,
+    P_MAX_ACCEL,
+    P_MANEUVER,
+) = range(11)
+N_MOTION_PARAMS = 11
 # State: count, p east/north, v east/north, turn rate, m2, run seconds,
 # previous observed east/north, and the velocity predicted for the newest fix
-# (before it was seen; NaN until two fixes have set a velocity).
-S_COUNT, S_PE, S_PN, S_VE, S_VN, S_W, S_M2, S_RUN, S_ZE, S_ZN, S_PVE, S_PVN = range(12)
-N_MOTION_STATE = 12
+# (before it was seen; NaN until two fixes have set a velocity), and the
+# velocity of the previous observed step (previous fix minus the one before),
+# the seconds the fixes have stood still and the deceleration their stop implied.
+(
+    S_COUNT,
+    S_PE,
+    S_PN,
+    S_VE,
+    S_VN,
+    S_W,
+    S_M2,
+    S_RUN,
+    S_ZE,
+    S_ZN,
+    S_PVE,
+    S_PVN,
+    S_OVE,
+    S_OVN,
+    S_STILL,
+    S_STOP_DECEL,
+) = range(16)
+N_MOTION_STATE = 16
+#: m/s: fixes moving slower than this stand still (a stopped car's receiver
+#: noise, or one fix repeated) ...
+STILL_SPEED = 0.5
+#: ... or by less than this many metres a step (at 10 Hz a stopped receiver's
+#: centimetres of noise are more than 0.5 m/s over 0.1 s).
+STILL_STEP_M = 0.25
 
 
 @dataclass(frozen=True)
@@ -98,6 +148,15 @@ class MotionParams:
     0.5 Hz and at 10 Hz, where a step is mostly receiver noise); ``max_run_s``: seconds after which a
     rejected track is re-acquired whatever the fixes do; ``max_turn``: rad/s
     cap on the turn rate (a car does not turn faster than about 1 rad/s);
+    ``max_accel``: m/s², the most a car accelerates, sideways or along
+    (about 0.6 g): the turn rate is capped at this over the speed (a car at
+    30 m/s turning at 0.5 rad/s would pull 1.5 g), and two observed steps
+    "agree" when they differ by no more than ``gate`` sigmas plus what this
+    acceleration explains over the step; ``maneuver_accel``: m/s², the
+    acceleration a car pulls routinely and the model does not predict
+    (braking, speeding up): ``maneuver_accel * dt**2 / 2`` adds to the
+    innovation scale in quadrature, so a 0.5 Hz file's 2 s steps get the
+    slack a braking car needs and a 10 Hz file keeps its tight gate;
     ``initial_scale``: metres, the innovation scale before any has been
     measured. The second fix of a segment only starts the velocity (it is
     never gated: nothing is known yet to judge it by).
@@ -111,6 +170,8 @@ class MotionParams:
     max_run_s: float = 10.0
     max_turn: float = 1.0
     initial_scale: float = 5.0
+    max_accel: float = 6.0
+    maneuver_accel: float = 2.0
 
     def checked(self) -> MotionParams:
         for name in (
@@ -121,6 +182,8 @@ class MotionParams:
             "initial_scale",
             "velocity_tau_s",
             "turn_tau_s",
+            "max_accel",
+            "maneuver_accel",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -144,6 +207,8 @@ class MotionParams:
                 self.max_turn,
                 period,
                 self.initial_scale,
+                self.max_accel,
+                self.maneuver_accel,
             ],
             dtype=np.float64,
         )
@@ -209,6 +274,8 @@ def motion_step(
     if count == 1.0:
         state[S_VE] = (east - state[S_PE]) / step_dt
         state[S_VN] = (north - state[S_PN]) / step_dt
+        state[S_OVE] = state[S_VE]
+        state[S_OVN] = state[S_VN]
         state[S_PE] = east
         state[S_PN] = north
         state[S_ZE] = east
@@ -241,13 +308,24 @@ def motion_step(
         along = innov
         cross = 0.0
     m2 = state[S_M2]
-    scale = math.sqrt(max(m2, p[P_FLOOR] * p[P_FLOOR]))
+    maneuver = 0.5 * p[P_MANEUVER] * step_dt * step_dt
+    scale = math.sqrt(max(m2, p[P_FLOOR] * p[P_FLOOR]) + maneuver * maneuver)
     nis = innov / scale
     # Re-acquisition: this fix's own step from the previous observed fix
-    # agrees with the predicted motion (the track continues from elsewhere).
-    own_e = east - state[S_ZE] - pve * step_dt
-    own_n = north - state[S_ZN] - pvn * step_dt
-    consistent = math.hypot(own_e, own_n) <= p[P_GATE] * scale
+    # agrees with the predicted motion, or with the previous observed step
+    # (the track continues from elsewhere, or the vehicle braked or turned
+    # harder than the model followed: the fixes agree among themselves).
+    step_e = east - state[S_ZE]
+    step_n = north - state[S_ZN]
+    limit = p[P_GATE] * scale
+    ove = state[S_OVE]
+    ovn = state[S_OVN]
+    steps_agree = math.hypot(step_e - ove * step_dt, step_n - ovn * step_dt) <= (
+        limit + p[P_MAX_ACCEL] * step_dt * step_dt
+    )
+    consistent = steps_agree or (
+        math.hypot(step_e - pve * step_dt, step_n - pvn * step_dt) <= limit
+    )
     gated = nis > p[P_GATE]
     run = state[S_RUN]
     if gated and not (run > 0.0 and consistent) and run + step_dt <= p[P_MAX_RUN]:
@@ -266,24 +344,45 @@ def motion_step(
             obs_e = (east - state[S_PE]) / step_dt
             obs_n = (north - state[S_PN]) / step_dt
             m2 = (1.0 - p[P_MEMORY]) * m2 + p[P_MEMORY] * innov * innov
-        g = 1.0 - math.exp(-step_dt / p[P_VEL_TAU])
+        # After a re-acquisition the model's velocity has just been proven
+        # wrong: the fixes' own step takes over four times faster.
+        tau = p[P_VEL_TAU] / 4.0 if gated else p[P_VEL_TAU]
+        g = 1.0 - math.exp(-step_dt / tau)
         new_ve = g * obs_e + (1.0 - g) * pve
         new_vn = g * obs_n + (1.0 - g) * pvn
         old_speed = math.hypot(ve, vn)
         new_speed = math.hypot(new_ve, new_vn)
-        w_obs = 0.0
-        if old_speed > 1.0 and new_speed > 1.0:
+        w_new = w
+        if gated:
+            # Re-acquired: the turn is measured afresh from the last two
+            # observed steps when they agree (both on the new track), else
+            # the old one is kept. A course change across a jump is no turn.
+            if steps_agree and math.hypot(ove, ovn) > 1.0 and math.hypot(step_e, step_n) > step_dt:
+                w_new = _wrap(math.atan2(step_e, step_n) - math.atan2(ove, ovn)) / step_dt
+        else:
             # Course (clockwise from north) change per second.
-            w_obs = _wrap(math.atan2(new_ve, new_vn) - math.atan2(ve, vn)) / step_dt
-        gw = 1.0 - math.exp(-step_dt / p[P_TURN_TAU])
-        w_new = gw * w_obs + (1.0 - gw) * w
-        state[S_W] = min(max(w_new, -p[P_MAX_TURN]), p[P_MAX_TURN])
+            w_obs = 0.0
+            if old_speed > 1.0 and new_speed > 1.0:
+                w_obs = _wrap(math.atan2(new_ve, new_vn) - math.atan2(ve, vn)) / step_dt
+            gw = 1.0 - math.exp(-step_dt / p[P_TURN_TAU])
+            w_new = gw * w_obs + (1.0 - gw) * w
+        w_cap = min(p[P_MAX_TURN], p[P_MAX_ACCEL] / max(new_speed, 1e-9))
+        state[S_W] = min(max(w_new, -w_cap), w_cap)
         state[S_VE] = new_ve
         state[S_VN] = new_vn
         state[S_PE] = east
         state[S_PN] = north
         state[S_M2] = m2
         state[S_RUN] = 0.0
+    if math.hypot(step_e, step_n) < max(STILL_SPEED * step_dt, STILL_STEP_M):
+        if state[S_STILL] == 0.0:
+            state[S_STOP_DECEL] = math.hypot(state[S_OVE], state[S_OVN]) / max(step_dt, 1.0)
+        state[S_STILL] += step_dt
+    else:
+        state[S_STILL] = 0.0
+        state[S_STOP_DECEL] = 0.0
+    state[S_OVE] = step_e / step_dt
+    state[S_OVN] = step_n / step_dt
     state[S_ZE] = east
     state[S_ZN] = north
     state[S_COUNT] = count + 1.0
@@ -294,6 +393,8 @@ def motion_step(
     out[4] = state[S_RUN]
     out[5] = speed
     out[6] = abs(w) * speed
+    out[8] = state[S_STILL]
+    out[9] = state[S_STOP_DECEL]
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -340,10 +441,11 @@ def motion_reference(
     """Readable version of :func:`motion_batch`, one fix at a time in plain Python."""
     prm = (params or MotionParams()).checked()
     rows = []
-    pos = vel = last_obs = np.zeros(2)
+    pos = vel = last_obs = last_step_vel = np.zeros(2)
     turn = 0.0
     m2 = prm.initial_scale**2
     run = 0.0
+    still = stop_decel = 0.0
     for i in range(len(t)):
         z = np.array([east[i], north[i]], dtype=np.float64)
         dt = t[i] - t[i - 1] if i > 0 else math.nan
@@ -363,6 +465,7 @@ def motion_reference(
             continue
         if i == 1:
             vel, pos, last_obs = (z - pos) / dt, z.copy(), z.copy()
+            last_step_vel = vel.copy()
             rows.append(row)
             continue
         turn_before = turn
@@ -378,10 +481,13 @@ def motion_reference(
             along, cross = float(r @ u), float(r[0] * u[1] - r[1] * u[0])
         else:
             along, cross = innov, 0.0
-        scale = math.sqrt(max(m2, prm.noise_floor**2))
+        scale = math.sqrt(max(m2, prm.noise_floor**2) + (0.5 * prm.maneuver_accel * dt * dt) ** 2)
         nis = innov / scale
-        own = z - last_obs - v_pred * dt
-        consistent = math.hypot(own[0], own[1]) <= prm.gate * scale
+        step = z - last_obs
+        steps_agree = bool(
+            np.hypot(*(step - last_step_vel * dt)) <= prm.gate * scale + prm.max_accel * dt * dt
+        )
+        consistent = steps_agree or bool(np.hypot(*(step - v_pred * dt)) <= prm.gate * scale)
         gated = nis > prm.gate
         if gated and not (run > 0 and consistent) and run + dt <= prm.max_run_s:
             pos, vel, run = pred, v_pred, run + dt
@@ -391,16 +497,33 @@ def motion_reference(
             else:
                 obs = (z - pos) / dt
                 m2 = (1 - prm.memory) * m2 + prm.memory * innov**2
-            g = 1 - math.exp(-dt / prm.velocity_tau_s)
+            tau = prm.velocity_tau_s / 4 if gated else prm.velocity_tau_s
+            g = 1 - math.exp(-dt / tau)
             new_vel = g * obs + (1 - g) * v_pred
-            w_obs = 0.0
-            if math.hypot(*vel) > 1.0 and math.hypot(*new_vel) > 1.0:
-                change = math.atan2(new_vel[0], new_vel[1]) - math.atan2(vel[0], vel[1])
-                w_obs = ((change + math.pi) % (2 * math.pi) - math.pi) / dt
-            gw = 1 - math.exp(-dt / prm.turn_tau_s)
-            turn = min(max(gw * w_obs + (1 - gw) * turn, -prm.max_turn), prm.max_turn)
+            if gated:
+                # Re-acquired: the turn afresh from the last two observed steps
+                # when they agree; a course change across a jump is no turn.
+                if steps_agree and np.hypot(*last_step_vel) > 1.0 and np.hypot(*step) > dt:
+                    change = math.atan2(step[0], step[1]) - math.atan2(*last_step_vel)
+                    turn = ((change + math.pi) % (2 * math.pi) - math.pi) / dt
+            else:
+                w_obs = 0.0
+                if math.hypot(*vel) > 1.0 and math.hypot(*new_vel) > 1.0:
+                    change = math.atan2(new_vel[0], new_vel[1]) - math.atan2(vel[0], vel[1])
+                    w_obs = ((change + math.pi) % (2 * math.pi) - math.pi) / dt
+                gw = 1 - math.exp(-dt / prm.turn_tau_s)
+                turn = gw * w_obs + (1 - gw) * turn
+            cap = min(prm.max_turn, prm.max_accel / max(math.hypot(*new_vel), 1e-9))
+            turn = min(max(turn, -cap), cap)
             vel, pos, run = new_vel, z.copy(), 0.0
-        last_obs = z.copy()
+        if math.hypot(*step) < max(STILL_SPEED * dt, STILL_STEP_M):
+            if still == 0.0:
+                stop_decel = math.hypot(*last_step_vel) / max(dt, 1.0)
+            still += dt
+        else:
+            still = stop_decel = 0.0
+        last_obs, last_step_vel = z.copy(), step / dt
         row[:7] = [innov, along, cross, nis, run, speed, abs(turn_before) * speed]
+        row[8:10] = [still, stop_decel]
         rows.append(row)
     return np.array(rows).reshape(-1, N_MOTION_FEATURES)

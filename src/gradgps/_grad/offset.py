@@ -22,8 +22,9 @@ other) and per point:
   up into a phantom offset), else from a constant-velocity estimate (an EMA of the
   *explained* steps' velocities);
 * the *residual* is the observed step minus the predicted one;
-* a residual larger than ``threshold_m`` is *unexplained* (a fault starts,
-  changes or ends). There are then two estimates of the offset, the old
+* a residual larger than ``threshold_m`` (plus what a car's acceleration
+  explains over the step, ``accel_allowance``) is *unexplained* (a fault
+  starts, changes or ends). There are then two estimates of the offset, the old
   offset plus the residual and the fix's distance to the clean-track
   estimate (below), and the smaller one is taken: the first goes wrong when
   one step of a noise run is misread, the second when dead reckoning drifts
@@ -99,10 +100,18 @@ OFFSET_FEATURES = (
     "fault_age_s",
 )
 N_OFFSET_FEATURES = len(OFFSET_FEATURES)
-N_OFFSET_PARAMS = 8
-P_THRESHOLD, P_LEAK, P_ALPHA, P_FAST_LEAK, P_DRIFT, P_MAX_FAULT, P_BIAS_ALPHA, P_TRUST = range(
-    N_OFFSET_PARAMS
-)
+N_OFFSET_PARAMS = 9
+(
+    P_THRESHOLD,
+    P_LEAK,
+    P_ALPHA,
+    P_FAST_LEAK,
+    P_DRIFT,
+    P_MAX_FAULT,
+    P_BIAS_ALPHA,
+    P_TRUST,
+    P_ACCEL,
+) = range(N_OFFSET_PARAMS)
 # State: count, last east, last north, last ve, last vn (reported, NaN if none),
 # cv ve, cv vn, offset east, offset north, clean-track east, north, fault age (s),
 # velocity bias east, north (m/s), the offset released by ``max_fault_s`` east,
@@ -141,7 +150,13 @@ class OffsetParams:
     constant-velocity estimate; ``drift_per_s``: growth of the gate around the
     dead-reckoned clean track; ``max_fault_s``: longest a suspected fault is held;
     ``bias_alpha``: EMA weight of the reported velocity's bias; ``trust_clean_s``: fault
-    age up to which the dead-reckoned clean track alone measures the offset."""
+    age up to which the dead-reckoned clean track alone measures the offset;
+    ``accel_allowance``: m/s², what a car's braking or speeding up moves it off
+    the predicted step: a residual within ``threshold_m + accel_allowance *
+    dt**2 / 2`` is explained. 6 m/s² (about 0.6 g, the most a car pulls):
+    at 0.5 Hz a car braking hard misses a constant-velocity step by 12-18 m
+    once the velocity estimate's lag is added, and that is no jump; at 1 Hz
+    the allowance is 3 m, at 10 Hz 3 cm."""
 
     threshold_m: float = 8.0
     leak_per_s: float = 0.002
@@ -151,6 +166,7 @@ class OffsetParams:
     max_fault_s: float = 100.0
     bias_alpha: float = 0.1
     trust_clean_s: float = 10.0
+    accel_allowance: float = 6.0
 
     def to_array(self) -> FloatArray:
         if not (
@@ -162,13 +178,15 @@ class OffsetParams:
             and self.max_fault_s > 0
             and 0 <= self.bias_alpha <= 1
             and self.trust_clean_s >= 0
+            and math.isfinite(self.accel_allowance)
+            and self.accel_allowance >= 0
         ):
             raise ConfigError(
                 "offset tracker needs threshold_m > 0, 0 <= leak_per_s < 1, 0 < cv_alpha <= 1, "
                 "0 <= fast_leak_per_s < 1, drift_per_s >= 0, max_fault_s > 0, "
-                f"0 <= bias_alpha <= 1, trust_clean_s >= 0; got {self.threshold_m}, {self.leak_per_s}, "
+                f"0 <= bias_alpha <= 1, trust_clean_s >= 0, accel_allowance >= 0; got {self.threshold_m}, {self.leak_per_s}, "
                 f"{self.cv_alpha}, {self.fast_leak_per_s}, {self.drift_per_s}, {self.max_fault_s}, "
-                f"{self.bias_alpha}, {self.trust_clean_s}"
+                f"{self.bias_alpha}, {self.trust_clean_s}, {self.accel_allowance}"
             )
         return np.array(
             [
@@ -180,6 +198,7 @@ class OffsetParams:
                 self.max_fault_s,
                 self.bias_alpha,
                 self.trust_clean_s,
+                self.accel_allowance,
             ]
         )
 
@@ -239,7 +258,7 @@ def offset_features_reference(
             before = offset[c]
             in_fault = abs(before) > prm.threshold_m
             clean[c] += predicted[c]
-            explained = abs(residual[c]) <= prm.threshold_m
+            explained = abs(residual[c]) <= prm.threshold_m + 0.5 * prm.accel_allowance * d[i] ** 2
             if not explained:  # a fault starts, changes or ends: two estimates of the
                 # offset; the smaller one is right when either is
                 offset[c] = min(before + residual[c], fix[i, c] - clean[c], key=abs)
@@ -311,7 +330,7 @@ def _channel(
     before = state[o]
     in_fault = abs(before) > p[P_THRESHOLD]
     state[ce] += predicted
-    explained = abs(residual) <= p[P_THRESHOLD]
+    explained = abs(residual) <= p[P_THRESHOLD] + 0.5 * p[P_ACCEL] * dt * dt
     if not explained:
         summed = before + residual
         state[o] = summed if abs(summed) <= abs(fix - state[ce]) else fix - state[ce]

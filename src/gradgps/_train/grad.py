@@ -164,6 +164,8 @@ def train_grad(
     early_stopping: str = "loss",
     batch_size: int = 32,
     validated: dict[str, Any] | None = None,
+    lr_schedule: str = "constant",
+    grad_clip: float = 0.0,
 ) -> TrainReport:
     """Train on clean tables with injected ``grad`` faults and write a model directory.
 
@@ -206,6 +208,8 @@ def train_grad(
         learning_rate=learning_rate,
         max_epochs=max_epochs,
         batch_size=batch_size,
+        lr_schedule=lr_schedule,
+        grad_clip=grad_clip,
     )
     with torch.random.fork_rng():
         trained = train_model(train, val, config)
