@@ -416,7 +416,7 @@ def motion_batch(
     period: float,
     params: MotionParams | None = None,
 ) -> FloatArray:
-    """The features of one segment (times in s, positions in metres): ``(n, 8)``."""
+    """The :data:`MOTION_FEATURES` of one segment (times in s, positions in metres): ``(n, 10)``."""
     p = (params or MotionParams()).to_array(period)
     tt = np.ascontiguousarray(t, dtype=np.float64)
     dt = np.empty_like(tt)
