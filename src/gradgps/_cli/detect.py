@@ -24,10 +24,10 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .options import column_map, column_options, model_options, option
+from .options import READER_FLAGS, column_map, column_options, model_options, option, read_options
 
 if TYPE_CHECKING:
-    from .._tracks.track import ColumnMap
+    from .._tracks.track import ColumnMap, ReadOptions
 
 __all__ = ["detect"]
 
@@ -113,7 +113,11 @@ def detect(
     output.
     """
     extras = (report_path, plots_dir, events_path, geojson_path, gpx_path)
+    reading = read_options(cols)
     if follow:
+        if reading.given:
+            # A live stream is parsed value by value, with no column to sniff or convert.
+            raise click.UsageError(f"{', '.join(READER_FLAGS)} read files, not --follow")
         if any(p is not None for p in extras):
             raise click.UsageError(
                 "--report, --plots, --events, --geojson and --gpx need a whole file, not --follow"
@@ -134,7 +138,7 @@ def detect(
 
     from .._grad.detector import Detector
     from .._grad.events import EventBuilder
-    from .._io.read import read_table, resolve_format, write_table
+    from .._io.read import load_table, resolve_format, write_table
     from .._result import ResultCounts
     from .._tracks.input_checks import input_warnings, validated_rates
     from .._tracks.track import to_fixes
@@ -153,7 +157,14 @@ def detect(
                 kept.append((fixes, result))
 
         summary = _detect_in_chunks(
-            input_path, output, model_dir, threshold, chunk_size, column_map(cols), collect
+            input_path,
+            output,
+            model_dir,
+            threshold,
+            chunk_size,
+            column_map(cols),
+            collect,
+            reading,
         )
         counts = ResultCounts(summary.rows, summary.anomalies, summary.invalid, summary.alerts)
         warnings: list[str] = list(summary.warnings)
@@ -162,7 +173,7 @@ def detect(
     else:
         with _steps() as step:
             step("read")
-            table = read_table(input_path, fmt, column_map(cols))
+            table = load_table(input_path, fmt, column_map(cols), reading)
             fixes = to_fixes(table)
             lowest, highest = validated_rates(detector.model_.config)
             warnings = input_warnings(fixes, min_rate_hz=lowest, max_rate_hz=highest)
@@ -195,7 +206,7 @@ def detect(
     if not whole and events is None:
         return
     if time_column is None and chunk_size > 0:
-        time_column = _csv_time_column(input_path, kept)
+        time_column = _csv_time_column(input_path, kept, reading.skip_rows)
     fixes_all = pd.concat([f for f, _ in kept], ignore_index=True) if whole else None
     result_all = pd.concat([r for _, r in kept], ignore_index=True) if whole else None
     table_events = events.events() if events is not None else None
@@ -268,7 +279,7 @@ def _time_column(frame: Any, fixes: Any) -> Any:
     return frame[cmap.time]
 
 
-def _csv_time_column(input_path: Path, kept: list[Any]) -> Any:
+def _csv_time_column(input_path: Path, kept: list[Any], skip_rows: int | None = None) -> Any:
     """A sample of the CSV's time column (first rows), to give event times in the same form."""
     import pandas as pd
 
@@ -278,7 +289,7 @@ def _csv_time_column(input_path: Path, kept: list[Any]) -> Any:
     if cmap is None or cmap.time is None:
         return None
     try:
-        return pd.read_csv(input_path, usecols=[cmap.time], nrows=5)[cmap.time]
+        return pd.read_csv(input_path, usecols=[cmap.time], nrows=5, skiprows=skip_rows)[cmap.time]
     except (ValueError, OSError):
         return None
 
@@ -306,6 +317,7 @@ def _detect_in_chunks(
     chunk_size: int,
     columns: ColumnMap,
     on_result: Any = None,
+    reading: ReadOptions | None = None,
 ) -> Any:
     from rich.console import Console
     from rich.progress import (
@@ -341,6 +353,7 @@ def _detect_in_chunks(
             input_path,
             output,
             columns=columns,
+            options=reading,
             model=model_dir,
             threshold=threshold,
             chunk_size=chunk_size,

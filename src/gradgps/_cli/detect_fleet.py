@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from .options import column_map, column_options, model_options, option
+from .options import column_map, column_options, model_options, option, read_options
 
 __all__ = ["detect_fleet"]
 
@@ -66,6 +66,7 @@ def detect_fleet(
     from .._run.fleet_dask import detect_fleet as run_on_cluster
 
     columns = column_map(cols)
+    reading = read_options(cols)
     load_grad_model(model_dir)  # a bad model fails here, not in a thousand tasks
     with (
         dask_client(scheduler, workers) as client,
@@ -86,6 +87,7 @@ def detect_fleet(
             threshold=threshold,
             fmt=fmt,
             columns=columns,
+            options=reading,
             on_start=lambda n: progress.update(task, total=n),
             on_partition=lambda _: progress.advance(task),
         )

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .options import column_map, column_options, option
+from .options import column_map, column_options, option, read_options
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -35,11 +35,11 @@ def info(path: Path, fmt: str | None, as_json: bool, **kwargs: Any) -> None:
     """Summarise FILE: tracks, points, rate, gaps, extent, speeds, unusable rows."""
     import json
 
-    from .._io.read import read_table
+    from .._io.read import load_table
     from .._tracks.summary import summarize
     from .._tracks.track import to_fixes
 
-    table = read_table(path, fmt, column_map(kwargs))
+    table = load_table(path, fmt, column_map(kwargs), read_options(kwargs))
     fixes = to_fixes(table)
     summary = summarize(fixes, rejected=table.rejected, notes=table.notes)
     if as_json:

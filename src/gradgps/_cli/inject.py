@@ -7,17 +7,17 @@ from typing import Any
 
 import click
 
-from .._tracks.track import ColumnMap, Table
-from .options import column_map, column_options, option
+from .._tracks.track import ColumnMap, ReadOptions, Table
+from .options import column_map, column_options, option, read_options
 
 __all__ = ["inject"]
 
 
-def _read_input(path: Path, fmt: str | None) -> Table:
+def _read_input(path: Path, fmt: str | None, reading: ReadOptions) -> Table:
     """Read the input table in any format the readers accept (CSV, Parquet, GPX, NMEA)."""
-    from .._io.read import read_table
+    from .._io.read import load_table
 
-    return read_table(path, fmt)
+    return load_table(path, fmt, None, reading)
 
 
 @click.command()
@@ -75,10 +75,19 @@ def inject(
     from .._exceptions import GradGPSError
 
     columns: ColumnMap = column_map(cols)
+    reading = read_options(cols)
+    unsupported = [o for o in reading.given if o != "skip_rows"]
+    if unsupported:
+        # The faults are written into the input's own columns, in the input's own
+        # units and notation: converting them on reading would change what is written.
+        raise click.UsageError(
+            f"{', '.join(reading.name(o) for o in unsupported)}: not supported by inject, which "
+            "writes the values back as the input has them; convert the file first"
+        )
     if protocol == "grad" and row is not None:
         raise click.UsageError("--row applies to --protocol sensor-grid only")
     try:
-        table = _read_input(input_path, fmt)
+        table = _read_input(input_path, fmt, reading)
         table.frame.attrs["source"] = table.source
         if protocol == "grad":
             labelled = inject_grad(table.frame, seed=seed, scale=scale, columns=columns)

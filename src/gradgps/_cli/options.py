@@ -1,4 +1,4 @@
-"""Options shared by every command that reads tracks (column mapping, format)."""
+"""Options shared by every command that reads tracks (format, column mapping, reader options)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,16 @@ from typing import Any, TypeVar
 
 import click
 
-from .._tracks.track import ColumnMap
+from .._tracks.track import SPEED_UNITS, ColumnMap, ReadOptions
 
-__all__ = ["column_map", "column_options", "model_options", "option"]
+__all__ = [
+    "READER_FLAGS",
+    "column_map",
+    "column_options",
+    "model_options",
+    "option",
+    "read_options",
+]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -19,15 +26,67 @@ _ROLES = (
     ("lat", "--lat-col", "latitude column, degrees"),
     ("lon", "--lon-col", "longitude column, degrees"),
     ("track", "--track-col", "track id column (one track per value)"),
-    ("speed", "--speed-col", "speed column, m/s"),
+    ("speed", "--speed-col", "speed column (its unit: --speed-unit)"),
     ("heading", "--heading-col", "heading/course column, degrees"),
     ("alt", "--alt-col", "altitude column, metres"),
     ("hdop", "--hdop-col", "HDOP column"),
 )
 
 
+#: The reader options: (Python name, flag, click settings). ``None`` keeps today's guess,
+#: so each help text says what that guess is.
+_READER: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    (
+        "decimal",
+        "--decimal",
+        {
+            "type": click.Choice([".", ","]),
+            "help": "decimal separator of numbers written as text (semicolon CSVs from "
+            "European locales use ',')  [default: sniffed per column: ',' where the "
+            "whole column uses decimal commas, else '.']",
+        },
+    ),
+    (
+        "time_format",
+        "--time-format",
+        {
+            "metavar": "FMT",
+            "help": "strptime format of the time column, e.g. '%d.%m.%Y %H:%M:%S' (with a "
+            "separate date column: of 'DATE TIME')  [default: automatic: seconds, "
+            "ms/us epochs, ISO-8601 or day-first dates]",
+        },
+    ),
+    (
+        "skip_rows",
+        "--skip-rows",
+        {
+            "type": click.IntRange(min=0),
+            "metavar": "N",
+            "help": "lines to skip before the CSV header, e.g. 1 for GPSLogger's row-count "
+            "line  [default: 0, or 1 when the first line is only a number]",
+        },
+    ),
+    (
+        "speed_unit",
+        "--speed-unit",
+        {
+            "type": click.Choice(list(SPEED_UNITS)),
+            "help": "unit of the speed column, converted to m/s on reading  [default: m/s, "
+            "or the unit the column name says: speed_kmh, speed_mph, speed_knots]",
+        },
+    ),
+)
+#: The reader flags, for commands that must refuse them (``detect --follow``).
+READER_FLAGS = tuple(flag for _, flag, _ in _READER)
+
+
 def column_options(func: F) -> F:
-    """Add ``--format`` and the ``--*-col`` options to a command."""
+    """Add ``--format``, the ``--*-col`` options and the reader options to a command.
+
+    In one place, so every command that reads track files reads them the same way.
+    """
+    for name, flag, settings in reversed(_READER):
+        func = click.option(flag, name, default=None, **settings)(func)
     for role, flag, text in reversed(_ROLES):
         func = click.option(
             flag,
@@ -51,6 +110,11 @@ def column_options(func: F) -> F:
 def column_map(kwargs: dict[str, Any]) -> ColumnMap:
     """Pop the ``--*-col`` values out of a command's kwargs into a ColumnMap."""
     return ColumnMap(**{role: kwargs.pop(f"{role}_col", None) for role, _, _ in _ROLES})
+
+
+def read_options(kwargs: dict[str, Any]) -> ReadOptions:
+    """Pop the reader options out of a command's kwargs; errors will name the CLI flags."""
+    return ReadOptions(**{name: kwargs.pop(name, None) for name, _, _ in _READER}, cli=True)
 
 
 def model_options(func: F) -> F:

@@ -16,7 +16,7 @@ from typing import Any
 
 import click
 
-from .options import column_map, column_options, option
+from .options import column_map, column_options, option, read_options
 
 __all__ = ["train"]
 
@@ -88,6 +88,7 @@ def train(
     from .._train.grad import train_grad
 
     columns = column_map(cols)
+    reading = read_options(cols)
     if dataset is not None and data_paths:
         raise click.UsageError("give either --dataset or --data, not both")
     if dataset is None and not data_paths:
@@ -115,9 +116,9 @@ def train(
         val_tables = [load_dataset(dataset, "validation", data_dir=data_dir)]
         source = f"dataset {dataset}"
     else:
-        train_tables = [_fixes(p, fmt, columns) for p in data_paths]
+        train_tables = [_fixes(p, fmt, columns, reading) for p in data_paths]
         if val_paths:
-            val_tables = [_fixes(p, fmt, columns) for p in val_paths]
+            val_tables = [_fixes(p, fmt, columns, reading) for p in val_paths]
         else:
             train_tables, val_tables = _hold_out(pd.concat(train_tables, ignore_index=True))
         source = ", ".join(str(p) for p in data_paths)
@@ -140,11 +141,11 @@ def train(
     )
 
 
-def _fixes(path: Path, fmt: str | None, columns: Any) -> Any:
-    from .._io.read import read_table
+def _fixes(path: Path, fmt: str | None, columns: Any, reading: Any) -> Any:
+    from .._io.read import load_table
     from .._tracks.track import to_fixes
 
-    fixes = to_fixes(read_table(path, fmt, columns))
+    fixes = to_fixes(load_table(path, fmt, columns, reading))
     fixes["track"] = [f"{path.name}:{t}" for t in fixes["track"]]  # ids unique across files
     return fixes
 

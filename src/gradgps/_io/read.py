@@ -20,6 +20,12 @@ empty track id). Every input column is kept under its original name and in its o
 (pandas renames duplicate names ``x``, ``x.1``... and unnamed ones
 ``Unnamed: 0``); *values* are checked later by :func:`gradgps.to_fixes`, whose
 errors name the row, the file line and the column.
+
+Where guessing is not good enough, the caller says what a file holds
+(:class:`~gradgps._tracks.track.ReadOptions`: ``decimal``, ``time_format``,
+``skip_rows``, ``speed_unit``; the CLI's ``--decimal`` etc.). Each applies
+where it means something (CSV; Parquet for all but ``skip_rows``) and is an
+error elsewhere, so an option is never silently ignored.
 """
 
 from __future__ import annotations
@@ -36,7 +42,7 @@ from typing import IO, Any, Final
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
-from .._tracks.track import ColumnMap, Table, resolve_columns, to_fixes
+from .._tracks.track import ColumnMap, ReadOptions, Table, resolve_columns, to_fixes
 from .files import READ_ERRORS, check_readable, open_bytes, text_lines
 from .geojson import read_geojson
 from .gpx import read_gpx
@@ -47,7 +53,9 @@ __all__ = [
     "FORMATS",
     "CsvChunks",
     "TableWriter",
+    "csv_tables",
     "iter_csv_tables",
+    "load_table",
     "read_fixes",
     "read_table",
     "resolve_format",
@@ -119,15 +127,50 @@ def resolve_format(path: str | Path, fmt: str | None = None) -> str:
     return by_extension or "csv"
 
 
-def read_table(path: str | Path, fmt: str | None = None, columns: ColumnMap | None = None) -> Table:
+def read_table(
+    path: str | Path,
+    fmt: str | None = None,
+    columns: ColumnMap | None = None,
+    *,
+    decimal: str | None = None,
+    time_format: str | None = None,
+    skip_rows: int | None = None,
+    speed_unit: str | None = None,
+) -> Table:
     """Read a track file into a :class:`Table`, keeping every input column.
 
     ``columns`` names the role of columns (anything ``None`` is auto-detected
     later by :func:`gradgps.to_fixes`); it overrides what a reader already
-    knows (GPX and NMEA readers set their own column map).
+    knows (GPX and NMEA readers set their own column map). The other
+    keywords say what guessing cannot (``None``: guessed as before):
+    ``decimal`` ``"."`` or ``","`` (the decimal separator of numbers written
+    as text), ``time_format`` (a strptime format of the time column, e.g.
+    ``"%d.%m.%Y %H:%M:%S"``), ``skip_rows`` (lines before a CSV header, e.g.
+    a row count), ``speed_unit`` (``"m/s"``, ``"km/h"``, ``"mph"``,
+    ``"knots"``; speeds are converted to m/s). They are kept on the table for
+    :func:`gradgps.to_fixes`, which applies them.
+    """
+    options = ReadOptions(
+        decimal=decimal, time_format=time_format, skip_rows=skip_rows, speed_unit=speed_unit
+    )
+    return load_table(path, fmt, columns, options)
+
+
+def load_table(
+    path: str | Path,
+    fmt: str | None = None,
+    columns: ColumnMap | None = None,
+    options: ReadOptions | None = None,
+) -> Table:
+    """:func:`read_table` with the reader options as one object.
+
+    The CLI calls this with ``ReadOptions(cli=True)``, so that errors name its
+    flags (``--time-format``) instead of Python's keyword arguments.
     """
     path = Path(path)
+    options = (options or ReadOptions()).checked()
     kind = resolve_format(path, fmt)
+    _check_options_apply(kind, options, str(path))
     if kind == "rosbag":
         table = read_rosbag(path)
         return (
@@ -135,7 +178,7 @@ def read_table(path: str | Path, fmt: str | None = None, columns: ColumnMap | No
         )
     check_readable(path)
     if kind == "csv":
-        table = _read_csv(path, columns)
+        table = _read_csv(path, columns, options)
     elif kind == "parquet":
         table = _read_parquet(path)
     elif kind == "gpx":
@@ -146,7 +189,7 @@ def read_table(path: str | Path, fmt: str | None = None, columns: ColumnMap | No
         table = read_nmea(path)
     if columns is not None:
         table = replace(table, columns=_override(table.columns, columns))
-    return table
+    return replace(table, options=options)
 
 
 def read_fixes(
@@ -154,9 +197,47 @@ def read_fixes(
     fmt: str | None = None,
     columns: ColumnMap | None = None,
     channels: tuple[str, ...] | list[str] = (),
+    *,
+    decimal: str | None = None,
+    time_format: str | None = None,
+    skip_rows: int | None = None,
+    speed_unit: str | None = None,
 ) -> pd.DataFrame:
-    """Read a track file straight into the canonical fixes frame (see :mod:`gradgps._tracks.track`)."""
-    return to_fixes(read_table(path, fmt, columns), channels=channels)
+    """Read a track file straight into the canonical fixes frame (see :mod:`gradgps._tracks.track`).
+
+    The keywords are :func:`read_table`'s.
+    """
+    table = read_table(
+        path,
+        fmt,
+        columns,
+        decimal=decimal,
+        time_format=time_format,
+        skip_rows=skip_rows,
+        speed_unit=speed_unit,
+    )
+    return to_fixes(table, channels=channels)
+
+
+#: The formats where each reader option means something (the others type their own values).
+_OPTION_FORMATS: Final = {
+    "decimal": ("csv", "parquet"),
+    "time_format": ("csv", "parquet"),
+    "skip_rows": ("csv",),
+    "speed_unit": ("csv", "parquet"),
+}
+
+
+def _check_options_apply(kind: str, options: ReadOptions, source: str) -> None:
+    """An option given for a format it does not apply to is an error, never silently ignored."""
+    for option in options.given:
+        formats = _OPTION_FORMATS[option]
+        if kind not in formats:
+            raise ConfigError(
+                f"{source}: {options.name(option)} applies to "
+                f"{' and '.join(f.upper() if f == 'csv' else f.title() for f in formats)} "
+                f"files, not to {kind}; leave it out for this file"
+            )
 
 
 def write_table(frame: pd.DataFrame, path: str | Path, fmt: str | None = None) -> None:
@@ -288,7 +369,14 @@ class TableWriter:
 
 
 def iter_csv_tables(
-    path: str | Path, chunksize: int, columns: ColumnMap | None = None
+    path: str | Path,
+    chunksize: int,
+    columns: ColumnMap | None = None,
+    *,
+    decimal: str | None = None,
+    time_format: str | None = None,
+    skip_rows: int | None = None,
+    speed_unit: str | None = None,
 ) -> CsvChunks:
     """Read a big CSV as a stream of Tables of at most ``chunksize`` rows each.
 
@@ -298,15 +386,30 @@ def iter_csv_tables(
     is checked here, before any chunk is handed out (one streaming pass), so
     a ragged row near the end fails at once, not after hours of work; that
     pass also counts the rows (:attr:`CsvChunks.n_rows`, for progress bars).
+    The keywords are :func:`read_table`'s.
     """
+    options = ReadOptions(
+        decimal=decimal, time_format=time_format, skip_rows=skip_rows, speed_unit=speed_unit
+    )
+    return csv_tables(path, chunksize, columns, options)
+
+
+def csv_tables(
+    path: str | Path,
+    chunksize: int,
+    columns: ColumnMap | None = None,
+    options: ReadOptions | None = None,
+) -> CsvChunks:
+    """:func:`iter_csv_tables` with the reader options as one object (see :func:`load_table`)."""
     if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
         raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")
+    options = (options or ReadOptions()).checked()
     path = Path(path)
-    layout = _scan_csv(path)
+    layout = _scan_csv(path, options)
     return CsvChunks(
         n_rows=layout.n_rows,
         header=layout.header,
-        chunks=_csv_chunks(path, layout, chunksize, columns or ColumnMap()),
+        chunks=_csv_chunks(path, layout, chunksize, columns or ColumnMap(), options),
     )
 
 
@@ -345,7 +448,7 @@ def _pandas_csv(
 
 
 def _csv_chunks(
-    path: Path, layout: _CsvLayout, chunksize: int, columns: ColumnMap
+    path: Path, layout: _CsvLayout, chunksize: int, columns: ColumnMap, options: ReadOptions
 ) -> Iterator[Table]:
     source = str(path)
     offset = 0
@@ -362,6 +465,7 @@ def _csv_chunks(
                     columns=columns,
                     first_line=first_line,
                     row_offset=offset,
+                    options=options,
                 )
                 offset += len(chunk)
 
@@ -403,20 +507,29 @@ def _is_blank(record: list[str]) -> bool:
     return not record or (len(record) == 1 and not record[0].strip())
 
 
-def _scan_csv(path: Path) -> _CsvLayout:
-    """Check the structure of a CSV in one streaming pass (see the module docstring)."""
+def _scan_csv(path: Path, options: ReadOptions | None = None) -> _CsvLayout:
+    """Check the structure of a CSV in one streaming pass (see the module docstring).
+
+    ``options.skip_rows`` lines before the header are skipped unread; ``None`` skips
+    a first line that is a row count (GPSLogger), a guess a header of one
+    numeric column name would defeat.
+    """
     source = str(path)
+    options = options or ReadOptions()
+    skip_rows = options.skip_rows
     with open_bytes(path) as raw:
         lines = text_lines(raw, source)
         header_line = 0
         header_text = ""
+        for _ in itertools.islice(lines, skip_rows or 0):
+            header_line += 1
         for text in lines:
             header_line += 1
             if text.strip():
                 header_text = text
                 break
-        skip = 0
-        if _is_count_line(header_text):
+        skip = skip_rows or 0
+        if skip_rows is None and _is_count_line(header_text):
             # GPSLogger and others write the number of rows on the first line.
             skip = header_line
             header_text = ""
@@ -425,6 +538,12 @@ def _scan_csv(path: Path) -> _CsvLayout:
                 if text.strip():
                     header_text = text
                     break
+        if not header_text and skip:
+            raise InputError(
+                f"no header line after the {skip} skipped lines",
+                source=source,
+                hint=f"skip fewer lines with {options.name('skip_rows')}",
+            )
         if not header_text:
             raise InputError(
                 "empty file: no header line and no data",
@@ -523,9 +642,9 @@ def _label_dtypes(layout: _CsvLayout, columns: ColumnMap | None, source: str) ->
     return {track: "string"} if track is not None else {}
 
 
-def _read_csv(path: Path, columns: ColumnMap | None) -> Table:
+def _read_csv(path: Path, columns: ColumnMap | None, options: ReadOptions) -> Table:
     source = str(path)
-    layout = _scan_csv(path)
+    layout = _scan_csv(path, options)
     with _pandas_errors(source):
         frame = _pandas_csv(path, layout, columns, source)
     regular = layout.lines_regular and len(frame) == layout.n_rows

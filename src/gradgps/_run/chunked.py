@@ -33,10 +33,10 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._grad.detector import MultiTrackDetector, load_grad_model
-from .._io.read import TableWriter, iter_csv_tables
+from .._io.read import TableWriter, csv_tables
 from .._result import RESULT_DTYPES
 from .._tracks.input_checks import InputChecks, validated_rates
-from .._tracks.track import ColumnMap, to_fixes
+from .._tracks.track import ColumnMap, ReadOptions, to_fixes
 
 __all__ = ["DetectSummary", "detect_csv_in_chunks"]
 
@@ -65,6 +65,7 @@ def detect_csv_in_chunks(
     output: str | os.PathLike[str] | None,
     *,
     columns: ColumnMap | None = None,
+    options: ReadOptions | None = None,
     model: str | os.PathLike[str] | None = None,
     threshold: float | None = None,
     chunk_size: int = 200_000,
@@ -80,11 +81,12 @@ def detect_csv_in_chunks(
     ``on_start(total_rows)`` is called once the file's structure is checked,
     ``on_chunk(rows)`` after each chunk (for progress bars), ``on_result(fixes,
     result)`` with each chunk's canonical fixes and result (for events, a
-    report or exports). ``output`` ``None`` writes no table.
+    report or exports). ``output`` ``None`` writes no table. ``options`` are
+    the reader options (:func:`gradgps._io.read.load_table`).
     """
     started = time.perf_counter()
     streams = MultiTrackDetector(model, threshold=threshold)
-    chunks = iter_csv_tables(Path(input_path), chunk_size, columns)
+    chunks = csv_tables(Path(input_path), chunk_size, columns, options)
     clash = [c for c in RESULT_DTYPES if c in chunks.header]
     if clash:
         raise InputError(

@@ -48,7 +48,7 @@ from urllib.parse import unquote
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
-from .._tracks.track import ColumnMap
+from .._tracks.track import ColumnMap, ReadOptions
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -190,17 +190,19 @@ def detect_partition(
     threshold: float | None = None,
     fmt: str | None = None,
     columns: ColumnMap | None = None,
+    options: ReadOptions | None = None,
 ) -> PartitionSummary:
     """Run the detector on one vehicle's files and write its output files (one Dask task).
 
     The files are joined (rows in file order) and detected as one table,
-    then the output is cut back into one file per input file.
+    then the output is cut back into one file per input file. ``options``
+    are the reader options (:func:`gradgps._io.read.load_table`).
     """
     from .._grad.detector import Detector
-    from .._io.read import read_table, write_table
+    from .._io.read import load_table, write_table
     from .._tracks.track import to_fixes
 
-    tables = [read_table(path, fmt, columns) for path in partition.files]
+    tables = [load_table(path, fmt, columns, options) for path in partition.files]
     # to_fixes per file, so an error names the file and row it is about.
     fixes = pd.concat([to_fixes(t) for t in tables], ignore_index=True)
     result = Detector(model, threshold=threshold).detect(fixes).reset_index(drop=True)
@@ -259,6 +261,7 @@ def detect_fleet(
     threshold: float | None = None,
     fmt: str | None = None,
     columns: ColumnMap | None = None,
+    options: ReadOptions | None = None,
     on_partition: Callable[[PartitionSummary], None] | None = None,
     on_start: Callable[[int], None] | None = None,
 ) -> FleetSummary:
@@ -290,6 +293,7 @@ def detect_fleet(
         threshold=threshold,
         fmt=fmt,
         columns=columns,
+        options=options,
         pure=False,
     )
     summaries: list[PartitionSummary] = []

@@ -35,12 +35,14 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 import pandas as pd
 
-from .._exceptions import InputError
+from .._exceptions import ConfigError, InputError
 
 __all__ = [
     "CANONICAL_COLUMNS",
     "OPTIONAL_CHANNELS",
+    "SPEED_UNITS",
     "ColumnMap",
+    "ReadOptions",
     "Table",
     "resolve_columns",
     "to_fixes",
@@ -173,6 +175,67 @@ class ColumnMap:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
+#: The units ``speed_unit`` (``--speed-unit``) names, and the factor of each to m/s.
+SPEED_UNITS = {"m/s": 1.0, "km/h": 1 / 3.6, "mph": 0.44704, "knots": 0.514444}
+#: pandas' own format keywords, which have no ``%`` directive yet are formats.
+_PANDAS_FORMATS = ("ISO8601", "mixed")
+
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """How to read the values of a table, when guessing them is not good enough.
+
+    ``None`` keeps the automatic behaviour: ``decimal`` sniffed per column
+    (decimal commas read when a whole column uses them), times parsed as
+    numbers, ISO-8601 or day-first dates, a leading row-count line skipped
+    (``skip_rows``), speeds in m/s unless the column name says its unit
+    (``speed_kmh``). A value forces the choice, because a guess can be wrong
+    for one file and there must be a way to say what the file holds.
+    ``cli`` says whether errors name the CLI's flags (``--time-format``) or
+    Python's keyword arguments (``time_format=``), so every message names
+    what its reader can type.
+    """
+
+    decimal: str | None = None
+    time_format: str | None = None
+    skip_rows: int | None = None
+    speed_unit: str | None = None
+    cli: bool = False
+
+    def name(self, option: str) -> str:
+        """How the caller spells ``option``: ``--time-format`` or ``time_format=``."""
+        return "--" + option.replace("_", "-") if self.cli else f"{option}="
+
+    @property
+    def given(self) -> list[str]:
+        """The options set (not ``None``), by their Python names."""
+        return [
+            f.name for f in fields(self) if f.name != "cli" and getattr(self, f.name) is not None
+        ]
+
+    def checked(self) -> ReadOptions:
+        """``self`` once every value is valid; else a :class:`ConfigError` naming the option."""
+        if self.decimal is not None and self.decimal not in (".", ","):
+            raise ConfigError(f"{self.name('decimal')} must be '.' or ',', got {self.decimal!r}")
+        fmt = self.time_format
+        if fmt is not None and (
+            not isinstance(fmt, str) or ("%" not in fmt and fmt not in _PANDAS_FORMATS)
+        ):
+            raise ConfigError(
+                f"{self.name('time_format')} {fmt!r} has no %-directive; give a strptime "
+                "format such as '%d.%m.%Y %H:%M:%S'"
+            )
+        rows = self.skip_rows
+        if rows is not None and (isinstance(rows, bool) or not isinstance(rows, int) or rows < 0):
+            raise ConfigError(f"{self.name('skip_rows')} must be a whole number >= 0, got {rows!r}")
+        if self.speed_unit is not None and self.speed_unit not in SPEED_UNITS:
+            raise ConfigError(
+                f"{self.name('speed_unit')} must be one of {', '.join(SPEED_UNITS)}, "
+                f"got {self.speed_unit!r}"
+            )
+        return self
+
+
 @dataclass
 class Table:
     """A table as read from a file, before conversion to canonical fixes.
@@ -183,7 +246,9 @@ class Table:
     lines mean nothing (Parquet). ``row_offset`` is the number of input rows
     before this table when it is one chunk of a bigger file (streaming), so
     errors name rows of the file. ``rejected`` counts records a lenient reader
-    skipped (bad NMEA checksums), with ``notes`` saying which.
+    skipped (bad NMEA checksums), with ``notes`` saying which. ``options``
+    says how :func:`to_fixes` reads the values (decimal separator, time
+    format, speed unit), as the caller of the reader asked.
     """
 
     frame: pd.DataFrame
@@ -193,6 +258,7 @@ class Table:
     rejected: int = 0
     notes: list[str] | None = None
     row_offset: int = 0
+    options: ReadOptions = ReadOptions()
 
 
 _CLI_FLAGS = {"time": "--time-col", "lat": "--lat-col", "lon": "--lon-col"}
@@ -296,28 +362,38 @@ def _numeric(frame: pd.DataFrame, col: str, table: Table, *, what: str) -> np.nd
     """Column as float64; text that is not a number raises naming the first bad row.
 
     Decimal commas (``48,1375``) are read as decimal points when the whole
-    column uses them."""
+    column uses them, or always with ``decimal=","``; ``decimal="."`` turns
+    that guess off, so a comma is an error, not a silently different number."""
     series = frame[col]
     if pd.api.types.is_bool_dtype(series.dtype):
         raise InputError(f"expected {what}, found booleans", source=table.source, column=col)
     if pd.api.types.is_numeric_dtype(series.dtype):
         return np.asarray(series.to_numpy(dtype=np.float64, na_value=np.nan), dtype=np.float64)
+    decimal = table.options.decimal
     as_str = series.astype("string").str.strip()
     blank = series.isna() | (as_str == "") | as_str.str.lower().isin(["nan", "na", "null", "none"])
-    values = pd.to_numeric(as_str.where(~blank, None), errors="coerce")
+    text = as_str.str.replace(",", ".", regex=False) if decimal == "," else as_str
+    values = pd.to_numeric(text.where(~blank, None), errors="coerce")
     bad = values.isna() & ~blank
-    if bool(bad.any()):
+    if bool(bad.any()) and decimal is None:
         dotted = _decimal_commas(as_str, blank)
         if dotted is not None:
             values = pd.to_numeric(dotted.where(~blank, None), errors="coerce")
             bad = values.isna() & ~blank
     if bool(bad.any()):
         pos = int(np.flatnonzero(bad.to_numpy())[0])
-        raise _row_error(table, pos, col, f"not a number ({what}): {series.iloc[pos]!r}")
+        value = series.iloc[pos]
+        hint = None
+        if decimal != "," and "," in str(value):
+            # The column mixes decimal commas with other text: say how to force them.
+            hint = f"fix the value, or pass {table.options.name('decimal')} ',' for decimal commas"
+        raise _row_error(table, pos, col, f"not a number ({what}): {value!r}", hint=hint)
     return np.asarray(values.to_numpy(dtype=np.float64, na_value=np.nan), dtype=np.float64)
 
 
-def _row_error(table: Table, pos: int, col: str, reason: str) -> InputError:
+def _row_error(
+    table: Table, pos: int, col: str, reason: str, *, hint: str | None = None
+) -> InputError:
     line = None if table.first_line is None else table.first_line + pos
     return InputError(
         reason,
@@ -325,7 +401,7 @@ def _row_error(table: Table, pos: int, col: str, reason: str) -> InputError:
         row=table.row_offset + pos + 1,
         line=line,
         column=col,
-        hint="fix the value or choose another column",
+        hint=hint or "fix the value or choose another column",
     )
 
 
@@ -335,12 +411,16 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
     if pd.api.types.is_datetime64_any_dtype(series.dtype):
         dt = pd.to_datetime(series, utc=True)
         return _datetime_seconds(dt)
+    if table.options.time_format is not None:
+        return _formatted_times(series, col, table, table.options.time_format)
     in_ms = _norm(col).endswith("ms") and _norm(col) not in ("times", "timestamps")
     if pd.api.types.is_numeric_dtype(series.dtype) and not pd.api.types.is_bool_dtype(series.dtype):
         t = np.asarray(series.to_numpy(dtype=np.float64, na_value=np.nan), dtype=np.float64)
         return t / 1e3 if in_ms else _scale_epoch(t)
     as_str = series.astype("string").str.strip()
-    numeric = pd.to_numeric(as_str, errors="coerce")
+    # Seconds written with a decimal comma (0,5) only when asked: dates may hold commas.
+    numbers = as_str.str.replace(",", ".", regex=False) if table.options.decimal == "," else as_str
+    numeric = pd.to_numeric(numbers, errors="coerce")
     if bool(numeric.notna().all()) or bool(
         (numeric.notna() | as_str.isna() | (as_str == "")).all()
     ):
@@ -371,6 +451,36 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
         pos = int(np.flatnonzero(outside)[0])
         raise _row_error(
             table, pos, col, f"time out of range (years 1678-2261): {series.iloc[pos]!r}"
+        )
+    return _datetime_seconds(parsed)
+
+
+def _formatted_times(series: pd.Series, col: str, table: Table, fmt: str) -> np.ndarray:
+    """Times parsed with the caller's ``time_format`` only: no guessing, so no silent misreads.
+
+    Whole numbers (``20261123100000`` typed as a number by the CSV reader)
+    are formatted as the digits they were written with.
+    """
+    if pd.api.types.is_numeric_dtype(series.dtype) and not pd.api.types.is_bool_dtype(series.dtype):
+        whole = series.dropna()
+        if bool((whole == whole.round()).all()):
+            series = series.astype("Int64")
+    as_str = series.astype("string").str.strip()
+    blank = series.isna() | (as_str == "")
+    option = f"{table.options.name('time_format')} {fmt!r}"
+    try:
+        parsed = pd.to_datetime(as_str.where(~blank, None), utc=True, format=fmt, errors="coerce")
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(f"{option} is not a time format pandas can use: {exc}") from None
+    bad = parsed.isna() & ~blank
+    if bool(bad.any()):
+        pos = int(np.flatnonzero(bad.to_numpy())[0])
+        raise _row_error(
+            table,
+            pos,
+            col,
+            f"time {series.iloc[pos]!r} does not match {option}",
+            hint="fix the value, or give the format the times are written in",
         )
     return _datetime_seconds(parsed)
 
@@ -474,7 +584,9 @@ def to_fixes(
                 # An infinite heading has no direction: NaN, quietly (no RuntimeWarning).
                 values = np.mod(np.where(np.isinf(values), np.nan, values), 360.0)
             if role == "speed":
-                values = values * speed_factor(col)  # speed_kmh, speed_mph...: to m/s
+                # The unit the caller names wins over the one the column name says (speed_kmh).
+                unit = table.options.speed_unit
+                values = values * (speed_factor(col) if unit is None else SPEED_UNITS[unit])
             out[role] = values
     for col in channels:
         if col not in frame.columns:
