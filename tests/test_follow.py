@@ -113,6 +113,18 @@ def test_nmea_stream_scores_each_epoch_once():
     assert (counts.fixes, counts.invalid) == (5, 3)
 
 
+def test_nmea_stream_times_keep_growing_across_midnight_with_a_stale_date():
+    # Follow mode counts from the first sentence and ignores RMC dates, so a
+    # stale date after midnight (issue 18) cannot send a fix back a day.
+    lines = []
+    for tod, date in (("235958", "311219"), ("235959", "311219"), ("000000", "311219")):
+        lines.append(_sentence(f"GPRMC,{tod},A,4807.038,N,01131.000,E,022.4,084.4,{date},003.1,W"))
+    lines.append(_sentence("GPGGA,000001,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,"))
+    out: list[str] = []
+    follow_lines(lines, out.append)
+    assert [float(r["time"]) for r in _rows(out)] == [86398.0, 86399.0, 86400.0, 86401.0]
+
+
 @pytest.mark.parametrize(
     ("text", "seconds"),
     [

@@ -190,6 +190,37 @@ def test_dates_carry_to_undated_epochs_and_across_midnight(tmp_path: Path) -> No
     assert frame["time"].tolist() == [midnight - 2.0, midnight - 1.0, midnight, midnight + 1.0]
 
 
+@pytest.mark.parametrize(
+    "dates",
+    [
+        # The first RMC after midnight still names the day that ended (issue 18).
+        ("311219", "311219", "311219", "010120", "010120"),
+        # ... and the GGA-only epochs after it take that stale date.
+        ("", "311219", "311219", "", "010120"),
+        # Stale for every dated epoch the log has after midnight.
+        ("", "311219", "311219", "311219", ""),
+        # No dated epoch before midnight: the next one says the day is new.
+        ("", "", "311219", "010120", ""),
+    ],
+)
+def test_stale_rmc_date_at_midnight_does_not_send_fixes_back_a_day(
+    tmp_path: Path, dates: tuple[str, ...]
+) -> None:
+    times = ("235958", "235959", "000000", "000001", "000002")
+    lines = [rmc(t, date=d) if d else gga(t) for t, d in zip(times, dates, strict=True)]
+    frame = read_nmea(log(tmp_path, lines)).frame
+    midnight = calendar.timegm((2020, 1, 1, 0, 0, 0))
+    assert frame["time"].tolist() == [midnight + s for s in (-2.0, -1.0, 0.0, 1.0, 2.0)]
+
+
+def test_a_day_behind_later_in_the_day_is_believed() -> None:
+    # Not a stale date: a log that really goes back a day keeps what it says.
+    day = 1e9 - 1e9 % 86400
+    tod = np.array([86000.0, 5 * 3600.0])
+    times = epoch_times(tod, np.array([day, day]))
+    np.testing.assert_array_equal(times, [day + 86000.0, day + 5 * 3600.0])
+
+
 def test_epoch_times_reference() -> None:
     tod = np.array([86000.0, np.nan, 100.0, 50.0, 200.0])
     midnight = np.array([np.nan, np.nan, np.nan, 1e9, np.nan])

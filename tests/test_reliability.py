@@ -225,6 +225,78 @@ def test_chunked_csv_and_gzip_outputs(tmp_path: Path, sorted_csv: Path) -> None:
     assert not list(tmp_path.glob("*.partial"))
 
 
+def test_parquet_output_when_a_text_column_is_empty_in_the_first_chunk(tmp_path: Path) -> None:
+    # Issue 18, item 8: the first chunk typed the empty ``note`` column as float
+    # and the Parquet schema came from it, so the chunk holding "hello" was refused.
+    n = 60
+    note = [""] * n
+    note[30] = "hello"
+    lat = [f"{48.1 + 1e-4 * i:.4f}" for i in range(n)]
+    lat[45] = "95.0"  # the only invalid row, in the third chunk
+    src = tmp_path / "late_text.csv"
+    src.write_text(
+        "time,lat,lon,note,track\n"
+        + "".join(f"{1.7e9 + i},{lat[i]},11.5,{note[i]},a\n" for i in range(n))
+    )
+    outputs = {}
+    for size in ("20", "0"):
+        out = tmp_path / f"out{size}.parquet"
+        result = CliRunner().invoke(
+            main, ["detect", str(src), "-o", str(out), "--chunk-size", size]
+        )
+        assert result.exit_code == 0, result.output
+        outputs[size] = pd.read_parquet(out)
+    got = outputs["20"]
+    assert len(got) == n
+    assert got["note"].tolist()[30] == "hello"
+    assert got["note"].isna().sum() == n - 1
+    reasons = got["invalid_reason"].tolist()
+    assert reasons[45] == "latitude outside +-90"
+    assert reasons[:45] + reasons[46:] == [""] * (n - 1)
+    _assert_same(got, outputs["0"])  # the same verdicts as the whole-file mode
+    assert not list(tmp_path.glob("*.partial*"))
+
+
+def test_parquet_writer_widens_column_types_across_chunks(tmp_path: Path) -> None:
+    from gradgps._io.read import TableWriter
+
+    chunks = [
+        pd.DataFrame(
+            {
+                "empty_then_text": [np.nan, np.nan],
+                "int_then_float": [1, 2],
+                "int_then_text": [3, 4],
+                "text_then_empty": ["a", "b"],
+                "bias_type": [None, None],
+                "anomaly": np.array([0, 0], np.int8),
+            }
+        ),
+        pd.DataFrame(
+            {
+                "empty_then_text": ["x", np.nan],
+                "int_then_float": [2.5, np.nan],
+                "int_then_text": ["five", "6"],
+                "text_then_empty": [np.nan, np.nan],
+                "bias_type": ["jump", None],
+                "anomaly": np.array([1, 0], np.int8),
+            }
+        ),
+    ]
+    out = tmp_path / "w.parquet"
+    with TableWriter(out, RESULT_DTYPES) as writer:
+        for chunk in chunks:
+            writer.write(chunk)
+    got = pd.read_parquet(out)
+    assert got["empty_then_text"].tolist()[2] == "x"
+    assert got["empty_then_text"].isna().tolist() == [True, True, False, True]
+    assert got["int_then_float"].tolist()[:3] == [1.0, 2.0, 2.5]
+    assert got["int_then_text"].tolist() == ["3", "4", "five", "6"]
+    assert got["text_then_empty"].tolist()[:2] == ["a", "b"]
+    assert got["bias_type"].tolist()[2] == "jump"
+    assert got["anomaly"].tolist() == [0, 0, 1, 0]
+    assert [p.name for p in tmp_path.iterdir()] == ["w.parquet"]
+
+
 def test_header_only_csv_gives_header_only_output(tmp_path: Path) -> None:
     src = tmp_path / "empty.csv"
     src.write_text("t,lat,lon,note\n")

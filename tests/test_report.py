@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import re
+import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 from click.testing import CliRunner
 
@@ -76,6 +78,36 @@ def test_detect_writes_report_and_plots(tmp_path):
     assert any(n.startswith("channels_segment") for n in names)
     assert all((plots / n).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for n in names)
     assert "in.csv" in (tmp_path / "r.html").read_text(encoding="utf-8")
+
+
+def test_report_with_hostile_track_ids_and_fixes_a_nanosecond_apart(tmp_path):
+    # Issue 18, item 7: an id like $\\foo$ went to matplotlib as mathtext and the
+    # report died with a traceback; ids are the user's text, shown as typed.
+    ids = ["$\\foo$", '<script>alert("x")</script>', "quo\"te's & ünï 北京 😀", "ns"]
+    rows = []
+    for k, track in enumerate(ids):
+        for i in range(40):
+            t = i * 1e-9 if track == "ns" else 1.7e9 + i  # one track 1 ns apart
+            rows.append((track, t, 48.1 + 1e-3 * k + 1e-4 * i, 11.5 + 1e-4 * i))
+    source = tmp_path / "ids.csv"
+    pd.DataFrame(rows, columns=["track", "time", "lat", "lon"]).to_csv(source, index=False)
+    report = tmp_path / "r.html"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = CliRunner().invoke(
+            main,
+            ["detect", str(source), "-o", str(tmp_path / "o.csv"), "--report", str(report)],
+        )
+    assert result.exit_code == 0, result.output
+    assert result.exception is None
+    assert not [w for w in caught if "Glyph" in str(w.message)]
+    text = report.read_text(encoding="utf-8")
+    assert "<script>alert(" not in text
+    assert "&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt;" in text
+    assert "Track $\\foo$, segment" in text  # a figure of that track was drawn
+    assert "quo&quot;te&#x27;s &amp; ünï 北京 😀" in text
+    assert text.count("<script") == 1
+    assert text.count("src='data:image/png;base64,") >= 2
 
 
 def test_follow_refuses_report():

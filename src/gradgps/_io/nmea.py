@@ -26,7 +26,9 @@ lines), but it never guesses:
   rows as invalid fixes rather than silently losing them.
 
 Times: when an RMC sentence gives the date, ``time`` is unix seconds (UTC);
-epochs without a date of their own take it from the nearest dated epoch.
+epochs without a date of their own take it from the nearest dated epoch,
+and a stale date (the day that just ended, on the first fixes after
+midnight) is advanced by a day, so times never jump back 24 h at midnight.
 Without any date, ``time`` is seconds since midnight UTC of the first day,
 growing past 86400 at a midnight rollover (time of day falling by more than
 12 hours), so a drive across midnight stays ordered.
@@ -51,6 +53,7 @@ from .files import READ_ERRORS, damaged, open_bytes
 __all__ = [
     "KNOT_MS",
     "MAX_NOTES",
+    "STALE_DATE_S",
     "Epoch",
     "Malformed",
     "epoch_times",
@@ -65,6 +68,11 @@ MAX_NOTES: Final = 20
 KNOT_MS: Final = 1852.0 / 3600.0
 _HALF_DAY: Final = 43200.0
 _DAY: Final = 86400.0
+#: An RMC date one day behind, this many seconds or less into the new day, is
+#: taken as stale (see :func:`epoch_times`); later in the day it is believed.
+#: Receivers update the date within an epoch or two; ten minutes covers any
+#: logging rate while a log that really jumps back a day keeps its dates.
+STALE_DATE_S: Final = 600.0
 
 _NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)")
 _TIME = re.compile(r"(\d\d)(\d\d)(\d\d(\.\d+)?)")
@@ -335,8 +343,19 @@ def read_nmea(path: str | Path) -> Table:
 
 
 def epoch_times(tod: np.ndarray, midnight: np.ndarray) -> np.ndarray:
-    """Seconds for each epoch from its time of day and (maybe missing) date; see the module docstring."""
+    """Seconds for each epoch from its time of day and (maybe missing) date; see the module docstring.
+
+    A date one day behind its neighbours on an epoch in the first
+    :data:`STALE_DATE_S` seconds of a day is *stale*: receivers stamp the
+    first RMC after midnight with the day that just ended, and taken at its
+    word that fix (and the undated ones carried from it) would land 24 h
+    early, so time would run backwards by a day. Such a date is advanced by
+    one day when the time of day has wrapped since the previous dated epoch
+    (the day rolled over and the date did not follow), or when the next
+    dated epoch, also just after midnight, names the following day.
+    """
     continuous = np.full(tod.size, np.nan)
+    rollovers = np.zeros(tod.size, dtype=np.int64)
     days = 0
     previous = math.nan
     for i, value in enumerate(tod):
@@ -346,12 +365,36 @@ def epoch_times(tod: np.ndarray, midnight: np.ndarray) -> np.ndarray:
             days += 1
         previous = value
         continuous[i] = value + days * _DAY
-    dated = np.isfinite(midnight) & np.isfinite(continuous)
-    if not dated.any():
+        rollovers[i] = days
+    dated = np.flatnonzero(np.isfinite(midnight) & np.isfinite(continuous))
+    if not dated.size:
         return continuous
-    # Offset from "continuous seconds of day" to unix time, taken from the
-    # dated epochs and carried to their undated neighbours.
-    offset = pd.Series(np.where(dated, midnight + tod - continuous, np.nan)).ffill().bfill()
+    # Offset from "continuous seconds of day" to unix time at each dated
+    # epoch: a whole number of days, so exact comparisons are safe.
+    offsets = midnight[dated] - rollovers[dated] * _DAY
+    stale = np.zeros(dated.size, dtype=bool)
+    for k, at in enumerate(dated):
+        if tod[at] >= STALE_DATE_S:
+            continue
+        # A wrap since the previous dated epoch, or that epoch's date was stale too.
+        rolled = k > 0 and (rollovers[dated[k - 1]] < rollovers[at] or stale[k - 1])
+        if rolled and offsets[k] == offsets[k - 1] - _DAY:
+            offsets[k] += _DAY
+            stale[k] = True
+            continue
+        following = dated[k + 1] if k + 1 < dated.size else -1
+        if (
+            following >= 0
+            and tod[following] < STALE_DATE_S
+            and rollovers[following] == rollovers[at]
+            and offsets[k] == offsets[k + 1] - _DAY
+        ):
+            offsets[k] += _DAY
+            stale[k] = True
+    # Carried from the dated epochs to their undated neighbours.
+    spread = np.full(tod.size, np.nan)
+    spread[dated] = offsets
+    offset = pd.Series(spread).ffill().bfill()
     return np.asarray(continuous + offset.to_numpy(), dtype=np.float64)
 
 

@@ -33,12 +33,13 @@ from __future__ import annotations
 import csv
 import gzip
 import itertools
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO, Any, Final
 
+import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
@@ -270,14 +271,25 @@ class TableWriter:
     """Write a table chunk by chunk (CSV, gzip CSV or Parquet), atomically.
 
     For outputs too big to hold in memory: every :meth:`write` appends rows
-    (the CSV header and the Parquet schema come from the first chunk; later
-    chunks must have the same columns). Rows go to ``<name>.partial`` beside
-    the target, renamed to the target only by a clean exit from the ``with``
-    block, so a run stopped by an error never leaves a truncated file that
-    looks finished.
+    (the CSV header comes from the first chunk; later chunks must have the
+    same columns). Rows go to ``<name>.partial`` beside the target, renamed to
+    the target only by a clean exit from the ``with`` block, so a run stopped
+    by an error never leaves a truncated file that looks finished.
+
+    Parquet column types: ``types`` (column -> pandas dtype name, e.g.
+    :data:`gradgps._result.RESULT_DTYPES`) fixes the type of the columns it
+    names from the first chunk on, text (``object``) as strings, so a first
+    chunk with no invalid rows or no bias types cannot type those columns
+    otherwise. Any other column is typed by what the chunks hold, because
+    no chunk can tell the whole file's type (a column empty in the first
+    chunk reads as float, one with a word only in a later chunk as text):
+    when a later chunk needs a wider type (null < integer < float < text),
+    the rows already written are copied once into a file of the wider
+    schema, one row group at a time, so memory stays bounded and no value is
+    lost; a chunk whose column is empty fits any type.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, types: Mapping[str, str] | None = None) -> None:
         self.path = Path(path)
         kind = _extension_format(self.path)
         if kind not in ("csv", "parquet"):
@@ -287,9 +299,12 @@ class TableWriter:
         self.kind = kind
         self.partial = self.path.with_name(self.path.name + ".partial")
         self.rows = 0
+        self.types = dict(types or {})
         self._columns: list[str] | None = None
         self._text: IO[str] | None = None
         self._parquet: Any = None
+        self._working = self.partial  # the Parquet file being written (changes when widened)
+        self._rewrites = 0
 
     def __enter__(self) -> TableWriter:
         return self
@@ -300,6 +315,7 @@ class TableWriter:
             self.partial.replace(self.path)
         else:
             self.partial.unlink(missing_ok=True)
+            self._working.unlink(missing_ok=True)
 
     @property
     def started(self) -> bool:
@@ -319,7 +335,7 @@ class TableWriter:
             if self.kind == "csv":
                 self._write_csv(frame)
             else:
-                self._write_parquet(frame)
+                self._write_parquet(frame, columns)
         except OSError as exc:
             raise ConfigError(f"cannot write {str(self.path)!r}: {exc.strerror or exc}") from None
         self.rows += len(frame)
@@ -333,7 +349,7 @@ class TableWriter:
                 self._text = open(self.partial, "w", encoding="utf-8", newline="")  # noqa: SIM115
         frame.to_csv(self._text, index=False, header=first)
 
-    def _write_parquet(self, frame: pd.DataFrame) -> None:
+    def _write_parquet(self, frame: pd.DataFrame, names: list[str]) -> None:
         try:
             import pyarrow as pa
             import pyarrow.parquet as pq
@@ -341,20 +357,54 @@ class TableWriter:
             raise ConfigError(
                 f"writing Parquet needs pyarrow ({exc}); install gradgps[io]"
             ) from None
-        if self._parquet is None:
-            table = pa.Table.from_pandas(frame, preserve_index=False)
-            self._parquet = pq.ParquetWriter(self.partial, table.schema)
-        else:
-            try:
-                table = pa.Table.from_pandas(
-                    frame, schema=self._parquet.schema, preserve_index=False
-                )
-            except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
-                raise ConfigError(
-                    f"cannot write {str(self.path)!r}: rows {self.rows + 1}.. do not fit the "
-                    f"column types of the first chunk ({exc})",
-                ) from None
-        self._parquet.write_table(table)
+        old = None if self._parquet is None else self._parquet.schema
+        arrays: list[Any] = []
+        types: list[Any] = []
+        for k, name in enumerate(names):
+            array = _arrow_array(frame.iloc[:, k])
+            declared = self.types.get(name)
+            if declared is not None:
+                target = _arrow_type(declared)
+            elif old is None:
+                target = array.type
+            elif array.null_count == len(array):
+                target = old.field(k).type
+            else:
+                target = _wider(old.field(k).type, array.type)
+            if array.type != target:
+                try:
+                    array = (
+                        pa.nulls(len(array), target)
+                        if array.null_count == len(array)
+                        else array.cast(target)
+                    )
+                except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError) as exc:
+                    raise ConfigError(
+                        f"cannot write {str(self.path)!r}: column {name!r} of rows "
+                        f"{self.rows + 1}.. is not {declared or target} ({exc})"
+                    ) from None
+            arrays.append(array)
+            types.append(target)
+        schema = pa.schema([pa.field(n, t) for n, t in zip(names, types, strict=True)])
+        if old is None:
+            self._parquet = pq.ParquetWriter(self._working, schema)
+        elif not schema.equals(old):
+            self._widen(schema)
+        self._parquet.write_table(pa.Table.from_arrays(arrays, schema=schema))
+
+    def _widen(self, schema: Any) -> None:
+        """Copy the rows written so far into a new working file of ``schema`` (wider types)."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        self._parquet.close()
+        previous = self._working
+        self._rewrites += 1
+        self._working = self.partial.with_name(f"{self.partial.name}.{self._rewrites}")
+        self._parquet = pq.ParquetWriter(self._working, schema)
+        for batch in pq.ParquetFile(previous).iter_batches():
+            self._parquet.write_table(pa.Table.from_batches([batch]).cast(schema))
+        previous.unlink()
 
     def _close(self) -> None:
         if self._columns is None:
@@ -366,6 +416,46 @@ class TableWriter:
         if self._parquet is not None:
             self._parquet.close()
             self._parquet = None
+            if self._working != self.partial:
+                self._working.replace(self.partial)
+                self._working = self.partial
+
+
+def _arrow_type(dtype: str) -> Any:
+    """The Parquet type of a declared pandas dtype (``object`` columns hold text)."""
+    import pyarrow as pa
+
+    return pa.string() if dtype == "object" else pa.from_numpy_dtype(np.dtype(dtype))
+
+
+def _arrow_array(series: pd.Series) -> Any:
+    """A column as Arrow (NaN/None -> null); values of mixed Python types as their text."""
+    import pyarrow as pa
+
+    try:
+        return pa.array(series, from_pandas=True)
+    except (pa.ArrowInvalid, pa.ArrowTypeError):
+        return pa.array([None if pd.isna(v) else str(v) for v in series], type=pa.string())
+
+
+def _wider(have: Any, new: Any) -> Any:
+    """The narrowest type holding both (null < integer < float < text; anything else: text)."""
+    import pyarrow as pa
+
+    t = pa.types
+    text = (t.is_string(have) or t.is_large_string(have)) and (
+        t.is_string(new) or t.is_large_string(new)
+    )
+    if have == new or t.is_null(new) or text:
+        return have
+    if t.is_null(have):
+        return new
+    if t.is_integer(have) and t.is_integer(new):
+        return pa.int64()
+    numeric = (t.is_integer(have) or t.is_floating(have)) and (
+        t.is_integer(new) or t.is_floating(new)
+    )
+    return pa.float64() if numeric else pa.string()
 
 
 def iter_csv_tables(

@@ -100,7 +100,11 @@ def detect_csv_in_chunks(
     checks = InputChecks(*validated_rates(load_grad_model(model).config))
     rows = 0
     with contextlib.ExitStack() as stack:
-        writer = None if output is None else stack.enter_context(TableWriter(Path(output)))
+        writer = (
+            None
+            if output is None
+            else stack.enter_context(TableWriter(Path(output), RESULT_DTYPES))
+        )
         for table in chunks:
             fixes = to_fixes(table)
             checks.add(fixes)

@@ -34,6 +34,7 @@ import base64
 import html
 import io
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -257,8 +258,28 @@ def _channel_figure(bounds: ChannelBounds) -> Any:
         ax.grid(True, lw=0.3, alpha=0.5)
     axes[0].legend(fontsize=8, loc="upper right", ncols=3)
     axes[1].set_xlabel("seconds since segment start")
-    fig.suptitle(f"track {bounds.track}, segment {bounds.segment}: {t.size:,} points")
+    fig.suptitle(
+        f"track {_figure_text(bounds.track)}, segment {bounds.segment}: {t.size:,} points",
+        parse_math=False,
+    )
     return fig
+
+
+#: Track ids longer than this are cut in figure titles (the HTML caption has them whole).
+MAX_TITLE_ID_CHARS = 60
+
+
+def _figure_text(track: str) -> str:
+    """A track id for a figure title: shortened, on one line.
+
+    The id is the user's text, so the title is drawn with ``parse_math=False``:
+    matplotlib reads ``$...$`` as mathtext and raised on an id like
+    ``$\\foo$`` (issue 18), losing the whole report.
+    """
+    text = " ".join(track.split())
+    if len(text) > MAX_TITLE_ID_CHARS:
+        text = text[: MAX_TITLE_ID_CHARS - 1] + "\u2026"
+    return text
 
 
 def _point_flags(prepared: Prepared, result: pd.DataFrame) -> NDArray[np.bool_]:
@@ -310,7 +331,11 @@ def _png(fig: Any, dpi: int = 100) -> bytes:
     import matplotlib.pyplot as plt
 
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi)
+    with warnings.catch_warnings():
+        # A track id in a script the font lacks (CJK, emoji) is drawn as boxes;
+        # the HTML names it in full, so a warning per glyph is only noise.
+        warnings.filterwarnings("ignore", "Glyph .* missing from font", UserWarning)
+        fig.savefig(buffer, format="png", dpi=dpi)
     plt.close(fig)
     return buffer.getvalue()
 
