@@ -20,8 +20,11 @@ from .options import column_map, column_options, option, read_options
 
 __all__ = ["train"]
 
-#: Injection seeds of the recipe: three passes of protocol ``grad`` over its drives.
-RECIPE_SEEDS = (101, 102, 103)
+#: Injection seeds of the recipe: five passes of protocol ``grad`` over its drives
+#: (three overfitted: the validation loss rose from epoch 7 while the training
+#: loss kept falling; five, with twice the simulated drives, gained 1-3 points of
+#: validation F1 on the real drives).
+RECIPE_SEEDS = (101, 102, 103, 104, 105)
 
 
 @click.command()
@@ -104,11 +107,16 @@ def train(
 
         train_tables = recipe_tables("train", data_dir=data_dir)
         val_tables = recipe_tables("validation", data_dir=data_dir)
-        spec = GradTrainingSet(seeds=RECIPE_SEEDS, freeze_share=0.02, stale_start=0.1)
+        # No stale starts: a track that starts on repeated fixes cannot be told
+        # from a parked car until the jump that ends it, so labelling its fixes
+        # faulty taught the model to flag every long stop (Nevada validation).
+        spec = GradTrainingSet(seeds=RECIPE_SEEDS, freeze_share=0.02, stale_start=0.0)
         source = "recipe (gradgps._train.recipe.DefaultRecipe)"
         validated = recipe_validated()
         # Many small noisy batches from mixed sources: decay the rate, clip steps.
-        schedule = {"lr_schedule": "cosine", "grad_clip": 1.0}
+        # The threshold keeps validation normal recall at 0.99 (issue 13's floor):
+        # the F1-best one flagged 2.7 % of a clean 0.5 Hz validation drive.
+        schedule = {"lr_schedule": "cosine", "grad_clip": 1.0, "normal_recall_floor": 0.99}
     elif dataset is not None:
         from .._data.datasets import load_dataset
 

@@ -556,6 +556,14 @@ def sensor_grid_rates(labelled: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame.from_dict(table, orient="index")
 
 
+#: m/s: a hold starts only on a vehicle this fast. Freezing at 10 m/s is a
+#: "stop" within one step, 5 m/s² or more at 0.5 Hz and beyond any car's
+#: braking at 1 Hz and faster; a hold on a slower car is indistinguishable
+#: from it braking to a stop until the hold ends, and a label no causal
+#: detector can earn only teaches a model to flag every stop.
+_FREEZE_ONSET_SPEED = 10.0
+
+
 def inject_freeze(
     labelled: pd.DataFrame,
     *,
@@ -577,8 +585,8 @@ def inject_freeze(
     ``stale_offset_m`` away, until the first real fix). Held fixes are
     labelled ``label_anomaly = 1`` with bias ``freeze`` (time type
     ``transient``); the jump back to the truth is *not* a fault. Holds are
-    placed where the vehicle moves at 2 m/s or more when the fix freezes and
-    for most of the hold (a frozen fix of a parked or crawling car is a true
+    placed where the vehicle moves at :data:`_FREEZE_ONSET_SPEED` (10 m/s) or
+    more when the fix freezes and at 2 m/s or more for most of the hold (a frozen fix of a parked or crawling car is a true
     fix, and a hold that starts as the car brakes to a stop is a real stop) and only on fixes without a label, about ``share`` of each track's
     fixes. Seeded: the same input and seed give the same bytes.
     """
@@ -607,7 +615,8 @@ def inject_freeze(
         # A step "moves" at 2 m/s or more: a hold over a car crawling or
         # stopped looks like the real stop it is, and no one could call it a fault.
         step_dt = np.maximum(np.diff(t), 1e-9)
-        moving = np.r_[np.hypot(np.diff(east), np.diff(north)) / step_dt >= 2.0, False]
+        step_speed = np.r_[np.hypot(np.diff(east), np.diff(north)) / step_dt, 0.0]
+        moving = step_speed >= 2.0
         free = anomaly[rows] == 0
         if rng.random() < stale_start:
             end = int(np.searchsorted(t, t[0] + rng.uniform(*hold_s)))
@@ -635,7 +644,7 @@ def inject_freeze(
             if (
                 stop - start < 2
                 or not free[start : stop + 1].all()
-                or not moving[start]
+                or step_speed[start] < _FREEZE_ONSET_SPEED
                 or moving[span].mean() < 0.5
             ):
                 continue

@@ -165,7 +165,8 @@ def train_window_model(
     import torch
     from torch import nn
 
-    from .torch_gru import _best_threshold, _class_weights, _fit_scaler, _optimise
+    from .thresholds import best_f1_threshold
+    from .torch_gru import _class_weights, _fit_scaler, _optimise
 
     if architecture not in NETS:
         raise ConfigError(
@@ -238,7 +239,7 @@ def train_window_model(
                     break
             if best_state is not None:
                 net.load_state_dict(best_state)
-            threshold = _best_threshold(val_truth, val_probability())
+            threshold = best_f1_threshold(val_truth, val_probability())
     finally:
         torch.set_num_threads(threads)
         torch.use_deterministic_algorithms(deterministic)
@@ -343,7 +344,7 @@ def dataset_waved(
 ) -> WavedModel:
     """``waved``: the ``cnn`` and ``lstm-cnn`` models, weight and threshold tuned on validation."""
     from .._baselines.waved import WAVED_WEIGHTS, ensemble_probability
-    from .torch_gru import _best_threshold
+    from .thresholds import best_f1_threshold
 
     rec = recipe or BaselineRecipe()
     cnn = dataset_window_model("cnn", dataset, protocol, data_dir, rec)
@@ -358,7 +359,7 @@ def dataset_waved(
         best = (-1.0, 0.5, 0.5)
         for w in WAVED_WEIGHTS:
             p = ensemble_probability(p_cnn, p_lstm, w)
-            threshold = _best_threshold(truth, p)
+            threshold = best_f1_threshold(truth, p)
             f1 = f1_score(truth, p >= threshold)
             if f1 > best[0]:
                 best = (f1, float(w), threshold)

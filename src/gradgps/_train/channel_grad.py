@@ -41,6 +41,7 @@ from .._grad.rema import RemaParams, rema_batch
 from .._result import f1_score
 from .baseline_recipe import BaselineRecipe, inputs_for, labelled_fixes, splits
 from .cache import baseline_dir
+from .thresholds import NORMAL_RECALL_FLOOR, best_f1_threshold, recall_floor_threshold
 
 __all__ = [
     "GRU_WINDOW",
@@ -56,7 +57,6 @@ REMA_GRID = tuple(itertools.product((0.3, 0.5, 0.8), (5, 10, 20), (2.0, 3.0, 4.0
 #: The paper's feed sliding window: each verdict from the GRU run over the last 10 steps.
 GRU_WINDOW = 10
 #: Validation normal recall the anomaly threshold must keep.
-NORMAL_RECALL_FLOOR = 0.995
 #: The fixes' channel name -> the injection's label column.
 _LABEL = {
     "speed": "label_speed_mps",
@@ -85,35 +85,6 @@ def tune_channel_rema(
         if f1 > best_f1:
             best, best_f1 = params, f1
     return best, best_f1
-
-
-def recall_floor_threshold(
-    truth: np.ndarray, probability: np.ndarray, floor: float = NORMAL_RECALL_FLOOR
-) -> float:
-    """The threshold with the best F1 among those keeping normal recall >= ``floor``.
-
-    Candidates: the grid 0.05..0.99 and the normal readings' probability
-    quantiles from ``floor`` to 1 (a class-weighted network bunches its
-    probabilities near 1, where a fixed grid is too coarse). When no
-    candidate keeps the floor, the highest one.
-    """
-    truth = truth.astype(bool)
-    normal = ~truth
-    grid = np.round(np.arange(0.05, 0.995, 0.01), 2)
-    if normal.any():
-        upper = np.quantile(probability[normal], np.linspace(floor, 1.0, 51))
-        grid = np.unique(np.r_[grid, np.nextafter(upper, np.inf)])
-    grid = grid[(grid > 0.0) & (grid < 1.0)]
-    best_t, best_f1 = float(grid[-1]), -1.0
-    for t in grid:
-        flagged = probability >= t
-        recall = float(np.mean(~flagged[normal])) if normal.any() else 1.0
-        if recall < floor:
-            continue
-        f1 = f1_score(truth, flagged)
-        if f1 > best_f1:
-            best_t, best_f1 = float(t), f1
-    return best_t
 
 
 def _sequences(
@@ -180,7 +151,7 @@ def dataset_channel_grad(
     target = baseline_dir("channel-grad", dataset, "sensor-grid", rec, data_dir, extra)
     if not (target / "config.json").is_file():
         # torch only when training
-        from .torch_gru import TrainConfig, _best_threshold, train_model
+        from .torch_gru import TrainConfig, train_model
 
         train, val = splits(dataset, data_dir)
         rema, rema_f1 = _tuned_rema(val, rec)
@@ -206,7 +177,7 @@ def dataset_channel_grad(
         truth = np.concatenate([y for _, y, _ in val_seqs]).astype(bool)
         floor_threshold = recall_floor_threshold(truth, probability)
         # The baselines' rule (best validation F1, no floor), kept for comparison (grad-f1).
-        threshold_f1 = _best_threshold(truth, probability)
+        threshold_f1 = best_f1_threshold(truth, probability)
         target.mkdir(parents=True, exist_ok=True)
         np.savez(target / "weights.npz", allow_pickle=False, **trained.weights())
         cfg = {

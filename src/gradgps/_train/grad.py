@@ -166,6 +166,7 @@ def train_grad(
     validated: dict[str, Any] | None = None,
     lr_schedule: str = "constant",
     grad_clip: float = 0.0,
+    normal_recall_floor: float = 0.0,
 ) -> TrainReport:
     """Train on clean tables with injected ``grad`` faults and write a model directory.
 
@@ -210,6 +211,7 @@ def train_grad(
         batch_size=batch_size,
         lr_schedule=lr_schedule,
         grad_clip=grad_clip,
+        normal_recall_floor=normal_recall_floor,
     )
     with torch.random.fork_rng():
         trained = train_model(train, val, config)

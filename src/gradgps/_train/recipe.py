@@ -24,7 +24,11 @@ training data as varied as the files users have:
   clean;
 * **faults**: protocol ``grad`` with several seeds, plus frozen fixes
   (:func:`gradgps._data.inject.inject_freeze`), the most common real receiver
-  fault after multipath, whose end is a jump *back* to the truth.
+  fault after multipath, whose end is a jump *back* to the truth. Only
+  holds that a causal detector could tell from a stop are labelled: the fix
+  freezes on a vehicle at 10 m/s or more (a "stop" within one step, harder
+  than a car brakes at any rate from 0.5 Hz up); no stale starts (a track
+  opening on repeated fixes looks like a parked car until its end).
 
 Everything is seeded: the same data folder and seed give the same tables.
 """
@@ -55,7 +59,7 @@ class DefaultRecipe:
     """Settings of the shipped model's training data (see the module doc)."""
 
     sim_rates_hz: tuple[float, ...] = (0.5, 1.0, 2.0, 5.0, 10.0)
-    sim_tracks: tuple[int, ...] = (16, 30, 8, 6, 4)
+    sim_tracks: tuple[int, ...] = (32, 60, 16, 12, 8)
     """Simulated training tracks per rate (validation: a quarter, at least 2)."""
     sim_minutes: float = 10.0
     real_datasets: tuple[str, ...] = ("driveplotr", "tuc", "nl_motorway", "austin2006", "nevada")

@@ -46,6 +46,7 @@ from .._exceptions import ConfigError
 from .._grad.gru import MODES
 from .._grad.model_io import export_torch
 from .._result import f1_score
+from .thresholds import best_f1_threshold, recall_floor_threshold
 
 __all__ = ["EpochMetrics", "GRADNet", "TrainConfig", "TrainedModel", "train_model"]
 
@@ -68,6 +69,7 @@ class TrainConfig:
     learning_rate: float = 3e-3
     lr_schedule: str = "constant"  # or "cosine": decays to 1/20 of it over max_epochs
     grad_clip: float = 0.0  # clip the gradient norm to this (0: no clipping)
+    normal_recall_floor: float = 0.0  # > 0: best validation F1 keeping normal recall >= it
     max_epochs: int = 100
     patience: int = 6
     early_stopping: str = "loss"  # "loss" (validation loss) or "f1" (validation anomaly F1)
@@ -84,6 +86,10 @@ class TrainConfig:
         if self.lr_schedule not in ("constant", "cosine"):
             raise ConfigError(
                 f"lr_schedule must be 'constant' or 'cosine', got {self.lr_schedule!r}"
+            )
+        if not (0.0 <= self.normal_recall_floor < 1.0):
+            raise ConfigError(
+                f"normal_recall_floor must be in [0, 1), got {self.normal_recall_floor!r}"
             )
         if not (math.isfinite(self.grad_clip) and self.grad_clip >= 0):
             raise ConfigError(f"grad_clip must be >= 0, got {self.grad_clip!r}")
@@ -446,16 +452,6 @@ def _predict_packed(
         )
 
 
-def _best_threshold(truth: np.ndarray, probability: np.ndarray) -> float:
-    """Anomaly threshold with the best validation F1 (0.5 when there is nothing to tune on)."""
-    if not truth.any():
-        return 0.5
-    grid = np.round(np.arange(0.05, 0.96, 0.01), 2)
-    scores = np.array([f1_score(truth, probability >= t) for t in grid])
-    best = np.flatnonzero(scores == scores.max())
-    return float(grid[best[np.argmin(np.abs(grid[best] - 0.5))]])
-
-
 def train_model(
     sequences: Sequence[LabelledSequence],
     val_sequences: Sequence[LabelledSequence],
@@ -637,7 +633,11 @@ def _train(
         net.load_state_dict(best_state)
     net.eval()
     la, _, a_true, _ = _predict_packed(net, val, config)
-    threshold = _best_threshold(a_true == 1, torch.softmax(la, -1)[:, 1].numpy())
+    probability = torch.softmax(la, -1)[:, 1].numpy()
+    if config.normal_recall_floor > 0:
+        threshold = recall_floor_threshold(a_true == 1, probability, config.normal_recall_floor)
+    else:
+        threshold = best_f1_threshold(a_true == 1, probability)
     return TrainedModel(net, config, n_features, threshold, best_epoch, stop_reason, history)
 
 
