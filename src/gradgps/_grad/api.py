@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from .detector import Detector
+from .detector import Detector, track_input
 
 __all__ = ["clean", "detect"]
 
@@ -34,13 +34,10 @@ def detect(
     ``invalid_reason``. ``model``/``threshold`` as for :class:`gradgps.Detector`.
     Fault events: ``gradgps.Detector().events(result)``.
     """
-    from .._tracks.objects import add_columns, as_track_input
+    from .._tracks.objects import add_columns
 
     det = Detector(model, threshold=threshold)
-    columns = dict(
-        time=time, lat=lat, lon=lon, track=track, speed=speed, heading=heading, alt=alt, hdop=hdop
-    )
-    inp = as_track_input(data, columns)
+    inp = track_input(data, time, lat, lon, track, speed, heading, alt, hdop)
     result = det.detect_fixes(inp.fixes)
     result.index = inp.index
     return add_columns(inp, result)

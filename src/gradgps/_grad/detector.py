@@ -59,7 +59,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -110,6 +110,9 @@ from .rema import N_STATE as N_REMA_STATE
 from .rema import S_COUNT as REMA_COUNT
 from .rema import S_NSTEPS as REMA_NSTEPS
 from .time_classifier import N_TIME_STATE, TIME_TYPES
+
+if TYPE_CHECKING:
+    from .._tracks.objects import TrackInput
 
 __all__ = [
     "DEFAULT_MODEL",
@@ -298,6 +301,28 @@ def _time_number(value: Any) -> float:
 def _readings(values: NDArray[np.float64]) -> NDArray[np.float64]:
     """:func:`gradgps._result.reading` for a whole column."""
     return np.where(np.isfinite(values), values, np.nan)
+
+
+def track_input(
+    data: Any,
+    time: str | None,
+    lat: str | None,
+    lon: str | None,
+    track: str | None,
+    speed: str | None,
+    heading: str | None,
+    alt: str | None,
+    hdop: str | None,
+) -> TrackInput:
+    """``data`` as a :class:`~gradgps._tracks.objects.TrackInput`, its columns named by the
+    keywords that :func:`gradgps.detect`, :func:`gradgps.clean` and :class:`Detector`'s
+    ``detect``/``clean``/``events`` take (``None``: found by name)."""
+    from .._tracks.objects import as_track_input
+
+    columns = dict(
+        time=time, lat=lat, lon=lon, track=track, speed=speed, heading=heading, alt=alt, hdop=hdop
+    )
+    return as_track_input(data, columns)
 
 
 class Detector:
@@ -608,19 +633,9 @@ class Detector:
         rows flagged and the same clean positions. ``threads`` > 1 spreads
         segments over that many numba threads (same numbers).
         """
-        from .._tracks.objects import add_columns, as_track_input
+        from .._tracks.objects import add_columns
 
-        columns = dict(
-            time=time,
-            lat=lat,
-            lon=lon,
-            track=track,
-            speed=speed,
-            heading=heading,
-            alt=alt,
-            hdop=hdop,
-        )
-        inp = as_track_input(data, columns)
+        inp = track_input(data, time, lat, lon, track, speed, heading, alt, hdop)
         result = self.detect_fixes(inp.fixes, threads=threads)
         result.index = inp.index
         if inp.kind == "frame":
@@ -687,19 +702,9 @@ class Detector:
         repaired position and are dropped unless ``keep_invalid`` (then
         their position is missing). Columns by keyword as in :meth:`detect`.
         """
-        from .._tracks.objects import as_track_input, replace_positions
+        from .._tracks.objects import replace_positions
 
-        columns = dict(
-            time=time,
-            lat=lat,
-            lon=lon,
-            track=track,
-            speed=speed,
-            heading=heading,
-            alt=alt,
-            hdop=hdop,
-        )
-        inp = as_track_input(data, columns)
+        inp = track_input(data, time, lat, lon, track, speed, heading, alt, hdop)
         result = self.detect_fixes(inp.fixes)
         keep = (result["invalid_reason"].to_numpy() == "") | keep_invalid
         return replace_positions(
@@ -732,19 +737,9 @@ class Detector:
         ``peak_offset_m``, ``peak_score``, ``alert``, ``first_row``,
         ``last_row`` (0-based positions of the rows in ``result``).
         """
-        from .._tracks.objects import as_track_input, time_values
+        from .._tracks.objects import time_values
 
-        columns = dict(
-            time=time,
-            lat=lat,
-            lon=lon,
-            track=track,
-            speed=speed,
-            heading=heading,
-            alt=alt,
-            hdop=hdop,
-        )
-        inp = as_track_input(result, columns)
+        inp = track_input(result, time, lat, lon, track, speed, heading, alt, hdop)
         missing = [c for c in RESULT_DTYPES if c not in inp.flat.columns]
         if missing:
             raise ConfigError(

@@ -459,26 +459,14 @@ def _features_kernel(
     return out
 
 
+# The inputs of the batch drivers, as one tuple (numba passes it as is):
+# (Ps, Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out).
 @numba.njit(cache=True)
-def _batch_segment(
-    k: int,
-    Ps: FloatArray,
-    Ss: FloatArray,
-    s_off: NDArray[np.int64],
-    gp: Any,
-    Hs: Any,
-    begin: NDArray[np.int64],
-    end: NDArray[np.int64],
-    dt: FloatArray,
-    lat: FloatArray,
-    lon: FloatArray,
-    speed: FloatArray,
-    heading: FloatArray,
-    out: FloatArray,
-) -> None:
+def _batch_segment(k: int, batch: Any) -> None:
     """Rows ``begin[k]:end[k]`` of segment ``k`` from its state (``Ss[s_off[k]:s_off[k+1]]``:
     the states lie end to end, never padded to the largest) and ``Hs[k]``, exactly as
     :func:`_segment_kernel`, into ``out``."""
+    Ps, Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out = batch
     a, b = begin[k], end[k]
     if b <= a:
         return
@@ -495,43 +483,15 @@ def _batch_segment(
 # "omp" and "tbb" are fine). They are separate functions, not one function compiled twice,
 # because numba's on-disk cache keys a kernel by its function, not by its flags.
 @numba.njit(cache=True)
-def _batch_serial(
-    Ps: FloatArray,
-    Ss: FloatArray,
-    s_off: NDArray[np.int64],
-    gp: Any,
-    Hs: Any,
-    begin: NDArray[np.int64],
-    end: NDArray[np.int64],
-    dt: FloatArray,
-    lat: FloatArray,
-    lon: FloatArray,
-    speed: FloatArray,
-    heading: FloatArray,
-    out: FloatArray,
-) -> None:
-    for k in range(begin.size):
-        _batch_segment(k, Ps, Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
+def _batch_serial(n_seg: int, batch: Any) -> None:
+    for k in range(n_seg):
+        _batch_segment(k, batch)
 
 
 @numba.njit(cache=True, parallel=True)
-def _batch_parallel(
-    Ps: FloatArray,
-    Ss: FloatArray,
-    s_off: NDArray[np.int64],
-    gp: Any,
-    Hs: Any,
-    begin: NDArray[np.int64],
-    end: NDArray[np.int64],
-    dt: FloatArray,
-    lat: FloatArray,
-    lon: FloatArray,
-    speed: FloatArray,
-    heading: FloatArray,
-    out: FloatArray,
-) -> None:
-    for k in numba.prange(begin.size):
-        _batch_segment(k, Ps, Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
+def _batch_parallel(n_seg: int, batch: Any) -> None:
+    for k in numba.prange(n_seg):
+        _batch_segment(k, batch)
 
 
 def grad_segments(
@@ -582,14 +542,14 @@ def grad_segments(
         Ps.append(P)
     s_off = np.r_[0, np.cumsum([x.size for x in states])].astype(np.int64)
     Ss = np.concatenate(states)
-    args = (np.array(Ps), Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
+    batch = (np.array(Ps), Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out)
     if threads <= 1:
-        _batch_serial(*args)
+        _batch_serial(n_seg, batch)
         return out
     previous = numba.get_num_threads()
     numba.set_num_threads(min(threads, int(numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
     try:
-        _batch_parallel(*args)
+        _batch_parallel(n_seg, batch)
     finally:
         numba.set_num_threads(previous)
     return out

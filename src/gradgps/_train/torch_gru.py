@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -483,6 +483,50 @@ def train_model(
         torch.use_deterministic_algorithms(deterministic)
 
 
+_Batch = tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]
+
+
+def _window_batches(
+    net: GRADNet,
+    train: _Packed,
+    config: TrainConfig,
+    rng: np.random.Generator,
+    all_starts: np.ndarray,
+    all_first: np.ndarray,
+) -> Iterator[_Batch]:
+    """One epoch of window mode: per batch of random windows, the network's anomaly and
+    bias logits and the labels ``(la, lb, a, b)``."""
+    pick = rng.permutation(len(all_starts))[: config.max_samples_per_epoch]
+    for lo in range(0, len(pick), config.batch_size):
+        chosen = pick[lo : lo + config.batch_size]
+        x, a, b = _window_batch(train, all_starts[chosen], all_first[chosen], config.window)
+        la, lb, _ = net(x)
+        yield la, lb, a, b
+
+
+def _stream_batches(
+    net: GRADNet, train: _Packed, config: TrainConfig, rng: np.random.Generator
+) -> Iterator[_Batch]:
+    """One epoch of stream mode: per chunk of every lane, ``(la, lb, a, b)`` as in
+    :func:`_window_batches`, the hidden state carried (detached) from the lane's previous
+    chunk and reset where a lane starts a new piece. The caller steps the optimiser
+    before asking for the next chunk."""
+    offsets, resets = _stream_lanes(
+        train, config.batch_size, config.chunk_length, config.stream_piece_length, rng
+    )
+    state: tuple[torch.Tensor, torch.Tensor] | None = None
+    for step in range(offsets.shape[1]):
+        idx = np.maximum(offsets[:, step], 0)[:, None] + np.arange(config.chunk_length)
+        valid = (offsets[:, step] >= 0)[:, None]
+        a = torch.from_numpy(np.where(valid, train.anomaly[idx], _IGNORE))
+        b = torch.from_numpy(np.where(valid, train.bias[idx], _IGNORE))
+        if state is not None:
+            keep = torch.from_numpy(~resets[:, step]).to(torch.float32)[None, :, None]
+            state = (state[0].detach() * keep, state[1].detach() * keep)
+        la, lb, state = net(torch.from_numpy(train.features[idx]), state)
+        yield la, lb, a, b
+
+
 def _train(
     sequences: Sequence[LabelledSequence],
     val_sequences: Sequence[LabelledSequence],
@@ -553,42 +597,17 @@ def _train(
                 for group in optimizer.param_groups:
                     group["lr"] = config.learning_rate * factor
             losses: list[float] = []
-            if is_window:
-                pick = rng.permutation(len(all_starts))[: config.max_samples_per_epoch]
-                for lo in range(0, len(pick), config.batch_size):
-                    chosen = pick[lo : lo + config.batch_size]
-                    x, a, b = _window_batch(
-                        train, all_starts[chosen], all_first[chosen], config.window
-                    )
-                    la, lb, _ = net(x)
-                    losses.append(
-                        _optimise(optimizer, loss_fn(la, lb, a, b), net, config.grad_clip)
-                    )
-                    progress.advance(task)
-                    if time.perf_counter() - began > config.time_budget_s:
-                        out_of_time = True
-                        break
-            else:
-                offsets, resets = _stream_lanes(
-                    train, config.batch_size, config.chunk_length, config.stream_piece_length, rng
-                )
-                state: tuple[torch.Tensor, torch.Tensor] | None = None
-                for step in range(offsets.shape[1]):
-                    idx = np.maximum(offsets[:, step], 0)[:, None] + np.arange(config.chunk_length)
-                    valid = (offsets[:, step] >= 0)[:, None]
-                    a = torch.from_numpy(np.where(valid, train.anomaly[idx], _IGNORE))
-                    b = torch.from_numpy(np.where(valid, train.bias[idx], _IGNORE))
-                    if state is not None:
-                        keep = torch.from_numpy(~resets[:, step]).to(torch.float32)[None, :, None]
-                        state = (state[0].detach() * keep, state[1].detach() * keep)
-                    la, lb, state = net(torch.from_numpy(train.features[idx]), state)
-                    losses.append(
-                        _optimise(optimizer, loss_fn(la, lb, a, b), net, config.grad_clip)
-                    )
-                    progress.advance(task)
-                    if time.perf_counter() - began > config.time_budget_s:
-                        out_of_time = True
-                        break
+            batches = (
+                _window_batches(net, train, config, rng, all_starts, all_first)
+                if is_window
+                else _stream_batches(net, train, config, rng)
+            )
+            for la, lb, a, b in batches:
+                losses.append(_optimise(optimizer, loss_fn(la, lb, a, b), net, config.grad_clip))
+                progress.advance(task)
+                if time.perf_counter() - began > config.time_budget_s:
+                    out_of_time = True
+                    break
 
             net.eval()
             la, lb, a_true, b_true = _predict_packed(net, val, config)
