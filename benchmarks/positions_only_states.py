@@ -39,9 +39,14 @@ def _features(params: PipelineParams, t, east, north):  # type: ignore[no-untype
 
 def main() -> None:
     before = PipelineParams(
-        motion=None, rema=replace(grad_rema_params(), reacquire_after=0, max_run=0)
+        motion=None,
+        rema=replace(grad_rema_params(), reacquire_after=0, max_run=0),
+        offset=OffsetParams(accel_allowance=0.0),
     )
-    configs = {"before (no motion model, unbounded REMA)": before, "now": PipelineParams()}
+    configs = {
+        "before (no motion model, unbounded REMA, no braking allowance)": before,
+        "now": PipelineParams(),
+    }
     thr = OffsetParams().threshold_m
     print(
         "| pipeline | drive | phantom offset share | median offset (m) | REMA flags clean | "
