@@ -14,29 +14,38 @@ for never staying lost:
   the turn rate ``w`` times ``dt`` (constant turn rate and velocity, CTRV),
   then ``pred = p + v_rotated * dt``.
 * **Innovation** ``r = z - pred`` (metres), reported whole, as along-track and
-  cross-track components, and normalised by a running scale ``sqrt(m2)``
-  (an exponential mean of accepted squared innovations, floored by
-  ``noise_floor`` metres): the scale adapts to the receiver and the driving,
-  so a phone on a motorway and an RTK receiver in town read alike.
+  cross-track components, and normalised by a scale: a running mean of
+  accepted squared innovations (floored by ``noise_floor`` metres), plus, in
+  quadrature, what a car's routine unpredicted acceleration moves it over
+  the step (``maneuver_accel * dt**2 / 2``). The first part adapts to the
+  receiver and the driving, so a phone on a motorway and an RTK receiver in
+  town read alike; the second gives a 0.5 Hz file's 2 s steps the slack a
+  braking car needs, and costs a 10 Hz file nothing.
 * **Gate**: a fix whose normalised innovation exceeds ``gate`` is not used to
   update; the filter dead-reckons through it (``run_s`` counts the seconds).
 * **No state stays diverged.** A gated fix is re-acquired when its own step
-  from the previous *observed* fix agrees with the motion (the track goes on
-  from a new place: the end of a jump, or a jump that was the truth), and
-  unconditionally once ``max_run_s`` seconds have passed. Whatever the input,
-  the filter follows the fixes again within ``max_run_s`` of the last one
-  it rejected. (The memory of a lasting offset is the offset tracker's job,
-  :mod:`gradgps._grad.offset`; this model only says how surprising each step is.)
-
+  from the previous *observed* fix agrees with the motion, or with the
+  previous observed step (within the gate plus what ``max_accel`` explains):
+  the track goes on from a new place (the end of a jump, or a jump that was
+  the truth), or the vehicle braked or turned harder than the model
+  followed. It is re-acquired unconditionally once ``max_run_s`` seconds
+  have passed. On re-acquisition the velocity follows the fix's own step
+  four times faster than usual and the turn rate is measured afresh from the
+  last two steps (a course change across a jump is no turn); the turn rate
+  is always capped at ``max_accel`` over the speed, so dead reckoning cannot
+  draw circles. Whatever the input, the filter follows the fixes again
+  within ``max_run_s`` of the last one it rejected. (The memory of a lasting
+  offset is the offset tracker's job, :mod:`gradgps._grad.offset`; this
+  model only says how surprising each step is.)
 * **Standing still**: ``still_s`` counts the seconds the fixes have moved
-  slower than :data:`STILL_SPEED`, and ``stop_decel`` is the deceleration
-  the stop implied: the speed of the step before the first still fix over
-  the still step's time (at least 1 s; the observed step, not the model's
-  velocity, which lags a braking car by a second or two). A car brakes to a stop (a few m/s²); a
-  receiver that freezes its fix while the car drives on "stops" from full
-  speed within one step (still: under :data:`STILL_SPEED` or
-  :data:`STILL_STEP_M`, whichever is more) (10-30 m/s²). While the fixes stand still, the
-  two look the same; this is what tells them apart.
+  slower than :data:`STILL_SPEED` (or by less than :data:`STILL_STEP_M`,
+  whichever is more), and ``stop_decel`` is the deceleration the stop
+  implied: the speed of the step before the first still fix over the still
+  step's time (at least 1 s; the observed step, not the model's velocity,
+  which lags a braking car by a second or two). A car brakes to a stop at a
+  few m/s²; a receiver that freezes its fix while the car drives on "stops"
+  from full speed within one step (10-30 m/s²). While the fixes stand still
+  the two look the same; this is what tells them apart.
 
 Speed and heading are not used: this is the witness that exists in every
 file. ``dt_ratio`` (the step over the segment's nominal period) is emitted
