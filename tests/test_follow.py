@@ -15,6 +15,7 @@ from click.testing import CliRunner
 
 from gradgps._cli import main
 from gradgps._data.simulator import simulate_drive
+from gradgps._exceptions import InputError
 from gradgps._grad.detector import Detector
 from gradgps._io.nmea import nmea_checksum
 from gradgps._run.follow import RESULT_FIELDS, follow_lines, parse_time
@@ -177,3 +178,120 @@ def test_each_result_is_written_before_the_next_line_arrives(drive_csv):
             proc.wait(timeout=60)
     assert proc.returncode == 0
     assert rest == ""
+
+
+def _nmea_lines(epochs: int = 5) -> list[str]:
+    lines = []
+    for k in range(epochs):
+        tod = f"1235{10 + k:02d}"
+        lat = f"4807.{38 + k:03d},N"
+        lines += [
+            _sentence(f"GPGGA,{tod},{lat},01131.000,E,1,08,0.9,545.4,M,46.9,M,,"),
+            _sentence(f"GPRMC,{tod},A,{lat},01131.000,E,022.4,084.4,230394,003.1,W"),
+        ]
+    return lines
+
+
+BANNER = "# GPSLogger 3.2 started 2026-11-23"
+
+
+@pytest.mark.parametrize("banner", [[BANNER], [BANNER, "12", "Logger v3, serial 1234"]])
+def test_nmea_after_a_banner_is_followed_with_one_warning(banner):
+    clean: list[str] = []
+    follow_lines(_nmea_lines(), clean.append)
+    out: list[str] = []
+    warned: list[str] = []
+    counts = follow_lines([*banner, *_nmea_lines()], out.append, warn=warned.append)
+    assert out == clean  # the banner changes nothing but the warning
+    assert counts.skipped == len(banner)
+    assert (counts.fixes, counts.invalid) == (5, 0)
+    assert len(warned) == 1
+    assert f"skipped {len(banner)} line" in warned[0]
+    assert "before the first NMEA sentence" in warned[0]
+    assert "neither NMEA nor a CSV header" in warned[0]
+
+
+def test_clean_input_gives_no_warning(drive_csv):
+    warned: list[str] = []
+    for lines in (_nmea_lines(), drive_csv.splitlines()):
+        counts = follow_lines(lines, [].append, warn=warned.append)
+        assert counts.skipped == 0
+    assert warned == []
+
+
+@pytest.mark.parametrize("fmt", [None, "csv"])
+def test_csv_after_a_banner_is_followed_with_one_warning(drive_csv, fmt):
+    clean: list[str] = []
+    follow_lines(drive_csv.splitlines(), clean.append, fmt=fmt)
+    out: list[str] = []
+    warned: list[str] = []
+    counts = follow_lines(
+        [BANNER, *drive_csv.splitlines()], out.append, fmt=fmt, warn=warned.append
+    )
+    assert out == clean
+    assert counts.skipped == 1
+    assert len(warned) == 1
+    assert "skipped 1 line before the first CSV header" in warned[0]
+
+
+def test_a_csv_without_a_usable_header_still_fails(drive_csv):
+    """Banner skipping must not swallow a header-less or badly named CSV."""
+    data = drive_csv.splitlines()[1:]  # no header: the first data row is taken as one
+    with pytest.raises(InputError, match="cannot find the time column"):
+        follow_lines(data, [].append)
+    with pytest.raises(InputError, match="cannot find the time column"):
+        follow_lines([BANNER, "when,y,x", *data], [].append)
+    with pytest.raises(InputError, match="cannot find the time column"):
+        follow_lines([BANNER], [].append)  # nothing but a banner
+
+
+def test_cli_follow_file_with_a_banner(tmp_path):
+    path = tmp_path / "drive.nmea"
+    path.write_text("\n".join([BANNER, *_nmea_lines()]) + "\n")
+    clean = tmp_path / "clean.nmea"
+    clean.write_text("\n".join(_nmea_lines()) + "\n")
+    result = CliRunner().invoke(main, ["detect", "--follow", str(path)])
+    expected = CliRunner().invoke(main, ["detect", "--follow", str(clean)])
+    assert result.exit_code == 0, result.output
+    assert result.stdout == expected.stdout
+    rows = _rows(result.stdout.splitlines())
+    assert len(rows) == 10
+    assert all(r["invalid_reason"] == "" for r in rows)
+    warnings = [line for line in result.stderr.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1
+    assert "skipped 1 line" in warnings[0]
+    assert "GPSLogger" in warnings[0]
+    assert "warning:" not in expected.stderr
+
+
+def test_banner_on_a_live_pipe_does_not_hold_back_results():
+    """A growing stream: the banner is skipped and the first sentence answered at once."""
+    env = {**os.environ, "PYTHONPATH": str(REPO / "src"), "OMP_NUM_THREADS": "1"}
+    with subprocess.Popen(
+        [sys.executable, "-m", "gradgps", "detect", "--follow", "-"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        bufsize=1,
+    ) as proc:
+        assert proc.stdin is not None
+        assert proc.stdout is not None
+        assert proc.stderr is not None
+        lines = _nmea_lines(2)
+        try:
+            proc.stdin.write(BANNER + "\n" + lines[0] + "\n")
+            proc.stdin.flush()
+            assert proc.stdout.readline().startswith("line,sentence,time")
+            assert proc.stdout.readline().startswith("1,GGA,")
+            proc.stdin.write(lines[1] + "\n")
+            proc.stdin.flush()
+            assert proc.stdout.readline().startswith("2,RMC,")
+        finally:
+            proc.stdin.close()
+            proc.stdout.read()
+            err = proc.stderr.read()
+            proc.wait(timeout=60)
+    assert proc.returncode == 0
+    assert sum(line.startswith("warning: skipped 1 line") for line in err.splitlines()) == 1

@@ -374,6 +374,10 @@ def _run_follow(
     """``--follow``: follow INPUT ('-' = standard input) and write one CSV line per input line to OUTPUT/stdout."""
     from .._run.follow import follow_lines
 
+    def warn(message: str) -> None:
+        # At once, before the first result line: a live reader sees why lines were dropped.
+        click.echo(f"warning: {message}", err=True)
+
     with click.open_file(str(input_path), "r", encoding="utf-8", errors="replace") as source:
         # Line by line, flushing after every line, so a reader at the other end
         # of a pipe sees each verdict at once.
@@ -383,7 +387,13 @@ def _run_follow(
                 click.echo(text)  # click.echo flushes
 
             counts = follow_lines(
-                source, write, model=model_dir, threshold=threshold, columns=columns, fmt=fmt
+                source,
+                write,
+                model=model_dir,
+                threshold=threshold,
+                columns=columns,
+                fmt=fmt,
+                warn=warn,
             )
         else:
             with output.open("w", encoding="utf-8", newline="") as sink:
@@ -399,6 +409,7 @@ def _run_follow(
                     threshold=threshold,
                     columns=columns,
                     fmt=fmt,
+                    warn=warn,
                 )
     click.echo(
         f"followed {counts.lines:,} lines: {counts.fixes:,} fixes scored, "

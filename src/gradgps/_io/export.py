@@ -9,14 +9,20 @@ GeoJSON (RFC 7946): one FeatureCollection, WGS84 longitude/latitude, no
   with its verdict (score, bias type, time type, repaired position, alert,
   time, input row);
 * ``"event"``: a LineString through the fixes of each fault event (a Point
-  for a one-fix event) with the event's columns.
+  for a one-fix event, ``null`` geometry when none of its fixes is in the
+  result) with the event's columns.
 
-Unusable fixes have no trustworthy position and are left out (they are in
-the CSV with their reason). Both files are written atomically.
+Strict RFC 7946, so the file opens as is: strict JSON (a missing number or
+label is ``null``, never ``NaN``), longitudes wrapped into [-180, 180], and a
+line that crosses the antimeridian cut there into a MultiLineString (3.1.9),
+or geojson.io and QGIS draw it the long way round the globe. Unusable fixes
+have no trustworthy position and are left out (they are in the CSV with
+their reason). Both files are written atomically.
 """
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -47,6 +53,50 @@ def _num(value: Any) -> float | None:
     return v if math.isfinite(v) else None
 
 
+def _label(value: Any) -> str | None:
+    """A text property; None/NaN (a label the result does not have) as JSON null, not "nan"."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return None
+    return str(value)
+
+
+def _wrap(lon: np.ndarray) -> np.ndarray:
+    """Longitudes in [-180, 180): a repair may step just past 180, the same place written otherwise."""
+    return np.asarray((lon + 180.0) % 360.0 - 180.0, dtype=np.float64)
+
+
+def _cut_at_antimeridian(coords: list[list[float]]) -> list[list[list[float]]]:
+    """Split a line where a step crosses 180 degrees, ending and restarting it on the meridian.
+
+    A step of more than 180 degrees of longitude is the short way across the
+    antimeridian; GIS tools would draw it across the whole map (RFC 7946 3.1.9).
+    """
+    parts: list[list[list[float]]] = [[coords[0]]]
+    for a, b in itertools.pairwise(coords):
+        step = b[0] - a[0]
+        if abs(step) > 180.0:
+            edge = 180.0 if step < 0 else -180.0  # eastward crossing: the jump is negative
+            unwrapped = b[0] + (360.0 if step < 0 else -360.0)
+            frac = (edge - a[0]) / (unwrapped - a[0])
+            lat = a[1] + frac * (b[1] - a[1])
+            parts[-1].append([edge, lat])
+            parts.append([[-edge, lat]])
+        parts[-1].append(b)
+    return parts
+
+
+def _geometry(coords: list[list[float]]) -> dict[str, Any] | None:
+    """Point, LineString or (cut at the antimeridian) MultiLineString; None without positions."""
+    if not coords:
+        return None
+    if len(coords) == 1:
+        return {"type": "Point", "coordinates": coords[0]}
+    parts = _cut_at_antimeridian(coords)
+    if len(parts) == 1:
+        return {"type": "LineString", "coordinates": parts[0]}
+    return {"type": "MultiLineString", "coordinates": parts}
+
+
 def _iso(t: float) -> str | None:
     if not math.isfinite(t) or abs(t) > 1e11:
         return None
@@ -55,9 +105,11 @@ def _iso(t: float) -> str | None:
 
 def _lines(fixes: pd.DataFrame, result: pd.DataFrame) -> list[tuple[str, np.ndarray]]:
     """Per track and time-contiguous run of usable fixes: (track, row positions)."""
+    lat_c = result["lat_clean"].to_numpy(np.float64)
     usable = (
         (result["invalid_reason"].to_numpy() == "")
-        & np.isfinite(result["lat_clean"].to_numpy(np.float64))
+        & np.isfinite(lat_c)
+        & (np.abs(lat_c) <= 90.0)
         & np.isfinite(result["lon_clean"].to_numpy(np.float64))
     )
     tracks = fixes["track"].to_numpy(object)
@@ -75,22 +127,17 @@ def geojson_document(
 ) -> dict[str, Any]:
     """The GeoJSON FeatureCollection (see the module docstring) as a dict."""
     lat = fixes["lat"].to_numpy(np.float64)
-    lon = fixes["lon"].to_numpy(np.float64)
+    lon = _wrap(fixes["lon"].to_numpy(np.float64))
     t = fixes["t"].to_numpy(np.float64)
     lat_c = result["lat_clean"].to_numpy(np.float64)
-    lon_c = result["lon_clean"].to_numpy(np.float64)
+    lon_c = _wrap(result["lon_clean"].to_numpy(np.float64))
     features: list[dict[str, Any]] = []
     for track, rows in _lines(fixes, result):
         coords = [[float(lon_c[i]), float(lat_c[i])] for i in rows]
-        geometry: dict[str, Any] = (
-            {"type": "LineString", "coordinates": coords}
-            if len(coords) >= 2
-            else {"type": "Point", "coordinates": coords[0]}
-        )
         features.append(
             {
                 "type": "Feature",
-                "geometry": geometry,
+                "geometry": _geometry(coords),
                 "properties": {
                     "kind": "repaired track",
                     "track": track,
@@ -103,7 +150,7 @@ def geojson_document(
     flagged = np.flatnonzero(
         (result["anomaly"].to_numpy() == 1)
         & (result["invalid_reason"].to_numpy() == "")
-        & np.isfinite(lat)
+        & (np.abs(lat) <= 90.0)
         & np.isfinite(lon)
     )
     tracks = fixes["track"].to_numpy(object)
@@ -123,8 +170,8 @@ def geojson_document(
                     "t": _num(t[i]),
                     "time": _iso(t[i]),
                     "score": _num(score[i]),
-                    "bias_type": str(bias[i]),
-                    "time_type": str(time_type[i]),
+                    "bias_type": _label(bias[i]),
+                    "time_type": _label(time_type[i]),
                     "alert": int(alert[i]),
                     "lat_clean": _num(lat_c[i]),
                     "lon_clean": _num(lon_c[i]),
@@ -135,17 +182,16 @@ def geojson_document(
         records: list[dict[Any, Any]] = events.to_dict("records")
         for ev in records:
             rows = np.arange(int(ev["first_row"]), int(ev["last_row"]) + 1)
+            rows = rows[(rows >= 0) & (rows < len(tracks))]
             rows = rows[
                 (tracks[rows] == ev["track"])
                 & (result["anomaly"].to_numpy()[rows] == 1)
                 & (result["invalid_reason"].to_numpy()[rows] == "")
+                & np.isfinite(lat[rows])
+                & (np.abs(lat[rows]) <= 90.0)
+                & np.isfinite(lon[rows])
             ]
             coords = [[float(lon[i]), float(lat[i])] for i in rows]
-            geom: dict[str, Any] = (
-                {"type": "LineString", "coordinates": coords}
-                if len(coords) >= 2
-                else {"type": "Point", "coordinates": coords[0]}
-            )
             props = {
                 "kind": "event",
                 "track": str(ev["track"]),
@@ -153,15 +199,15 @@ def geojson_document(
                 "end": _iso(float(ev["end"])),
                 "duration_s": _num(ev["duration_s"]),
                 "fixes": int(ev["fixes"]),
-                "bias_type": str(ev["bias_type"]),
-                "time_type": str(ev["time_type"]),
+                "bias_type": _label(ev["bias_type"]),
+                "time_type": _label(ev["time_type"]),
                 "peak_offset_m": _num(ev["peak_offset_m"]),
                 "peak_score": _num(ev["peak_score"]),
                 "alert": int(ev["alert"]),
                 "first_row": int(ev["first_row"]),
                 "last_row": int(ev["last_row"]),
             }
-            features.append({"type": "Feature", "geometry": geom, "properties": props})
+            features.append({"type": "Feature", "geometry": _geometry(coords), "properties": props})
     return {"type": "FeatureCollection", "features": features}
 
 
@@ -180,7 +226,7 @@ def write_gpx(path: str | os.PathLike[str], fixes: pd.DataFrame, result: pd.Data
     """The repaired track as GPX 1.1: one ``trk`` per track, one ``trkseg`` per run of usable fixes."""
     t = fixes["t"].to_numpy(np.float64)
     lat_c = result["lat_clean"].to_numpy(np.float64)
-    lon_c = result["lon_clean"].to_numpy(np.float64)
+    lon_c = _wrap(result["lon_clean"].to_numpy(np.float64))  # GPX also wants [-180, 180]
     parts = [
         '<?xml version="1.0" encoding="UTF-8"?>\n'
         '<gpx version="1.1" creator="gradgps" xmlns="http://www.topografix.com/GPX/1/1">\n'

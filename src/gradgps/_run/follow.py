@@ -29,6 +29,15 @@ Detector reports an unusable fix; NMEA sentences that are not fixes (GSV,
 GSA, text) get a line with empty result columns and ``invalid_reason`` ``not a
 fix sentence``. Blank lines are skipped (nothing to answer). A fix whose time
 is not after the previous fix of its track is invalid, as in any stream.
+
+Banner lines: loggers often start a file with a line of their own (``#
+GPSLogger 3.2 started 2026-11-23``, a count, a title). Until the first NMEA
+sentence or CSV header, lines that are neither are skipped, and ``warn`` is
+told once how many and why, so a banner does not turn an NMEA log into a
+broken CSV. A CSV whose header is really unusable still fails with the
+header's own error: as soon as a second line with as many fields follows it
+(its data rows), at the end of the input, or after
+:data:`MAX_BANNER_LINES` lines without a start.
 """
 
 from __future__ import annotations
@@ -40,27 +49,41 @@ import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from .._exceptions import ConfigError
+from .._exceptions import ConfigError, InputError
 from .._grad.detector import Detector, MultiTrackDetector
 from .._io.nmea import Malformed, parse_gga, parse_rmc, split_sentence
 from .._result import RESULT_COLUMNS, PointResult
 from .._tracks.track import ColumnMap, resolve_columns
 
-__all__ = ["NMEA_FIELDS", "RESULT_FIELDS", "FollowCounts", "follow_lines", "parse_time"]
+__all__ = [
+    "MAX_BANNER_LINES",
+    "NMEA_FIELDS",
+    "RESULT_FIELDS",
+    "FollowCounts",
+    "follow_lines",
+    "parse_time",
+]
 
 RESULT_FIELDS = RESULT_COLUMNS
 NMEA_FIELDS = ("line", "sentence", "time", "lat", "lon", "speed", "heading", "epoch_line")
 _DAY = 86400.0
+#: Banner lines skipped before giving up on finding a start (a live stream must not be eaten silently).
+MAX_BANNER_LINES = 100
 
 
 @dataclass
 class FollowCounts:
-    """What a follow session saw: result lines written, fixes scored, anomalies, unusable lines."""
+    """What a follow session saw: result lines written, fixes scored, anomalies, unusable lines.
+
+    ``skipped``: banner lines before the first NMEA sentence or CSV header
+    (no output line for them: they precede the output's header).
+    """
 
     lines: int = 0
     fixes: int = 0
     anomalies: int = 0
     invalid: int = 0
+    skipped: int = 0
 
 
 def _text(value: float | int | str | None) -> str:
@@ -231,6 +254,58 @@ def _csv_text(fields: list[str]) -> str:
     return buffer.getvalue()
 
 
+class _Start:
+    """Finds where the stream starts: the first NMEA sentence or CSV header, past any banner.
+
+    Lines before it that are neither are counted, not answered; the first
+    such line with several fields keeps its header error, raised when the
+    lines after it show it was a CSV header after all (see the module
+    docstring).
+    """
+
+    def __init__(self, fmt: str | None, columns: ColumnMap | None) -> None:
+        self.fmt = fmt
+        self.columns = columns
+        self.skipped: list[str] = []
+        self.header_error: InputError | None = None
+        self.header_width = 0
+
+    def nmea(self, text: str) -> bool:
+        return self.fmt == "nmea" or (self.fmt is None and text.lstrip().startswith(("$", "!")))
+
+    def header(self, text: str) -> list[str] | None:
+        """The CSV header if ``text`` is one; None (and the line counted) for a banner line."""
+        fields = next(csv.reader([text]))
+        try:
+            resolve_columns(fields, self.columns, source="<stdin>")
+        except InputError as exc:
+            if self.header_error is not None and len(fields) == self.header_width:
+                raise self.header_error from None  # its data rows follow: a bad header
+            if self.header_error is None and len(fields) > 1:
+                self.header_error, self.header_width = exc, len(fields)
+            self.skipped.append(text)
+            if len(self.skipped) > MAX_BANNER_LINES:
+                self.give_up()
+            return None
+        return fields
+
+    def give_up(self) -> None:
+        """No start found: the error a header-less input gets (as without banner skipping)."""
+        if self.header_error is not None:
+            raise self.header_error
+        first = self.skipped[0] if self.skipped else ""
+        resolve_columns(next(csv.reader([first])), self.columns, source="<stdin>")
+
+    def warning(self, what: str) -> str:
+        n = len(self.skipped)
+        first = self.skipped[0]
+        shown = first if len(first) <= 60 else first[:57] + "..."
+        return (
+            f"skipped {n} line{'s' if n != 1 else ''} before the first {what}: "
+            f"neither NMEA nor a CSV header (first: {shown!r})"
+        )
+
+
 def follow_lines(
     lines: Iterable[str],
     write: Callable[[str], None],
@@ -239,29 +314,38 @@ def follow_lines(
     threshold: float | None = None,
     columns: ColumnMap | None = None,
     fmt: str | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> FollowCounts:
     """Score every line of ``lines`` as it comes; ``write`` gets the header, then one line per input line.
 
     ``write`` is called with one CSV line (no newline) at a time and should
     flush; ``fmt`` is ``"csv"``, ``"nmea"`` or ``None`` (from the first line).
-    Raises only for a CSV header without time/latitude/longitude columns, or
-    an unsupported ``fmt``.
+    ``warn`` gets one message (no ``warning:`` prefix) when banner lines were
+    skipped before the first sentence or header; they are counted in
+    ``FollowCounts.skipped`` either way. Raises only for a CSV header without
+    time/latitude/longitude columns (or no header at all), or an unsupported
+    ``fmt``.
     """
     if fmt is not None and fmt not in ("csv", "nmea"):
         raise ConfigError(f"follow mode reads CSV or NMEA lines, not {fmt!r}")
     counts = FollowCounts()
     follower: _CsvFollower | _NmeaFollower | None = None
+    start = _Start(fmt, columns)
     for raw in lines:
         text = raw.rstrip("\r\n").lstrip("\ufeff")
         if not text.strip():
             continue
         if follower is None:
-            kind = fmt or ("nmea" if text.lstrip().startswith(("$", "!")) else "csv")
-            if kind == "csv":
+            is_nmea = start.nmea(text)
+            header = None if is_nmea else start.header(text)
+            if header is None and not is_nmea:
+                continue  # a banner line
+            counts.skipped = len(start.skipped)
+            if start.skipped and warn is not None:
+                warn(start.warning("NMEA sentence" if header is None else "CSV header"))
+            if header is not None:
                 follower = _CsvFollower(
-                    next(csv.reader([text])),
-                    columns,
-                    MultiTrackDetector(model, threshold=threshold),
+                    header, columns, MultiTrackDetector(model, threshold=threshold)
                 )
                 write(_csv_text(follower.out_header()))
                 continue
@@ -278,4 +362,6 @@ def follow_lines(
                 counts.anomalies += result.anomaly
         elif fields[-1]:
             counts.invalid += 1
+    if follower is None and start.skipped:
+        start.give_up()
     return counts
