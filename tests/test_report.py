@@ -131,3 +131,25 @@ def test_bounds_are_the_pipelines_own_and_hold_clean_points():
     assert inside.mean() > 0.9
     half = 0.5 * (bounds.north_upper[warm:] - bounds.north_lower[warm:])
     assert np.all(half >= params.rema.min_margin - 1e-9)
+
+
+def test_report_rema_on_positions_only_follows_the_track_at_half_hz():
+    """Positions only at 0.5 Hz: the report's REMA is the detector's (driven by the motion
+    model's velocity), so its prediction stays on a clean track. It used to run REMA
+    without that velocity and drew a prediction hundreds of metres off the track
+    (the Nevada Garmin drive, positions only)."""
+    from gradgps._grad.defaults import grad_points
+
+    params = Detector().model_.params
+    fleet = simulate_fleet(2, 20.0, 0.5, 11, imu=False)[["track", "t", "lat", "lon"]]
+    prepared = grad_points(fleet, params.max_gap_s)
+    segments = [k for k, _ in prepared.segment_slices()]
+    flags = np.zeros(len(prepared.points), bool)
+    for b in rema_bounds(prepared, params, flags, segments):
+        warm = params.rema.slide_size
+        for obs, lo, hi in (
+            (b.east, b.east_lower, b.east_upper),
+            (b.north, b.north_lower, b.north_upper),
+        ):
+            miss = np.abs(obs - 0.5 * (lo + hi))[warm:]
+            assert np.nanmax(miss) < 100.0  # a clean track: never far from REMA's prediction

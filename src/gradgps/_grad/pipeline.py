@@ -88,7 +88,7 @@ from .offset import (
     offset_step,
 )
 from .recovery import N_RECOVERY_STATE, RecoveryParams, recovery_step
-from .rema import N_OUT, O_EMA, RemaParams
+from .rema import N_OUT, O_EMA, O_LOWER, O_UPPER, RemaParams
 from .time_classifier import N_TIME_STATE, T_GAP, TimeParams, time_step
 
 __all__ = [
@@ -96,6 +96,7 @@ __all__ = [
     "PERIOD_STEPS",
     "PipelineParams",
     "grad_features",
+    "grad_rema_bounds",
     "grad_segment",
     "grad_segments",
     "grad_step",
@@ -459,6 +460,30 @@ def _features_kernel(
     return out
 
 
+@numba.njit(cache=True)
+def _rema_bounds_kernel(
+    P: FloatArray,
+    S: FloatArray,
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    n_features: int,
+) -> FloatArray:
+    core_out = np.empty(_core_width(P))
+    off_out = np.empty(_N_OFF_OUT)
+    x = np.empty(n_features)
+    out = np.empty((lat.size, 4))
+    for i in range(lat.size):
+        _features_point(P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i], x)
+        out[i, 0] = core_out[N_RESULT + O_LOWER]
+        out[i, 1] = core_out[N_RESULT + O_UPPER]
+        out[i, 2] = core_out[N_RESULT + N_OUT + O_LOWER]
+        out[i, 3] = core_out[N_RESULT + N_OUT + O_UPPER]
+    return out
+
+
 # The inputs of the batch drivers, as one tuple (numba passes it as is):
 # (Ps, Ss, s_off, gp, Hs, begin, end, dt, lat, lon, speed, heading, out).
 @numba.njit(cache=True)
@@ -632,6 +657,29 @@ def grad_features(
     P = params.array(segment_period(t), frame, dims)
     return np.asarray(
         _features_kernel(P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names))
+    )
+
+
+def grad_rema_bounds(
+    params: PipelineParams,
+    frame: LocalFrame,
+    t: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+) -> FloatArray:
+    """REMA's lower and upper bounds on east and north, ``(n, 4)`` metres, for one segment.
+
+    Driven point by point exactly as the detector drives REMA (the motion
+    model's velocity standing in for a missing speed or heading), so a
+    report draws the REMA the verdicts came from, not a look-alike.
+    """
+    names = pipeline_feature_names(params)
+    dims = np.array([len(names), 0, 0, 0], np.int64)
+    P = params.array(segment_period(t), frame, dims)
+    return np.asarray(
+        _rema_bounds_kernel(P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names))
     )
 
 

@@ -44,10 +44,8 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from .._grad.core import N_RESULT, core_new_state, core_step
 from .._grad.defaults import grad_points
-from .._grad.pipeline import PipelineParams, segment_period
-from .._grad.rema import N_OUT, O_LOWER, O_UPPER
+from .._grad.pipeline import PipelineParams, grad_rema_bounds
 from .._result import ResultCounts
 from .._tracks.geo import LocalFrame
 from .._tracks.preprocess import Prepared
@@ -107,17 +105,16 @@ def rema_bounds(
     point_flag: NDArray[np.bool_],
     segments: Sequence[int],
 ) -> list[ChannelBounds]:
-    """REMA bounds on east and north for the given segments, as the model's pipeline computes them.
-
-    Runs :func:`core_step` point by point from Python (a few microseconds a
-    point): the batch kernel does not return bounds, and a report covers a few
-    segments, not a fleet.
-    """
+    """REMA bounds on east and north for the given segments, as the model's pipeline computes them
+    (:func:`gradgps._grad.pipeline.grad_rema_bounds`: on a file without speed or
+    heading, REMA runs on the motion model's velocity, as in the detector)."""
     pts = prepared.points
     nan = np.full(len(pts), np.nan)
     speed = pts["speed"].to_numpy(np.float64) if "speed" in pts else nan
     heading = pts["heading"].to_numpy(np.float64) if "heading" in pts else nan
     t_all = pts["t"].to_numpy(np.float64)
+    lat_all = pts["lat"].to_numpy(np.float64)
+    lon_all = pts["lon"].to_numpy(np.float64)
     east_all = pts["east"].to_numpy(np.float64)
     north_all = pts["north"].to_numpy(np.float64)
     wanted = set(segments)
@@ -126,19 +123,16 @@ def rema_bounds(
         if seg not in wanted:
             continue
         t = t_all[sl]
-        core = params.core(segment_period(t))
-        P = core.to_array()
-        S = core_new_state(P)
-        row = np.zeros(N_RESULT + 2 * N_OUT + core.n_features())
-        n = t.size
-        bounds = np.empty((n, 4))
-        east, north, sp, hd = east_all[sl], north_all[sl], speed[sl], heading[sl]
-        for i in range(n):
-            core_step(P, S, east[i], north[i], sp[i], hd[i], row)
-            bounds[i, 0] = row[N_RESULT + O_LOWER]
-            bounds[i, 1] = row[N_RESULT + O_UPPER]
-            bounds[i, 2] = row[N_RESULT + N_OUT + O_LOWER]
-            bounds[i, 3] = row[N_RESULT + N_OUT + O_UPPER]
+        bounds = grad_rema_bounds(
+            params,
+            prepared.segment_frames[seg],
+            t,
+            lat_all[sl],
+            lon_all[sl],
+            speed[sl],
+            heading[sl],
+        )
+        east, north = east_all[sl], north_all[sl]
         out.append(
             ChannelBounds(
                 segment=seg,
