@@ -154,9 +154,9 @@ class OffsetParams:
     ``accel_allowance``: m/s², what a car's braking or speeding up moves it off
     the predicted step: a residual within ``threshold_m + accel_allowance *
     dt**2 / 2`` is explained. 6 m/s² (about 0.6 g, the most a car pulls):
-    at 0.5 Hz a car braking hard misses a constant-velocity step by 12-18 m
-    once the velocity estimate's lag is added, and that is no jump; at 1 Hz
-    the allowance is 3 m, at 10 Hz 3 cm."""
+    at 0.5 Hz a car braking at 3-6 m/s² misses a constant-velocity step by
+    6-12 m from the deceleration alone (more with the velocity estimate's
+    lag), and that is no jump; at 1 Hz the allowance is 3 m, at 10 Hz 3 cm."""
 
     threshold_m: float = 8.0
     leak_per_s: float = 0.002
