@@ -1,12 +1,14 @@
 """A model on the real validation drives: clean false alarms and injected-fault F1.
 
 For tuning and model choice (never the test splits): per real data set with a
-validation split, positions only (t, lat, lon), at the native rate and
-decimated to 0.5 Hz, the share of the untouched drive's fixes flagged and the
+validation split, in each column variant asked for (``--variant``, default
+positions only: t, lat, lon; data sets without the variant's columns are
+skipped), at the native rate and decimated to 0.5 Hz, the share of the untouched drive's fixes flagged and the
 anomaly F1 under protocol ``grad`` (seed 0). ``--threshold`` overrides the
 model's own, to see what a threshold choice costs. Run:
 
     python benchmarks/validation_check.py [--model DIR] [--threshold P] [--data-dir DIR]
+        [--variant positions|+speed|+speed+heading ...]
 """
 
 from __future__ import annotations
@@ -14,13 +16,14 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+import pandas as pd
 
 from gradgps._data.datasets import load_dataset
 from gradgps._data.inject import inject_grad
 from gradgps._eval.robustness import _variant_columns, decimate
 from gradgps._grad.detector import Detector
 from gradgps._result import f1_score
-from gradgps._tracks.track import to_fixes
+from gradgps._tracks.track import ColumnMap, to_fixes
 
 DATASETS = ("driveplotr", "tuc", "nl_motorway", "nl_motorway_gopro", "austin2006", "nevada")
 
@@ -30,28 +33,47 @@ def main() -> None:
     parser.add_argument("--model", default=None, help="model directory (default: shipped)")
     parser.add_argument("--threshold", type=float, default=None)
     parser.add_argument("--data-dir", default=None)
+    parser.add_argument(
+        "--variant",
+        action="append",
+        choices=("positions", "+speed", "+speed+heading"),
+        help="column variant (repeatable; default positions)",
+    )
     args = parser.parse_args()
     det = Detector(args.model, threshold=args.threshold)
-    print("| data set | rate | fixes | clean false alarms | anomaly F1 |")
-    print("|---|---|---|---|---|")
+    print("| data set | columns | rate | fixes | clean false alarms | anomaly F1 |")
+    print("|---|---|---|---|---|---|")
     for name in DATASETS:
         table = load_dataset(name, "validation", data_dir=args.data_dir)
         full = to_fixes(table).attrs["columns"]
-        picked = _variant_columns(table, full, "positions")
-        assert picked is not None  # every data set has positions
-        cols, cmap = picked
-        for rate, period in (("native", None), ("0.5 Hz", 2.0)):
-            data = table if period is None else decimate(table, cmap, period)
-            if period is not None and len(data) == len(table):
-                continue  # natively 0.5 Hz
-            clean = det.detect(to_fixes(data[cols], cmap))
-            false_alarms = float(np.mean(clean["anomaly"].to_numpy() == 1))
-            labelled = inject_grad(data[cols], seed=0, columns=cmap)
-            result = det.detect(to_fixes(labelled, cmap))
-            f1 = f1_score(
-                labelled["label_anomaly"].to_numpy() == 1, result["anomaly"].to_numpy() == 1
-            )
-            print(f"| {name} | {rate} | {len(data):,} | {100 * false_alarms:.2f} % | {f1:.3f} |")
+        for variant in args.variant or ["positions"]:
+            picked = _variant_columns(table, full, variant)
+            if picked is not None:
+                _check(det, name, variant, table, picked)
+
+
+def _check(
+    det: Detector,
+    name: str,
+    variant: str,
+    table: pd.DataFrame,
+    picked: tuple[list[str], ColumnMap],
+) -> None:
+    """Print one data set's rows for one column variant."""
+    cols, cmap = picked
+    for rate, period in (("native", None), ("0.5 Hz", 2.0)):
+        data = table if period is None else decimate(table, cmap, period)
+        if period is not None and len(data) == len(table):
+            continue  # natively 0.5 Hz
+        clean = det.detect(to_fixes(data[cols], cmap))
+        false_alarms = float(np.mean(clean["anomaly"].to_numpy() == 1))
+        labelled = inject_grad(data[cols], seed=0, columns=cmap)
+        result = det.detect(to_fixes(labelled, cmap))
+        f1 = f1_score(labelled["label_anomaly"].to_numpy() == 1, result["anomaly"].to_numpy() == 1)
+        print(
+            f"| {name} | {variant} | {rate} | {len(data):,} "
+            f"| {100 * false_alarms:.2f} % | {f1:.3f} |"
+        )
 
 
 if __name__ == "__main__":

@@ -179,3 +179,25 @@ def test_a_frozen_fix_stops_harder_than_any_car(period: float) -> None:
     frozen = motion_batch(t, frozen_x, np.zeros(t.size), period)
     assert frozen[-1, still] > 20
     assert frozen[-1, decel] > 8  # beyond what a car pulls (about 0.6-0.9 g)
+
+
+def test_a_growing_offset_is_no_track_to_follow() -> None:
+    """Two faulty fixes whose offset grows by the same amount twice must not be followed.
+
+    Found on the TUC validation drive (4-5 Hz, positions only): offsets of
+    0, -24, -47 m on two fixes made two observed steps that agreed with each
+    other, the model re-acquired on them at 120 m/s, and its speed estimate
+    (4.6 m/s before) read 51 m/s when the fixes came back; the offset tracker
+    then held a phantom 60 m offset on clean fixes for tens of seconds.
+    """
+    period, speed = 0.2, 4.6
+    n = 60
+    t = np.arange(n) * period
+    east = speed * t.copy()
+    north = np.zeros(n)
+    east[30] -= 24.0
+    east[31] -= 47.0
+    feats = motion_batch(t, east, north, period)
+    # The model's speed never leaves what a car could do from 4.6 m/s.
+    assert feats[:, MOTION_FEATURES.index("motion_speed")].max() < speed + 6.0 * 3 * period + 1
+    assert np.all(feats[34:, NIS] < 1.0)  # and it is on the track again at once

@@ -25,12 +25,16 @@ for never staying lost:
   update; the filter dead-reckons through it (``run_s`` counts the seconds).
 * **No state stays diverged.** A gated fix is re-acquired when its own step
   from the previous *observed* fix agrees with the motion, or with the
-  previous observed step (within the gate plus what ``max_accel`` explains):
+  previous observed step (within the gate plus what ``max_accel`` explains,
+  and at a speed a car could have reached from the model's since it last
+  followed the fixes: a fault whose offset grows step by step is no track):
   the track goes on from a new place (the end of a jump, or a jump that was
   the truth), or the vehicle braked or turned harder than the model
   followed. It is re-acquired unconditionally once ``max_run_s`` seconds
-  have passed. On re-acquisition the velocity follows the fix's own step
-  four times faster than usual and the turn rate is measured afresh from the
+  have passed. On re-acquisition along the predicted motion the velocity
+  is kept (the step may come from a fault's fix and teaches nothing); on
+  re-acquisition against it the velocity follows the fix's own step four
+  times faster than usual and the turn rate is measured afresh from the
   last two steps (a course change across a jump is no turn); the turn rate
   is always capped at ``max_accel`` over the speed, so dead reckoning cannot
   draw circles. Whatever the input, the filter follows the fixes again
@@ -329,14 +333,19 @@ def motion_step(
     limit = p[P_GATE] * scale
     ove = state[S_OVE]
     ovn = state[S_OVN]
+    run = state[S_RUN]
+    # Two steps that agree among themselves are only a track to follow if a
+    # car could have reached their speed from the model's since it last
+    # followed the fixes: a fault whose offset grows by the same amount twice
+    # (0, -24, -47 m) has steps that agree with each other at 120 m/s.
     steps_agree = math.hypot(step_e - ove * step_dt, step_n - ovn * step_dt) <= (
         limit + p[P_MAX_ACCEL] * step_dt * step_dt
+    ) and math.hypot(step_e / step_dt - pve, step_n / step_dt - pvn) <= (
+        p[P_MAX_ACCEL] * (run + step_dt) + limit / step_dt
     )
-    consistent = steps_agree or (
-        math.hypot(step_e - pve * step_dt, step_n - pvn * step_dt) <= limit
-    )
+    follows_motion = math.hypot(step_e - pve * step_dt, step_n - pvn * step_dt) <= limit
+    consistent = steps_agree or follows_motion
     gated = nis > p[P_GATE]
-    run = state[S_RUN]
     if gated and not (run > 0.0 and consistent) and run + step_dt <= p[P_MAX_RUN]:
         # Dead-reckon through the fix.
         state[S_PE] = pred_e
@@ -353,9 +362,13 @@ def motion_step(
             obs_e = (east - state[S_PE]) / step_dt
             obs_n = (north - state[S_PN]) / step_dt
             m2 = (1.0 - p[P_MEMORY]) * m2 + p[P_MEMORY] * innov * innov
-        # After a re-acquisition the model's velocity has just been proven
-        # wrong: the fixes' own step takes over four times faster.
-        tau = p[P_VEL_TAU] / 4.0 if gated else p[P_VEL_TAU]
+        # Re-acquired on a step that disagrees with the predicted motion (the
+        # fixes agree among themselves): the model's velocity has just been
+        # proven wrong, and the fixes' own step takes over four times faster.
+        # Re-acquired on a step that follows the predicted motion (the track
+        # goes on from elsewhere): the velocity was right, and a step from a
+        # fix that may be one of a fault's teaches it nothing.
+        tau = p[P_VEL_TAU] / 4.0 if gated and not follows_motion else p[P_VEL_TAU]
         g = 1.0 - math.exp(-step_dt / tau)
         new_ve = g * obs_e + (1.0 - g) * pve
         new_vn = g * obs_n + (1.0 - g) * pvn
@@ -493,10 +506,14 @@ def motion_reference(
         scale = math.sqrt(max(m2, prm.noise_floor**2) + (0.5 * prm.maneuver_accel * dt * dt) ** 2)
         nis = innov / scale
         step = z - last_obs
+        # ... and a car could have reached their speed since the model last followed.
         steps_agree = bool(
             np.hypot(*(step - last_step_vel * dt)) <= prm.gate * scale + prm.max_accel * dt * dt
+        ) and bool(
+            np.hypot(*(step / dt - v_pred)) <= prm.max_accel * (run + dt) + prm.gate * scale / dt
         )
-        consistent = steps_agree or bool(np.hypot(*(step - v_pred * dt)) <= prm.gate * scale)
+        follows_motion = bool(np.hypot(*(step - v_pred * dt)) <= prm.gate * scale)
+        consistent = steps_agree or follows_motion
         gated = nis > prm.gate
         if gated and not (run > 0 and consistent) and run + dt <= prm.max_run_s:
             pos, vel, run = pred, v_pred, run + dt
@@ -506,7 +523,8 @@ def motion_reference(
             else:
                 obs = (z - pos) / dt
                 m2 = (1 - prm.memory) * m2 + prm.memory * innov**2
-            tau = prm.velocity_tau_s / 4 if gated else prm.velocity_tau_s
+            # Proven wrong (fast), or re-acquired along the predicted motion (kept).
+            tau = prm.velocity_tau_s / 4 if gated and not follows_motion else prm.velocity_tau_s
             g = 1 - math.exp(-dt / tau)
             new_vel = g * obs + (1 - g) * v_pred
             if gated:

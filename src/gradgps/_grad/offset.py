@@ -259,7 +259,10 @@ def offset_features_reference(
             in_fault = abs(before) > prm.threshold_m
             clean[c] += predicted[c]
             explained = abs(residual[c]) <= prm.threshold_m + 0.5 * prm.accel_allowance * d[i] ** 2
-            if not explained:  # a fault starts, changes or ends: two estimates of the
+            undone = abs(before + residual[c]) <= prm.threshold_m + _RETURN_SLACK * abs(before)
+            if not explained and in_fault and undone:
+                offset[c] = 0.0  # the step undid the offset: back on the track
+            elif not explained:  # a fault starts, changes or ends: two estimates of the
                 # offset; the smaller one is right when either is
                 offset[c] = min(before + residual[c], fix[i, c] - clean[c], key=abs)
                 if in_fault and age < prm.trust_clean_s:  # dead reckoning is still exact
@@ -331,8 +334,13 @@ def _channel(
     in_fault = abs(before) > p[P_THRESHOLD]
     state[ce] += predicted
     explained = abs(residual) <= p[P_THRESHOLD] + 0.5 * p[P_ACCEL] * dt * dt
-    if not explained:
-        summed = before + residual
+    summed = before + residual
+    if not explained and in_fault and abs(summed) <= p[P_THRESHOLD] + _RETURN_SLACK * abs(before):
+        # The step undid the offset: the fault's end, whatever dead reckoning says
+        # (the clean-track estimate drifts metres a second in curves and took
+        # the end of a noise run for a new 20 m offset, held for 100 s).
+        state[o] = 0.0
+    elif not explained:
         state[o] = summed if abs(summed) <= abs(fix - state[ce]) else fix - state[ce]
         if in_fault and state[S_AGE] < p[P_TRUST]:
             state[o] = fix - state[ce]
