@@ -103,3 +103,22 @@ def test_bad_parameters() -> None:
         OffsetParams(threshold_m=0).to_array()
     with pytest.raises(ConfigError):
         OffsetParams(bias_alpha=1.5).to_array()
+
+
+def test_a_step_that_undoes_the_offset_ends_the_fault_whatever_dead_reckoning_says() -> None:
+    """Found on the DrivePlotR validation drive, positions only: three noise fixes
+    about 37 m south, then the truth again. The velocity the tracker dead-reckons
+    with (here a reported speed 6 m/s too high, like a motion model pulled by the
+    fault) put the clean-track estimate 22 m off by the return, and the tracker
+    took the distance to it for a new offset, held on clean fixes for 100 s."""
+    dt, east, north, speed, heading = _drive(seed=2)
+    north = north.copy()
+    north[100:103] += [-37.2, -35.8, -37.4]
+    fast = speed.copy()
+    fast[99:104] += 6.0  # the velocity estimate is wrong around the fault
+    for out in (
+        offset_features(dt, east, north, fast, heading),
+        offset_features_reference(dt, east, north, fast, heading),
+    ):
+        assert (out[100:103, 2] > 20.0).all()
+        assert (out[103:, 2] < 8.0).all()  # the return ends it at once
