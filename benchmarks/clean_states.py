@@ -50,7 +50,9 @@ def main() -> None:
                 lat = table["lat"].to_numpy(np.float64)[rows]
                 lon = table["lon"].to_numpy(np.float64)[rows]
                 nan = np.full(t.size, np.nan)
-                f = grad_features(params, LocalFrame(lat[0], lon[0]), t, lat, lon, nan, nan)
+                f = grad_features(
+                    params, LocalFrame(lat[0], lon[0]), t, lat, lon, nan, nan
+                ).features
                 # Features are compressed with a signed log1p; both are >= 0.
                 run += int((np.expm1(f[:, run_k]) > 0).sum())
                 phantom += int((np.expm1(f[:, offset_k]) > threshold).sum())
