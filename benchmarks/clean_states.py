@@ -67,7 +67,9 @@ def main() -> None:
                 lat = fixes["lat"].to_numpy(np.float64)[rows]
                 lon = fixes["lon"].to_numpy(np.float64)[rows]
                 nan = np.full(t.size, np.nan)
-                f = grad_features(params, LocalFrame(lat[0], lon[0]), t, lat, lon, nan, nan)
+                f = grad_features(
+                    params, LocalFrame(lat[0], lon[0]), t, lat, lon, nan, nan
+                ).features
                 use = normal[rows]
                 # Features are compressed with a signed log1p; both are >= 0.
                 run += int((np.expm1(f[use, run_k]) > 0).sum())

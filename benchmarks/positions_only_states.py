@@ -33,7 +33,7 @@ def _features(params: PipelineParams, t, east, north):  # type: ignore[no-untype
     lat, lon = FRAME.to_geodetic(east, north)
     nan = np.full(t.size, np.nan)
     names = pipeline_feature_names(params)
-    f = grad_features(params, FRAME, t, lat, lon, nan, nan)
+    f = grad_features(params, FRAME, t, lat, lon, nan, nan).features
     return {n: _uncompress(f[:, k]) for k, n in enumerate(names)}
 
 

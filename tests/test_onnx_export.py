@@ -99,7 +99,7 @@ def test_cli_exports_the_shipped_model_and_it_runs_on_real_features(tmp_path):
         columns["lon"],
         columns["speed"],
         columns["heading"],
-    )
+    ).features
     ours = gru_model(*load_model(loaded.path)).predict_stream(features)[0]
     anomaly, bias, _, _ = _run(
         _session(proto),

@@ -27,7 +27,7 @@ def _uncompress(v: np.ndarray) -> np.ndarray:
 def _features(t: np.ndarray, east: np.ndarray, north: np.ndarray) -> dict[str, np.ndarray]:
     lat, lon = FRAME.to_geodetic(east, north)
     nan = np.full(t.size, np.nan)
-    feats = grad_features(PARAMS, FRAME, t, lat, lon, nan, nan)
+    feats = grad_features(PARAMS, FRAME, t, lat, lon, nan, nan).features
     return {name: _uncompress(feats[:, k]) for k, name in enumerate(NAMES)}
 
 

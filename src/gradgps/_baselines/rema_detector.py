@@ -21,6 +21,7 @@ import pandas as pd
 
 from .._exceptions import ConfigError
 from .._grad.core import CoreParams, core_batch
+from .._grad.defaults import grad_time_params, tuned_rema_params
 from .._grad.features import FeatureParams
 from .._grad.recovery import RecoveryParams
 from .._grad.rema import RemaParams
@@ -39,27 +40,14 @@ class RemaDetector(BatchBaseline):
     The defaults are what ``gradgps tune-rema --dataset driveplotr`` chose on
     the driveplotr validation split (injection seeds 0, 1, 2; docs/rema.md):
     trend mode with speed/heading, 8 m floor, sensitivity 5, bounds growing
-    0.5 m per consecutive outlier; permanent after 6 flagged points.
+    0.5 m per consecutive outlier; permanent after 6 flagged points. GRAD
+    starts from the same choice, so they are read from GRAD's defaults
+    (:mod:`gradgps._grad.defaults`, one spelling of them) less GRAD's
+    re-acquisition bounds, which the tuning did not include.
     """
 
-    rema: RemaParams = field(
-        default_factory=lambda: RemaParams(
-            alpha=0.3,
-            alpha_min=0.2,
-            alpha_max=0.9,
-            punish=0.2,
-            reward=0.02,
-            slide_size=6,
-            sensitivity=5.0,
-            min_margin=8.0,
-            mode="trend",
-            run_growth=0.5,
-            reacquire_after=0,
-        )
-    )
-    time: TimeParams = field(
-        default_factory=lambda: TimeParams(permanent_run=6, episode_gap=15, intermittent_bursts=2)
-    )
+    rema: RemaParams = field(default_factory=tuned_rema_params)
+    time: TimeParams = field(default_factory=grad_time_params)
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
     feed_recovered: bool = True
     max_gap_s: float = 5.0

@@ -2,14 +2,30 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import click
 
+from .errors import click_errors
 from .options import option
 
 __all__ = ["bench"]
+
+
+@contextlib.contextmanager
+def _step_progress(label: str, total: int | None) -> Iterator[Callable[[str], None]]:
+    """A transient progress bar on stderr, and the ``advance(what)`` callback that the
+    suite runners (:func:`run_bench`, :func:`run_robustness`) take: one unit per
+    finished step, the bar showing what it was."""
+    from rich.console import Console
+    from rich.progress import Progress
+
+    with Progress(console=Console(stderr=True), transient=True) as progress:
+        task = progress.add_task(label, total=total)
+        yield lambda what: progress.update(task, advance=1, description=what)
 
 
 def _robustness(
@@ -22,14 +38,10 @@ def _robustness(
     """``--suite robustness``: run the suite, print its matrix (Markdown), save the JSON."""
     import shlex
 
-    from rich.console import Console
-    from rich.progress import Progress
-
     from .._eval.bench import make_detector
     from .._eval.robustness import ROBUSTNESS_DATASETS, robustness_markdown, run_robustness
-    from .._exceptions import GradGPSError
 
-    try:
+    with click_errors():
         # grad-default with --model: that model in place of the shipped one, i.e. 'grad'.
         det = make_detector(
             "grad" if detector == "grad-default" and model is not None else detector,
@@ -37,18 +49,15 @@ def _robustness(
             data_dir=data_dir,
             model=model,
         )
-        with Progress(console=Console(stderr=True), transient=True) as progress:
-            task = progress.add_task("robustness", total=None)
+        with _step_progress("robustness", None) as advance:
             report = run_robustness(
                 det,
                 detector,
                 model=model,
                 datasets=ROBUSTNESS_DATASETS,
                 data_dir=data_dir,
-                advance=lambda what: progress.update(task, advance=1, description=what),
+                advance=advance,
             )
-    except GradGPSError as exc:
-        raise click.ClickException(str(exc)) from exc
     words = ["gradgps", "bench", "--suite", "robustness", "--detector", detector]
     words += ["--model", str(model)] if model is not None else []
     words += ["--dataset", train_dataset] if train_dataset is not None else []
@@ -164,11 +173,9 @@ def bench(
 ) -> None:
     """Inject faults into a data split, run detectors, print and save their scores."""
     from rich.console import Console
-    from rich.progress import Progress
     from rich.table import Table
 
     from .._eval.bench import bench_units, run_bench
-    from .._exceptions import GradGPSError
 
     if suite == "robustness":
         _robustness(detectors or "grad-default", dataset, data_dir, model, json_path)
@@ -192,13 +199,9 @@ def bench(
     assert detectors is not None
     names = [d.strip() for d in detectors.split(",") if d.strip()]
     row_names = None if rows is None else [r.strip() for r in rows.split(",") if r.strip()]
-    console = Console(stderr=True)
-    try:
-        with Progress(console=console, transient=True) as progress:
-            total = (
-                bench_units(protocol, names) if row_names is None else len(row_names) * len(names)
-            )
-            task = progress.add_task("benchmark", total=total)
+    with click_errors():
+        total = bench_units(protocol, names) if row_names is None else len(row_names) * len(names)
+        with _step_progress("benchmark", total) as advance:
             report = run_bench(
                 protocol,
                 dataset,
@@ -214,10 +217,8 @@ def bench(
                 fix_speed=fix_speed,
                 window=window,
                 rows=row_names,
-                advance=lambda what: progress.update(task, advance=1, description=what),
+                advance=advance,
             )
-    except GradGPSError as exc:
-        raise click.ClickException(str(exc)) from exc
     table = Table(title=f"{protocol} on {dataset}/{split}, seed {seed}")
     headers = [
         "detector",

@@ -10,13 +10,15 @@ Anything else is a bug and keeps its traceback.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from typing import IO, Any
 
 import click
 
 from .._exceptions import ConfigError, GradGPSError, InputError
 
-__all__ = ["BadInputError", "CleanError", "ErrorReportingGroup"]
+__all__ = ["BadInputError", "CleanError", "ErrorReportingGroup", "click_errors"]
 
 
 class CleanError(click.ClickException):
@@ -58,6 +60,21 @@ def missing_extra(exc: ModuleNotFoundError, command: str | None) -> str | None:
         return None
     what = f"'gradgps {command}'" if command else "this command"
     return f"{what} needs {top}, which is not installed: pip install 'gradgps[{extra}]'"
+
+
+@contextlib.contextmanager
+def click_errors() -> Iterator[None]:
+    """A gradgps error raised inside becomes click's plain ``Error: <message>`` (exit code 1).
+
+    How ``bench``, ``inject``, ``tune-rema`` and the peers suite report a
+    failed run, from before :class:`ErrorReportingGroup` did it for every
+    command; one spelling of it, so their messages and exit codes stay as
+    they were.
+    """
+    try:
+        yield
+    except GradGPSError as exc:
+        raise click.ClickException(str(exc)) from exc
 
 
 class ErrorReportingGroup(click.Group):

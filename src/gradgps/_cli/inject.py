@@ -8,6 +8,7 @@ from typing import Any
 import click
 
 from .._tracks.track import ColumnMap, ReadOptions, Table
+from .errors import click_errors
 from .options import column_map, column_options, option, read_options
 
 __all__ = ["inject"]
@@ -72,7 +73,6 @@ def inject(
     from rich.table import Table as RichTable
 
     from .._data.inject import grad_rates, inject_grad, inject_sensor_grid, sensor_grid_rates
-    from .._exceptions import GradGPSError
 
     columns: ColumnMap = column_map(cols)
     reading = read_options(cols)
@@ -86,7 +86,7 @@ def inject(
         )
     if protocol == "grad" and row is not None:
         raise click.UsageError("--row applies to --protocol sensor-grid only")
-    try:
+    with click_errors():
         table = _read_input(input_path, fmt, reading)
         table.frame.attrs["source"] = table.source
         if protocol == "grad":
@@ -102,8 +102,6 @@ def inject(
                 constant=constant,
             )
             rates = sensor_grid_rates(labelled)
-    except GradGPSError as exc:
-        raise click.ClickException(str(exc)) from exc
     from .._io.read import write_table
 
     write_table(labelled, output)

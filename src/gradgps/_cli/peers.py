@@ -7,6 +7,8 @@ from pathlib import Path
 
 import click
 
+from .errors import click_errors
+
 __all__ = ["peers_suite"]
 
 
@@ -26,19 +28,16 @@ def peers_suite(dataset: str, data_dir: Path | None, json_path: Path | None) -> 
 
     from .._baselines.peers import PEER_NAMES, TUNED_FILE
     from .._eval.peers import peers_table, tune_peers
-    from .._exceptions import GradGPSError
     from .._grad.detector import Detector
 
     console = Console(stderr=True)
-    try:
+    with click_errors():
         tuned_all = json.loads(TUNED_FILE.read_text()) if TUNED_FILE.is_file() else {}
         tuned = tuned_all.get(dataset, {})
         if any(p not in tuned.get("positions", {}) for p in PEER_NAMES if p != "kalman-chi2-vel"):
             console.print(f"no tuned peer settings for {dataset}: tuning on its validation split")
             tuned = tune_peers(dataset, data_dir=data_dir, log=console.print)
         report = peers_table(dataset, tuned, Detector(), data_dir=data_dir, log=console.print)
-    except GradGPSError as exc:
-        raise click.ClickException(str(exc)) from exc
     wide = Console(width=140)
     for variant, rows in report["variants"].items():
         table = Table(title=f"peers on {dataset}/test ({report['points']} fixes), {variant}")

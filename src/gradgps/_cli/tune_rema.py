@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from .errors import click_errors
 from .options import option
 
 __all__ = ["tune_rema"]
@@ -76,7 +77,6 @@ def tune_rema(
     output: Path,
 ) -> None:
     """Inject faults into a split, grid-search REMA (per-channel F1) then the time classifier."""
-    from .._exceptions import GradGPSError
     from .._train.tune_rema import tune_on_dataset
 
     try:
@@ -97,7 +97,7 @@ def tune_rema(
             raise click.BadParameter(
                 f"{grid_path} must hold an object of non-empty lists", param_hint="--grid"
             )
-    try:
+    with click_errors():
         settings, rema_table, _ = tune_on_dataset(
             dataset,
             split=split,
@@ -108,8 +108,6 @@ def tune_rema(
             data_dir=data_dir,
             progress=True,
         )
-    except GradGPSError as exc:
-        raise click.ClickException(str(exc)) from exc
     output.write_text(json.dumps(settings, indent=2) + "\n")
     if table_path is not None:
         rema_table.to_csv(table_path, index=False)

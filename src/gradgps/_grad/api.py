@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import os
-from typing import Any
+from typing import Any, Unpack
 
+from .._tracks.track import ColumnKeywords
 from .detector import Detector, track_input
 
 __all__ = ["clean", "detect"]
@@ -15,14 +16,7 @@ def detect(
     *,
     model: str | os.PathLike[str] | None = None,
     threshold: float | None = None,
-    time: str | None = None,
-    lat: str | None = None,
-    lon: str | None = None,
-    track: str | None = None,
-    speed: str | None = None,
-    heading: str | None = None,
-    alt: str | None = None,
-    hdop: str | None = None,
+    **columns: Unpack[ColumnKeywords],
 ) -> Any:
     """``data`` with the detector's result columns added, in the same type.
 
@@ -37,10 +31,8 @@ def detect(
     from .._tracks.objects import add_columns
 
     det = Detector(model, threshold=threshold)
-    inp = track_input(data, time, lat, lon, track, speed, heading, alt, hdop)
-    result = det.detect_fixes(inp.fixes)
-    result.index = inp.index
-    return add_columns(inp, result)
+    inp = track_input(data, **columns)
+    return add_columns(inp, det._detect_input(inp))
 
 
 def clean(
@@ -49,25 +41,7 @@ def clean(
     model: str | os.PathLike[str] | None = None,
     threshold: float | None = None,
     keep_invalid: bool = False,
-    time: str | None = None,
-    lat: str | None = None,
-    lon: str | None = None,
-    track: str | None = None,
-    speed: str | None = None,
-    heading: str | None = None,
-    alt: str | None = None,
-    hdop: str | None = None,
+    **columns: Unpack[ColumnKeywords],
 ) -> Any:
     """``data`` with every position repaired, same type (see :meth:`gradgps.Detector.clean`)."""
-    return Detector(model, threshold=threshold).clean(
-        data,
-        keep_invalid=keep_invalid,
-        time=time,
-        lat=lat,
-        lon=lon,
-        track=track,
-        speed=speed,
-        heading=heading,
-        alt=alt,
-        hdop=hdop,
-    )
+    return Detector(model, threshold=threshold).clean(data, keep_invalid=keep_invalid, **columns)

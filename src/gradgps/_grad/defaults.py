@@ -5,15 +5,22 @@ its features would tell the network nothing from then on. These values are
 what ``gradgps tune-rema --dataset driveplotr`` chose on the driveplotr
 validation split (injection seeds 0, 1, 2; docs/rema.md): trend mode with
 speed/heading, 8 m floor, sensitivity 5, bounds growing 0.5 m per
-consecutive outlier; permanent after 6 flagged points.
+consecutive outlier; permanent after 6 flagged points. GRAD adds bounds on
+how long REMA may stay diverged (re-acquire after 3 consistent steps, at
+most 20 flagged points; docs/deviations.md).
 
-They start out equal to the ``rema`` baseline's defaults
-(:class:`gradgps._baselines.rema_detector.RemaDetector`), but GRAD owns them:
-retuning the baseline does not change GRAD, whose shipped model was trained
-on features computed with these settings.
+GRAD owns them, and they are spelled only here: the ``rema`` baseline
+(:class:`gradgps._baselines.rema_detector.RemaDetector`) takes its defaults
+from this module (:func:`tuned_rema_params`, the tuning's choice without
+GRAD's re-acquisition bounds), never the other way round. A retuned
+baseline is a settings file (``gradgps tune-rema``), which changes nothing
+here; GRAD's shipped model was trained on features computed with these
+settings.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import pandas as pd
 
@@ -22,11 +29,15 @@ from .._tracks.preprocess import Prepared, preprocess
 from .rema import RemaParams
 from .time_classifier import TimeParams
 
-__all__ = ["grad_rema_params", "grad_time_params"]
+__all__ = ["grad_rema_params", "grad_time_params", "tuned_rema_params"]
 
 
-def grad_rema_params() -> RemaParams:
-    """REMA settings of GRAD's pipeline (:class:`gradgps._grad.pipeline.PipelineParams`)."""
+def tuned_rema_params() -> RemaParams:
+    """The REMA settings ``gradgps tune-rema --dataset driveplotr`` chose (docs/rema.md).
+
+    The ``rema`` baseline's defaults as they are; GRAD's with its
+    re-acquisition bounds added (:func:`grad_rema_params`).
+    """
     return RemaParams(
         alpha=0.3,
         alpha_min=0.2,
@@ -38,9 +49,15 @@ def grad_rema_params() -> RemaParams:
         min_margin=8.0,
         mode="trend",
         run_growth=0.5,
-        reacquire_after=3,
-        max_run=20,
     )
+
+
+def grad_rema_params() -> RemaParams:
+    """REMA settings of GRAD's pipeline (:class:`gradgps._grad.pipeline.PipelineParams`):
+    the tuned ones, re-acquiring after 3 consistent steps and after at most 20
+    flagged points, so that no long fault leaves REMA diverged (and the
+    GRU's REMA features meaningless) for the rest of a drive."""
+    return replace(tuned_rema_params(), reacquire_after=3, max_run=20)
 
 
 def grad_time_params() -> TimeParams:

@@ -59,7 +59,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 import pandas as pd
@@ -80,6 +80,7 @@ from .._result import (
 )
 from .._tracks.geo import LocalFrame, far_apart_scalar
 from .._tracks.preprocess import stream_reasons
+from .._tracks.track import ColumnKeywords, ColumnMap, check_keywords
 from .core import N_CORE_PARAMS, _layout
 from .defaults import FRAME_RADIUS_M, MIN_STEP_S, grad_points
 from .events import fault_events
@@ -303,26 +304,17 @@ def _readings(values: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.where(np.isfinite(values), values, np.nan)
 
 
-def track_input(
-    data: Any,
-    time: str | None,
-    lat: str | None,
-    lon: str | None,
-    track: str | None,
-    speed: str | None,
-    heading: str | None,
-    alt: str | None,
-    hdop: str | None,
-) -> TrackInput:
+def track_input(data: Any, **columns: Unpack[ColumnKeywords]) -> TrackInput:
     """``data`` as a :class:`~gradgps._tracks.objects.TrackInput`, its columns named by the
     keywords that :func:`gradgps.detect`, :func:`gradgps.clean` and :class:`Detector`'s
-    ``detect``/``clean``/``events`` take (``None``: found by name)."""
+    ``detect``/``clean``/``events`` take (``None``: found by name).
+
+    A keyword that is not a column role is a ``TypeError`` (:func:`check_keywords`).
+    """
     from .._tracks.objects import as_track_input
 
-    columns = dict(
-        time=time, lat=lat, lon=lon, track=track, speed=speed, heading=heading, alt=alt, hdop=hdop
-    )
-    return as_track_input(data, columns)
+    check_keywords(columns, ColumnKeywords)
+    return as_track_input(data, ColumnMap(**columns).as_dict())
 
 
 class Detector:
@@ -595,20 +587,7 @@ class Detector:
 
     # -- batch -------------------------------------------------------------
 
-    def detect(
-        self,
-        data: Any,
-        *,
-        threads: int = 1,
-        time: str | None = None,
-        lat: str | None = None,
-        lon: str | None = None,
-        track: str | None = None,
-        speed: str | None = None,
-        heading: str | None = None,
-        alt: str | None = None,
-        hdop: str | None = None,
-    ) -> Any:
+    def detect(self, data: Any, *, threads: int = 1, **columns: Unpack[ColumnKeywords]) -> Any:
         """Flag, classify and repair every fix of ``data``; one result row per input row.
 
         ``data``: a DataFrame of one or many tracks (canonical fixes, see
@@ -635,12 +614,19 @@ class Detector:
         """
         from .._tracks.objects import add_columns
 
-        inp = track_input(data, time, lat, lon, track, speed, heading, alt, hdop)
-        result = self.detect_fixes(inp.fixes, threads=threads)
-        result.index = inp.index
+        inp = track_input(data, **columns)
+        result = self._detect_input(inp, threads=threads)
         if inp.kind == "frame":
             return result
         return add_columns(inp, result)
+
+    def _detect_input(self, inp: TrackInput, *, threads: int = 1) -> pd.DataFrame:
+        """The result columns of :meth:`detect` for an input already read by
+        :func:`track_input`, on the caller's index: what :meth:`detect` and
+        :func:`gradgps.detect` both add to the caller's data."""
+        result = self.detect_fixes(inp.fixes, threads=threads)
+        result.index = inp.index
+        return result
 
     def detect_fixes(self, fixes: pd.DataFrame, *, threads: int = 1) -> pd.DataFrame:
         """:meth:`detect` on canonical fixes; the result has ``fixes``' index."""
@@ -680,18 +666,7 @@ class Detector:
         return self._rows(rows, reason, fixes.index)
 
     def clean(
-        self,
-        data: Any,
-        *,
-        keep_invalid: bool = False,
-        time: str | None = None,
-        lat: str | None = None,
-        lon: str | None = None,
-        track: str | None = None,
-        speed: str | None = None,
-        heading: str | None = None,
-        alt: str | None = None,
-        hdop: str | None = None,
+        self, data: Any, *, keep_invalid: bool = False, **columns: Unpack[ColumnKeywords]
     ) -> Any:
         """``data`` with every position replaced by the repaired one, in the same type.
 
@@ -704,7 +679,7 @@ class Detector:
         """
         from .._tracks.objects import replace_positions
 
-        inp = track_input(data, time, lat, lon, track, speed, heading, alt, hdop)
+        inp = track_input(data, **columns)
         result = self.detect_fixes(inp.fixes)
         keep = (result["invalid_reason"].to_numpy() == "") | keep_invalid
         return replace_positions(
@@ -714,19 +689,7 @@ class Detector:
             keep,
         )
 
-    def events(
-        self,
-        result: Any,
-        *,
-        time: str | None = None,
-        lat: str | None = None,
-        lon: str | None = None,
-        track: str | None = None,
-        speed: str | None = None,
-        heading: str | None = None,
-        alt: str | None = None,
-        hdop: str | None = None,
-    ) -> pd.DataFrame:
+    def events(self, result: Any, **columns: Unpack[ColumnKeywords]) -> pd.DataFrame:
         """Fault events of a result (see :mod:`gradgps._grad.events`), one row per event.
 
         ``result``: what :func:`gradgps.detect` (or :meth:`detect` on a
@@ -739,7 +702,7 @@ class Detector:
         """
         from .._tracks.objects import time_values
 
-        inp = track_input(result, time, lat, lon, track, speed, heading, alt, hdop)
+        inp = track_input(result, **columns)
         missing = [c for c in RESULT_DTYPES if c not in inp.flat.columns]
         if missing:
             raise ConfigError(

@@ -52,7 +52,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -96,7 +96,6 @@ __all__ = [
     "PERIOD_STEPS",
     "PipelineParams",
     "grad_features",
-    "grad_rema_bounds",
     "grad_segment",
     "grad_segments",
     "grad_step",
@@ -449,39 +448,23 @@ def _features_kernel(
     speed: FloatArray,
     heading: FloatArray,
     n_features: int,
-) -> FloatArray:
+) -> tuple[FloatArray, FloatArray]:
+    """The features step over one segment: the GRU's inputs ``(n, n_features)`` and
+    REMA's bounds ``(n, 4)`` (east lower, upper, north lower, upper) at each fix,
+    both from the one pass, so the bounds a report draws are the features' REMA."""
     core_out = np.empty(_core_width(P))
     off_out = np.empty(_N_OFF_OUT)
     out = np.empty((lat.size, n_features))
+    bounds = np.empty((lat.size, 4))
     for i in range(lat.size):
         _features_point(
             P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i], out[i]
         )
-    return out
-
-
-@numba.njit(cache=True)
-def _rema_bounds_kernel(
-    P: FloatArray,
-    S: FloatArray,
-    dt: FloatArray,
-    lat: FloatArray,
-    lon: FloatArray,
-    speed: FloatArray,
-    heading: FloatArray,
-    n_features: int,
-) -> FloatArray:
-    core_out = np.empty(_core_width(P))
-    off_out = np.empty(_N_OFF_OUT)
-    x = np.empty(n_features)
-    out = np.empty((lat.size, 4))
-    for i in range(lat.size):
-        _features_point(P, S, core_out, off_out, dt[i], lat[i], lon[i], speed[i], heading[i], x)
-        out[i, 0] = core_out[N_RESULT + O_LOWER]
-        out[i, 1] = core_out[N_RESULT + O_UPPER]
-        out[i, 2] = core_out[N_RESULT + N_OUT + O_LOWER]
-        out[i, 3] = core_out[N_RESULT + N_OUT + O_UPPER]
-    return out
+        bounds[i, 0] = core_out[N_RESULT + O_LOWER]
+        bounds[i, 1] = core_out[N_RESULT + O_UPPER]
+        bounds[i, 2] = core_out[N_RESULT + N_OUT + O_LOWER]
+        bounds[i, 3] = core_out[N_RESULT + N_OUT + O_UPPER]
+    return out, bounds
 
 
 # The inputs of the batch drivers, as one tuple (numba passes it as is):
@@ -642,6 +625,18 @@ def segment_period(t: FloatArray) -> float:
     return warmup_periods(t)[-1]
 
 
+class SegmentFeatures(NamedTuple):
+    """What :func:`grad_features` computes for one segment."""
+
+    #: The GRU's input features, ``(n, F)`` float64 (training and inspection).
+    features: FloatArray
+    #: REMA's lower and upper bounds on east and north, ``(n, 4)`` metres:
+    #: driven point by point exactly as the detector drives REMA (the motion
+    #: model's velocity standing in for a missing speed or heading), so a
+    #: report draws the REMA the verdicts came from, not a look-alike.
+    rema_bounds: FloatArray
+
+
 def grad_features(
     params: PipelineParams,
     frame: LocalFrame,
@@ -650,37 +645,15 @@ def grad_features(
     lon: FloatArray,
     speed: FloatArray,
     heading: FloatArray,
-) -> FloatArray:
-    """The GRU's input features (n, F) float64 for one segment (training and inspection)."""
+) -> SegmentFeatures:
+    """The GRU's input features and REMA's bounds for one segment, from a fresh state."""
     names = pipeline_feature_names(params)
     dims = np.array([len(names), 0, 0, 0], np.int64)
     P = params.array(segment_period(t), frame, dims)
-    return np.asarray(
-        _features_kernel(P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names))
+    features, bounds = _features_kernel(
+        P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names)
     )
-
-
-def grad_rema_bounds(
-    params: PipelineParams,
-    frame: LocalFrame,
-    t: FloatArray,
-    lat: FloatArray,
-    lon: FloatArray,
-    speed: FloatArray,
-    heading: FloatArray,
-) -> FloatArray:
-    """REMA's lower and upper bounds on east and north, ``(n, 4)`` metres, for one segment.
-
-    Driven point by point exactly as the detector drives REMA (the motion
-    model's velocity standing in for a missing speed or heading), so a
-    report draws the REMA the verdicts came from, not a look-alike.
-    """
-    names = pipeline_feature_names(params)
-    dims = np.array([len(names), 0, 0, 0], np.int64)
-    P = params.array(segment_period(t), frame, dims)
-    return np.asarray(
-        _rema_bounds_kernel(P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names))
-    )
+    return SegmentFeatures(np.asarray(features), np.asarray(bounds))
 
 
 def grad_segment(

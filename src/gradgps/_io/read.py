@@ -37,13 +37,21 @@ from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import IO, Any, Final
+from typing import IO, Any, Final, Unpack
 
 import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
-from .._tracks.track import ColumnMap, ReadOptions, Table, resolve_columns, to_fixes
+from .._tracks.track import (
+    ColumnMap,
+    ReadKeywords,
+    ReadOptions,
+    Table,
+    check_keywords,
+    resolve_columns,
+    to_fixes,
+)
 from .files import READ_ERRORS, check_readable, open_bytes, text_lines
 from .geojson import read_geojson
 from .gpx import read_gpx
@@ -132,11 +140,7 @@ def read_table(
     path: str | Path,
     fmt: str | None = None,
     columns: ColumnMap | None = None,
-    *,
-    decimal: str | None = None,
-    time_format: str | None = None,
-    skip_rows: int | None = None,
-    speed_unit: str | None = None,
+    **options: Unpack[ReadKeywords],
 ) -> Table:
     """Read a track file into a :class:`Table`, keeping every input column.
 
@@ -151,10 +155,14 @@ def read_table(
     ``"knots"``; speeds are converted to m/s). They are kept on the table for
     :func:`gradgps.to_fixes`, which applies them.
     """
-    options = ReadOptions(
-        decimal=decimal, time_format=time_format, skip_rows=skip_rows, speed_unit=speed_unit
-    )
-    return load_table(path, fmt, columns, options)
+    return load_table(path, fmt, columns, reader_options(options))
+
+
+def reader_options(options: ReadKeywords) -> ReadOptions:
+    """The reader keywords of :func:`read_table` and its kin as one :class:`ReadOptions`
+    (a keyword that is not one is a ``TypeError``, as for any Python function)."""
+    check_keywords(options, ReadKeywords)
+    return ReadOptions(**options)
 
 
 def load_table(
@@ -198,26 +206,13 @@ def read_fixes(
     fmt: str | None = None,
     columns: ColumnMap | None = None,
     channels: tuple[str, ...] | list[str] = (),
-    *,
-    decimal: str | None = None,
-    time_format: str | None = None,
-    skip_rows: int | None = None,
-    speed_unit: str | None = None,
+    **options: Unpack[ReadKeywords],
 ) -> pd.DataFrame:
     """Read a track file straight into the canonical fixes frame (see :mod:`gradgps._tracks.track`).
 
     The keywords are :func:`read_table`'s.
     """
-    table = read_table(
-        path,
-        fmt,
-        columns,
-        decimal=decimal,
-        time_format=time_format,
-        skip_rows=skip_rows,
-        speed_unit=speed_unit,
-    )
-    return to_fixes(table, channels=channels)
+    return to_fixes(read_table(path, fmt, columns, **options), channels=channels)
 
 
 #: The formats where each reader option means something (the others type their own values).
@@ -462,11 +457,7 @@ def iter_csv_tables(
     path: str | Path,
     chunksize: int,
     columns: ColumnMap | None = None,
-    *,
-    decimal: str | None = None,
-    time_format: str | None = None,
-    skip_rows: int | None = None,
-    speed_unit: str | None = None,
+    **options: Unpack[ReadKeywords],
 ) -> CsvChunks:
     """Read a big CSV as a stream of Tables of at most ``chunksize`` rows each.
 
@@ -478,10 +469,7 @@ def iter_csv_tables(
     pass also counts the rows (:attr:`CsvChunks.n_rows`, for progress bars).
     The keywords are :func:`read_table`'s.
     """
-    options = ReadOptions(
-        decimal=decimal, time_format=time_format, skip_rows=skip_rows, speed_unit=speed_unit
-    )
-    return csv_tables(path, chunksize, columns, options)
+    return csv_tables(path, chunksize, columns, reader_options(options))
 
 
 def csv_tables(

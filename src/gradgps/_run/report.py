@@ -45,7 +45,7 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from .._grad.defaults import grad_points
-from .._grad.pipeline import PipelineParams, grad_rema_bounds
+from .._grad.pipeline import PipelineParams, grad_features
 from .._result import ResultCounts
 from .._tracks.geo import LocalFrame
 from .._tracks.preprocess import Prepared
@@ -106,7 +106,7 @@ def rema_bounds(
     segments: Sequence[int],
 ) -> list[ChannelBounds]:
     """REMA bounds on east and north for the given segments, as the model's pipeline computes them
-    (:func:`gradgps._grad.pipeline.grad_rema_bounds`: on a file without speed or
+    (:func:`gradgps._grad.pipeline.grad_features`: on a file without speed or
     heading, REMA runs on the motion model's velocity, as in the detector)."""
     pts = prepared.points
     nan = np.full(len(pts), np.nan)
@@ -123,7 +123,7 @@ def rema_bounds(
         if seg not in wanted:
             continue
         t = t_all[sl]
-        bounds = grad_rema_bounds(
+        bounds = grad_features(
             params,
             prepared.segment_frames[seg],
             t,
@@ -131,7 +131,7 @@ def rema_bounds(
             lon_all[sl],
             speed[sl],
             heading[sl],
-        )
+        ).rema_bounds
         east, north = east_all[sl], north_all[sl]
         out.append(
             ChannelBounds(

@@ -31,6 +31,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields, replace
+from typing import Any, TypedDict
 
 import numpy as np
 import pandas as pd
@@ -41,9 +42,12 @@ __all__ = [
     "CANONICAL_COLUMNS",
     "OPTIONAL_CHANNELS",
     "SPEED_UNITS",
+    "ColumnKeywords",
     "ColumnMap",
+    "ReadKeywords",
     "ReadOptions",
     "Table",
+    "check_keywords",
     "resolve_columns",
     "to_fixes",
     "track_rows",
@@ -175,6 +179,38 @@ class ColumnMap:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
+class ColumnKeywords(TypedDict, total=False):
+    """:class:`ColumnMap` as keyword arguments (``time="ts"``; left out or ``None``: found by name).
+
+    The column keywords of :func:`gradgps.detect`, :func:`gradgps.clean` and
+    :class:`gradgps.Detector`'s ``detect``, ``clean`` and ``events``, spelled
+    once here (``**columns: Unpack[ColumnKeywords]``) so those five signatures
+    cannot drift apart.
+    """
+
+    time: str | None
+    lat: str | None
+    lon: str | None
+    track: str | None
+    speed: str | None
+    heading: str | None
+    alt: str | None
+    hdop: str | None
+
+
+def check_keywords(given: Mapping[str, Any], spec: Any) -> None:
+    """A ``TypeError`` for a keyword of ``given`` that the TypedDict ``spec`` does not name.
+
+    Python raised it when each signature spelled its keywords out; a
+    ``**kwargs: Unpack[spec]`` signature is checked only by a type checker,
+    so the functions that take one call this first, and a misspelt keyword
+    fails as it always did.
+    """
+    for name in given:
+        if name not in spec.__annotations__:
+            raise TypeError(f"got an unexpected keyword argument {name!r}")
+
+
 #: The units ``speed_unit`` (``--speed-unit``) names, and the factor of each to m/s.
 SPEED_UNITS = {"m/s": 1.0, "km/h": 1 / 3.6, "mph": 0.44704, "knots": 0.514444}
 #: pandas' own format keywords, which have no ``%`` directive yet are formats.
@@ -234,6 +270,21 @@ class ReadOptions:
                 f"got {self.speed_unit!r}"
             )
         return self
+
+
+class ReadKeywords(TypedDict, total=False):
+    """:class:`ReadOptions` as keyword arguments (``None`` or left out: guessed).
+
+    What :func:`gradgps.read_table`, :func:`gradgps.read_fixes` and
+    :func:`gradgps.iter_csv_tables` take to say what guessing cannot, spelled
+    once here (``**options: Unpack[ReadKeywords]``) so the three cannot drift
+    apart; ``cli`` stays the CLI's own.
+    """
+
+    decimal: str | None
+    time_format: str | None
+    skip_rows: int | None
+    speed_unit: str | None
 
 
 @dataclass

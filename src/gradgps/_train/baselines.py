@@ -23,7 +23,6 @@ filter and loading cached models never needs it.
 from __future__ import annotations
 
 import json
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, replace
@@ -166,7 +165,7 @@ def train_window_model(
     from torch import nn
 
     from .thresholds import best_f1_threshold
-    from .torch_gru import _class_weights, _fit_scaler, _optimise
+    from .torch_gru import _BestEpoch, _class_weights, _fit_scaler, _optimise
 
     if architecture not in NETS:
         raise ConfigError(
@@ -193,9 +192,8 @@ def train_window_model(
             loss_fn = nn.CrossEntropyLoss(weight=_class_weights(labels, 2, 50.0))
             optimizer = torch.optim.Adam(net.parameters(), lr=recipe.learning_rate)
             began = time.perf_counter()
-            best_f1, best_epoch, best_state = -math.inf, 0, None
+            best = _BestEpoch(net, recipe.patience)
             history: list[dict[str, float]] = []
-            stop_reason = "max_epochs"
 
             def val_probability() -> np.ndarray:
                 net.eval()
@@ -228,17 +226,9 @@ def train_window_model(
                         "seconds": time.perf_counter() - began,
                     }
                 )
-                if val_f1 > best_f1:
-                    best_f1, best_epoch = val_f1, epoch
-                    best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
-                if out_of_time:
-                    stop_reason = "time_budget"
+                if best.stop(epoch, -val_f1, out_of_time):
                     break
-                if epoch - best_epoch >= recipe.patience:
-                    stop_reason = "patience"
-                    break
-            if best_state is not None:
-                net.load_state_dict(best_state)
+            best.restore()
             threshold = best_f1_threshold(val_truth, val_probability())
     finally:
         torch.set_num_threads(threads)
@@ -247,8 +237,8 @@ def train_window_model(
     config = {
         "training": {
             "recipe": asdict(recipe),
-            "best_epoch": best_epoch,
-            "stop_reason": stop_reason,
+            "best_epoch": best.epoch,
+            "stop_reason": best.stop_reason,
             "history": history,
             **(notes or {}),
         }

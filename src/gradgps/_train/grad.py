@@ -86,7 +86,7 @@ def labelled_sequences(
             lon[sl],
             speed[sl],
             heading[sl],
-        )
+        ).features
         out.append((feats.astype(np.float32), anomaly[sl], bias[sl]))
     return out
 

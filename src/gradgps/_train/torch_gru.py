@@ -572,8 +572,7 @@ def _train(
         )[0].shape[1]
 
     history: list[EpochMetrics] = []
-    best_score, best_epoch, best_state = math.inf, 0, None
-    stop_reason = "max_epochs"
+    best = _BestEpoch(net, config.patience)
     out_of_time = False
     progress = Progress(
         TextColumn("[bold]training GRU[/]"),
@@ -638,18 +637,10 @@ def _train(
                     f"val F1 {val_f1:.4f}  bias acc {bias_acc:.3f}  {metrics.seconds:6.1f}s"
                 )
             score = val_loss if config.early_stopping == "loss" else -val_f1
-            if score < best_score:
-                best_score, best_epoch = score, epoch
-                best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
-            if out_of_time:
-                stop_reason = "time_budget"
-                break
-            if epoch - best_epoch >= config.patience:
-                stop_reason = "patience"
+            if best.stop(epoch, score, out_of_time):
                 break
 
-    if best_state is not None:
-        net.load_state_dict(best_state)
+    best.restore()
     net.eval()
     la, _, a_true, _ = _predict_packed(net, val, config)
     probability = torch.softmax(la, -1)[:, 1].numpy()
@@ -657,7 +648,43 @@ def _train(
         threshold = recall_floor_threshold(a_true == 1, probability, config.normal_recall_floor)
     else:
         threshold = best_f1_threshold(a_true == 1, probability)
-    return TrainedModel(net, config, n_features, threshold, best_epoch, stop_reason, history)
+    return TrainedModel(net, config, n_features, threshold, best.epoch, best.stop_reason, history)
+
+
+class _BestEpoch:
+    """Early stopping as every trainer here does it (GRAD's GRU, the window baselines).
+
+    Keeps a copy of the weights of the epoch with the lowest validation
+    score, stops once the time budget is spent or ``patience`` epochs passed
+    without a lower one, and puts the kept weights back at the end: the
+    model returned is the best epoch's, not the last one's.
+    """
+
+    def __init__(self, net: nn.Module, patience: int) -> None:
+        self.net = net
+        self.patience = patience
+        self.score = math.inf
+        self.epoch = 0
+        self.state: dict[str, torch.Tensor] | None = None
+        self.stop_reason = "max_epochs"
+
+    def stop(self, epoch: int, score: float, out_of_time: bool) -> bool:
+        """Record ``epoch``'s score (lower is better); whether to stop training now."""
+        if score < self.score:
+            self.score, self.epoch = score, epoch
+            self.state = {k: v.detach().clone() for k, v in self.net.state_dict().items()}
+        if out_of_time:
+            self.stop_reason = "time_budget"
+            return True
+        if epoch - self.epoch >= self.patience:
+            self.stop_reason = "patience"
+            return True
+        return False
+
+    def restore(self) -> None:
+        """Load the best epoch's weights into the net (no epoch ran: leave it as it is)."""
+        if self.state is not None:
+            self.net.load_state_dict(self.state)
 
 
 def _optimise(
