@@ -49,6 +49,7 @@ from .geojson import read_geojson
 from .gpx import read_gpx
 from .nmea import read_nmea
 from .rosbag import is_rosbag, read_rosbag
+from .times import csv_ready
 
 __all__ = [
     "FORMATS",
@@ -258,7 +259,7 @@ def write_table(frame: pd.DataFrame, path: str | Path, fmt: str | None = None) -
         raise ConfigError(f"writing {kind} is not supported; write csv or parquet")
     try:
         if kind == "csv":
-            frame.to_csv(path, index=False)
+            csv_ready(frame).to_csv(path, index=False)
         else:
             frame.to_parquet(path, index=False)
     except ImportError as exc:
@@ -347,7 +348,7 @@ class TableWriter:
                 self._text = gzip.open(self.partial, "wt", encoding="utf-8", newline="")  # noqa: SIM115
             else:
                 self._text = open(self.partial, "w", encoding="utf-8", newline="")  # noqa: SIM115
-        frame.to_csv(self._text, index=False, header=first)
+        csv_ready(frame).to_csv(self._text, index=False, header=first)
 
     def _write_parquet(self, frame: pd.DataFrame, names: list[str]) -> None:
         try:

@@ -44,6 +44,7 @@ __all__ = [
     "ColumnMap",
     "ReadOptions",
     "Table",
+    "datetime_seconds",
     "resolve_columns",
     "to_fixes",
     "track_rows",
@@ -248,7 +249,11 @@ class Table:
     errors name rows of the file. ``rejected`` counts records a lenient reader
     skipped (bad NMEA checksums), with ``notes`` saying which. ``options``
     says how :func:`to_fixes` reads the values (decimal separator, time
-    format, speed unit), as the caller of the reader asked.
+    format, speed unit), as the caller of the reader asked. ``times``: the
+    seconds of each row where the reader assembled them itself (NMEA: a time
+    of day plus a date it may have carried; GPX), while the time column holds
+    the input's own text (:mod:`gradgps._io.times`); :func:`to_fixes` uses
+    them unless another time column is named.
     """
 
     frame: pd.DataFrame
@@ -259,6 +264,7 @@ class Table:
     notes: list[str] | None = None
     row_offset: int = 0
     options: ReadOptions = ReadOptions()
+    times: np.ndarray | None = None
 
 
 _CLI_FLAGS = {"time": "--time-col", "lat": "--lat-col", "lon": "--lon-col"}
@@ -410,7 +416,7 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
     series = frame[col]
     if pd.api.types.is_datetime64_any_dtype(series.dtype):
         dt = pd.to_datetime(series, utc=True)
-        return _datetime_seconds(dt)
+        return datetime_seconds(dt)
     if table.options.time_format is not None:
         return _formatted_times(series, col, table, table.options.time_format)
     in_ms = _norm(col).endswith("ms") and _norm(col) not in ("times", "timestamps")
@@ -452,7 +458,7 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
         raise _row_error(
             table, pos, col, f"time out of range (years 1678-2261): {series.iloc[pos]!r}"
         )
-    return _datetime_seconds(parsed)
+    return datetime_seconds(parsed)
 
 
 def _formatted_times(series: pd.Series, col: str, table: Table, fmt: str) -> np.ndarray:
@@ -482,7 +488,7 @@ def _formatted_times(series: pd.Series, col: str, table: Table, fmt: str) -> np.
             f"time {series.iloc[pos]!r} does not match {option}",
             hint="fix the value, or give the format the times are written in",
         )
-    return _datetime_seconds(parsed)
+    return datetime_seconds(parsed)
 
 
 #: Day-first dates (``23.11.2026 10:00:05``, ``23/11/2026``), read when ISO-8601 does not fit.
@@ -501,7 +507,7 @@ def _day_first(text: pd.Series, iso: pd.Series) -> pd.Series:
     return parsed if int(parsed.notna().sum()) >= int(iso.notna().sum()) else iso
 
 
-def _datetime_seconds(dt: pd.Series) -> np.ndarray:
+def datetime_seconds(dt: pd.Series) -> np.ndarray:
     """Unix seconds of UTC datetimes, in their own unit: a Parquet or GPX time in year 1
     (a logger's placeholder) or 3000 does not fit nanoseconds, but is still a time."""
     naive = dt.dt.tz_convert("UTC").dt.tz_localize(None).to_numpy()
@@ -563,7 +569,9 @@ def to_fixes(
     assert cmap.lat is not None
     assert cmap.lon is not None
     date_col = _date_partner(frame, cmap.time)
-    if date_col is not None:
+    if table.times is not None and cmap.time == table.columns.time:
+        out["t"] = np.asarray(table.times, dtype=np.float64)
+    elif date_col is not None:
         joined = (
             frame[date_col].astype("string").str.strip()
             + " "
