@@ -23,7 +23,7 @@ errors name the row, the file line and the column.
 
 Where guessing is not good enough, the caller says what a file holds
 (:class:`~gradgps._tracks.track.ReadOptions`: ``decimal``, ``time_format``,
-``skip_rows``, ``speed_unit``; the CLI's ``--decimal`` etc.). Each applies
+``skip_rows``, ``speed_unit``, ``crs``; the CLI's ``--decimal`` etc.). Each applies
 where it means something (CSV; Parquet for all but ``skip_rows``) and is an
 error elsewhere, so an option is never silently ignored.
 """
@@ -138,6 +138,7 @@ def read_table(
     time_format: str | None = None,
     skip_rows: int | None = None,
     speed_unit: str | None = None,
+    crs: str | None = None,
 ) -> Table:
     """Read a track file into a :class:`Table`, keeping every input column.
 
@@ -149,11 +150,17 @@ def read_table(
     as text), ``time_format`` (a strptime format of the time column, e.g.
     ``"%d.%m.%Y %H:%M:%S"``), ``skip_rows`` (lines before a CSV header, e.g.
     a row count), ``speed_unit`` (``"m/s"``, ``"km/h"``, ``"mph"``,
-    ``"knots"``; speeds are converted to m/s). They are kept on the table for
-    :func:`gradgps.to_fixes`, which applies them.
+    ``"knots"``; speeds are converted to m/s), ``crs`` (the coordinate
+    reference system of projected ``X``/``Y`` columns, e.g. ``"EPSG:25832"``;
+    converted to WGS84 longitude/latitude with pyproj, extra ``geo``). They
+    are kept on the table for :func:`gradgps.to_fixes`, which applies them.
     """
     options = ReadOptions(
-        decimal=decimal, time_format=time_format, skip_rows=skip_rows, speed_unit=speed_unit
+        decimal=decimal,
+        time_format=time_format,
+        skip_rows=skip_rows,
+        speed_unit=speed_unit,
+        crs=crs,
     )
     return load_table(path, fmt, columns, options)
 
@@ -204,6 +211,7 @@ def read_fixes(
     time_format: str | None = None,
     skip_rows: int | None = None,
     speed_unit: str | None = None,
+    crs: str | None = None,
 ) -> pd.DataFrame:
     """Read a track file straight into the canonical fixes frame (see :mod:`gradgps._tracks.track`).
 
@@ -217,6 +225,7 @@ def read_fixes(
         time_format=time_format,
         skip_rows=skip_rows,
         speed_unit=speed_unit,
+        crs=crs,
     )
     return to_fixes(table, channels=channels)
 
@@ -227,6 +236,7 @@ _OPTION_FORMATS: Final = {
     "time_format": ("csv", "parquet"),
     "skip_rows": ("csv",),
     "speed_unit": ("csv", "parquet"),
+    "crs": ("csv", "parquet"),
 }
 
 
@@ -468,6 +478,7 @@ def iter_csv_tables(
     time_format: str | None = None,
     skip_rows: int | None = None,
     speed_unit: str | None = None,
+    crs: str | None = None,
 ) -> CsvChunks:
     """Read a big CSV as a stream of Tables of at most ``chunksize`` rows each.
 
@@ -480,7 +491,11 @@ def iter_csv_tables(
     The keywords are :func:`read_table`'s.
     """
     options = ReadOptions(
-        decimal=decimal, time_format=time_format, skip_rows=skip_rows, speed_unit=speed_unit
+        decimal=decimal,
+        time_format=time_format,
+        skip_rows=skip_rows,
+        speed_unit=speed_unit,
+        crs=crs,
     )
     return csv_tables(path, chunksize, columns, options)
 

@@ -91,6 +91,7 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "y_lat",
         "latwgs84",
         "y",
+        "northing",
     ),
     "lon": (
         "lon",
@@ -105,6 +106,7 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "longitudedeg",
         "lonwgs84",
         "x",
+        "easting",
     ),
     "track": (
         "track",
@@ -190,8 +192,11 @@ class ReadOptions:
     (decimal commas read when a whole column uses them), times parsed as
     numbers, ISO-8601 or day-first dates, a leading row-count line skipped
     (``skip_rows``), speeds in m/s unless the column name says its unit
-    (``speed_kmh``). A value forces the choice, because a guess can be wrong
-    for one file and there must be a way to say what the file holds.
+    (``speed_kmh``), coordinates in degrees WGS84 (``crs``: the CRS of the
+    ``X``/``Y`` or longitude/latitude columns, e.g. ``"EPSG:25832"``,
+    converted to WGS84 with pyproj, extra ``geo``). A value forces the
+    choice, because a guess can be wrong for one file and there must be a
+    way to say what the file holds.
     ``cli`` says whether errors name the CLI's flags (``--time-format``) or
     Python's keyword arguments (``time_format=``), so every message names
     what its reader can type.
@@ -201,6 +206,7 @@ class ReadOptions:
     time_format: str | None = None
     skip_rows: int | None = None
     speed_unit: str | None = None
+    crs: str | None = None
     cli: bool = False
 
     def name(self, option: str) -> str:
@@ -229,6 +235,11 @@ class ReadOptions:
         rows = self.skip_rows
         if rows is not None and (isinstance(rows, bool) or not isinstance(rows, int) or rows < 0):
             raise ConfigError(f"{self.name('skip_rows')} must be a whole number >= 0, got {rows!r}")
+        if self.crs is not None and (not isinstance(self.crs, str) or not self.crs.strip()):
+            raise ConfigError(
+                f"{self.name('crs')} must name a coordinate reference system, e.g. "
+                f"'EPSG:25832', got {self.crs!r}"
+            )
         if self.speed_unit is not None and self.speed_unit not in SPEED_UNITS:
             raise ConfigError(
                 f"{self.name('speed_unit')} must be one of {', '.join(SPEED_UNITS)}, "
@@ -580,10 +591,20 @@ def to_fixes(
         out["t"] = _times(pd.DataFrame({cmap.time: joined}), cmap.time, table)
     else:
         out["t"] = _times(frame, cmap.time, table)
-    out["lat"] = _numeric(frame, cmap.lat, table, what="latitude in degrees")
-    out["lon"] = _numeric(frame, cmap.lon, table, what="longitude in degrees")
-    if _norm(cmap.lat) == "y" or _norm(cmap.lon) == "x":
-        _check_degrees(out["lat"], out["lon"], cmap, table)
+    notes: list[str] = []
+    if table.options.crs is not None:
+        x = _numeric(frame, cmap.lon, table, what=f"x coordinate in {table.options.crs}")
+        y = _numeric(frame, cmap.lat, table, what=f"y coordinate in {table.options.crs}")
+        out["lon"], out["lat"] = _to_wgs84(x, y, table.options)
+    else:
+        out["lat"] = _numeric(frame, cmap.lat, table, what="latitude in degrees")
+        out["lon"] = _numeric(frame, cmap.lon, table, what="longitude in degrees")
+        if _norm(cmap.lat) in _XY_NAMES or _norm(cmap.lon) in _XY_NAMES:
+            _check_degrees(out["lat"], out["lon"], cmap, table)
+            notes.append(
+                f"columns {cmap.lon!r}/{cmap.lat!r} taken as longitude/latitude in degrees "
+                f"(WGS84); if they are projected coordinates, pass {_crs_flag(table.options)}"
+            )
     for role in OPTIONAL_CHANNELS:
         col = getattr(cmap, role)
         if col is not None:
@@ -608,6 +629,8 @@ def to_fixes(
     fixes = pd.DataFrame(out, index=pd.RangeIndex(n))
     fixes.attrs["columns"] = cmap
     fixes.attrs["source"] = table.source
+    if notes:
+        fixes.attrs["notes"] = notes
     return fixes
 
 
@@ -630,18 +653,55 @@ def _date_partner(frame: pd.DataFrame, time_col: str) -> str | None:
     return None
 
 
+#: Column names that say "x/y coordinates", which may or may not be degrees.
+_XY_NAMES = ("x", "y", "easting", "northing")
+
+
+def _crs_flag(options: ReadOptions) -> str:
+    return "--crs EPSG:xxxx" if options.cli else "crs='EPSG:xxxx' to the reader"
+
+
 def _check_degrees(lat: object, lon: object, cmap: ColumnMap, table: Table) -> None:
     """``X``/``Y`` columns are taken as longitude/latitude only when they hold degrees."""
     lat_a = np.asarray(lat, dtype=np.float64)
     lon_a = np.asarray(lon, dtype=np.float64)
-    ok = np.isfinite(lat_a) & np.isfinite(lon_a)
-    if ok.any() and (np.abs(lat_a[ok]).max() > 90 or np.abs(lon_a[ok]).max() > 180):
-        raise InputError(
-            f"columns {cmap.lon!r}/{cmap.lat!r} hold projected coordinates, not degrees",
-            source=table.source,
-            hint="convert them to WGS84 longitude/latitude first (in Python: pass a "
-            "GeoDataFrame with its CRS to gradgps.detect)",
-        )
+    for values, col, limit in ((lon_a, cmap.lon, 180.0), (lat_a, cmap.lat, 90.0)):
+        outside = np.flatnonzero(np.isfinite(values) & (np.abs(values) > limit))
+        if outside.size:
+            assert col is not None
+            raise _row_error(
+                table,
+                int(outside[0]),
+                col,
+                f"column {col!r} holds projected coordinates ({values[outside[0]]:g}), not degrees",
+                hint=f"say which coordinate reference system they are in: pass "
+                f"{_crs_flag(table.options)} (e.g. EPSG:25832 for UTM zone 32N); "
+                "in Python a GeoDataFrame with its CRS works too",
+            )
+
+
+def _to_wgs84(x: np.ndarray, y: np.ndarray, options: ReadOptions) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates in ``options.crs`` as WGS84 longitude/latitude (pyproj, extra ``geo``)."""
+    flag = options.name("crs")
+    try:
+        from pyproj import CRS, Transformer
+        from pyproj.exceptions import CRSError
+    except ImportError:
+        raise ConfigError(f"{flag} needs pyproj: pip install 'gradgps[geo]'") from None
+    try:
+        source = CRS.from_user_input(options.crs)
+    except CRSError as exc:
+        raise ConfigError(
+            f"{flag} {options.crs!r} is not a coordinate reference system: {exc}"
+        ) from None
+    transformer = Transformer.from_crs(source, "EPSG:4326", always_xy=True)
+    lon, lat = transformer.transform(x, y)
+    lon = np.asarray(lon, dtype=np.float64)
+    lat = np.asarray(lat, dtype=np.float64)
+    lost = ~(np.isfinite(lon) & np.isfinite(lat))
+    lon[lost] = np.nan
+    lat[lost] = np.nan
+    return lon, lat
 
 
 def with_columns(table: Table, columns: Mapping[str, str | None]) -> Table:
