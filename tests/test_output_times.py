@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
-from gradgps import read_fixes, read_table
+from gradgps import ColumnMap, read_fixes, read_table, to_fixes
 from gradgps._cli import main
 from gradgps._io.nmea import nmea_checksum
 from gradgps._run.follow import follow_lines
@@ -108,6 +108,16 @@ def test_nmea_without_a_date_gives_the_time_of_day_in_batch_and_follow(tmp_path:
     assert _follow_times(log) == batch
     table = read_table(log)
     assert any("without a date" in note for note in table.notes or [])
+    # The output reads back (inject, a second tool): times of day counted from midnight.
+    again = read_fixes(tmp_path / "out.csv", columns=ColumnMap(lat="lat", lon="lon"))
+    assert again["t"].iloc[:2].tolist() == [36000.0, 36001.2]
+
+
+def test_times_of_day_read_back_across_midnight() -> None:
+    frame = pd.DataFrame(
+        {"time": ["23:59:59Z", "00:00:00.500Z", "00:00:01Z"], "lat": 48.1, "lon": 11.5}
+    )
+    assert to_fixes(frame)["t"].tolist() == [86399.0, 86400.5, 86401.0]
 
 
 def test_follow_takes_the_date_once_an_rmc_gives_it_and_ignores_a_stale_one() -> None:

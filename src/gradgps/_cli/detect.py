@@ -194,7 +194,11 @@ def detect(
                 )
             if output is not None:
                 step("write")
-                write_table(pd.concat([frame, result.reset_index(drop=True)], axis=1), output)
+                write_table(
+                    pd.concat([frame, result.reset_index(drop=True)], axis=1),
+                    output,
+                    geometry=table.geometry,
+                )
         if events is not None:
             events.add(fixes, result)
         kept.append((fixes, result))

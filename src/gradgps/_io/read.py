@@ -6,7 +6,7 @@ gzip-compressed text) or named explicitly (``fmt``); a file with an unknown
 extension is recognised by its first bytes. GPX, NMEA and ROS bags (``.bag``,
 ``.mcap``, ``.db3`` or a ROS 2 bag directory; extra ``ros``) have their own
 modules (:mod:`gradgps._io.gpx`, :mod:`gradgps._io.nmea`, :mod:`gradgps._io.rosbag`);
-CSV and Parquet live here.
+CSV and Parquet live here, GeoParquet's geometry in :mod:`gradgps._io.geoparquet`.
 
 CSV files are read in two passes. The first pass, with the standard
 :mod:`csv` module, checks the *structure* (UTF-8 text, a header line, proper
@@ -43,9 +43,10 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
-from .._tracks.track import ColumnMap, ReadOptions, Table, resolve_columns, to_fixes
+from .._tracks.track import ColumnMap, GeoPoints, ReadOptions, Table, resolve_columns, to_fixes
 from .files import READ_ERRORS, check_readable, open_bytes, text_lines
 from .geojson import read_geojson
+from .geoparquet import geo_metadata, read_geoparquet, wkt_points, write_geoparquet
 from .gpx import read_gpx
 from .nmea import read_nmea
 from .rosbag import is_rosbag, read_rosbag
@@ -252,11 +253,20 @@ def _check_options_apply(kind: str, options: ReadOptions, source: str) -> None:
             )
 
 
-def write_table(frame: pd.DataFrame, path: str | Path, fmt: str | None = None) -> None:
+def write_table(
+    frame: pd.DataFrame,
+    path: str | Path,
+    fmt: str | None = None,
+    *,
+    geometry: GeoPoints | None = None,
+) -> None:
     """Write ``frame`` as CSV (gzip for ``.gz``) or Parquet, without the index.
 
     CSV floats are written in their shortest exact form, so reading the file
-    back gives the same numbers.
+    back gives the same numbers; datetime columns as ISO-8601 text.
+    ``geometry``: the points of a GeoParquet input (``Table.geometry``),
+    whose column ``frame`` still holds as WKB: Parquet output stays
+    GeoParquet (the same ``geo`` metadata), CSV output gets them as WKT.
     """
     path = Path(path)
     kind = resolve_format(path, fmt) if fmt is not None else _extension_format(path)
@@ -269,7 +279,12 @@ def write_table(frame: pd.DataFrame, path: str | Path, fmt: str | None = None) -
         raise ConfigError(f"writing {kind} is not supported; write csv or parquet")
     try:
         if kind == "csv":
+            if geometry is not None and geometry.column in frame.columns:
+                frame = frame.copy()
+                frame[geometry.column] = wkt_points(geometry.x, geometry.y)
             csv_ready(frame).to_csv(path, index=False)
+        elif geometry is not None and geometry.column in frame.columns:
+            write_geoparquet(frame, path, geometry)
         else:
             frame.to_parquet(path, index=False)
     except ImportError as exc:
@@ -773,4 +788,8 @@ def _read_parquet(path: Path) -> Table:
     if not isinstance(frame.index, pd.RangeIndex):
         # A stored index is data (often the time); make it a column like the rest.
         frame = frame.reset_index()
-    return Table(frame=frame.reset_index(drop=True), source=source)
+    frame = frame.reset_index(drop=True)
+    geo = geo_metadata(path)
+    if geo is not None:
+        return read_geoparquet(path, frame, geo)
+    return Table(frame=frame, source=source)

@@ -42,6 +42,7 @@ __all__ = [
     "OPTIONAL_CHANNELS",
     "SPEED_UNITS",
     "ColumnMap",
+    "GeoPoints",
     "ReadOptions",
     "Table",
     "datetime_seconds",
@@ -276,6 +277,24 @@ class Table:
     row_offset: int = 0
     options: ReadOptions = ReadOptions()
     times: np.ndarray | None = None
+    #: The point geometry of a GeoParquet file (:mod:`gradgps._io.geoparquet`).
+    geometry: GeoPoints | None = None
+
+
+@dataclass(frozen=True)
+class GeoPoints:
+    """Points decoded from a geometry column: ``x``/``y`` in ``crs``, and how to write them back.
+
+    ``crs``: PROJJSON (a dict) or text pyproj reads; ``None`` is longitude/latitude
+    (GeoParquet's default, OGC:CRS84). ``metadata``: the file's ``geo`` metadata,
+    written back unchanged with the geometry column, so the output stays GeoParquet.
+    """
+
+    column: str
+    x: np.ndarray
+    y: np.ndarray
+    crs: object = None
+    metadata: bytes = b""
 
 
 _CLI_FLAGS = {"time": "--time-col", "lat": "--lat-col", "lon": "--lon-col"}
@@ -448,6 +467,9 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
         # Mostly numbers: the few text values are the mistakes, not the numbers.
         pos = int(np.flatnonzero(not_number.to_numpy())[0])
         raise _row_error(table, pos, col, f"not a time (seconds or ISO-8601): {series.iloc[pos]!r}")
+    of_day = _times_of_day(as_str.where(~blank, None))
+    if of_day is not None:
+        return of_day
     try:
         parsed = pd.to_datetime(
             as_str.where(~blank, None), utc=True, format="ISO8601", errors="coerce"
@@ -470,6 +492,32 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
             table, pos, col, f"time out of range (years 1678-2261): {series.iloc[pos]!r}"
         )
     return datetime_seconds(parsed)
+
+
+#: A time of day without a date, in the ISO-8601 form NMEA logs without a date are written in.
+_UTC_TIME_OF_DAY = re.compile(r"^(\d{2}):(\d{2}):(\d{2}(?:\.\d+)?)Z$")
+
+
+def _times_of_day(text: pd.Series) -> np.ndarray | None:
+    """Times of day (``10:00:05.200Z``) as seconds since the first one's midnight, else None.
+
+    What an NMEA log without a date is written as (:mod:`gradgps._io.times`),
+    read back the way the NMEA reader counts: a time of day falling by more
+    than 12 hours is the next day, so a drive across midnight stays ordered.
+    """
+    present = text.dropna()
+    if present.empty:
+        return None
+    parts = present.str.extract(_UTC_TIME_OF_DAY)
+    if bool(parts.isna().any().any()):
+        return None
+    seconds = np.full(len(text), np.nan)
+    values = (
+        parts[0].astype(float) * 3600.0 + parts[1].astype(float) * 60.0 + parts[2].astype(float)
+    ).to_numpy()
+    days = np.concatenate([[0], np.cumsum(np.diff(values) < -43200.0)])
+    seconds[np.flatnonzero(text.notna().to_numpy())] = values + days * 86400.0
+    return seconds
 
 
 def _formatted_times(series: pd.Series, col: str, table: Table, fmt: str) -> np.ndarray:
@@ -592,10 +640,18 @@ def to_fixes(
     else:
         out["t"] = _times(frame, cmap.time, table)
     notes: list[str] = []
-    if table.options.crs is not None:
+    geo = table.geometry
+    if geo is not None and cmap.lat == geo.column and cmap.lon == geo.column:
+        crs = table.options.crs if table.options.crs is not None else geo.crs
+        if crs is None or _is_lon_lat(crs):
+            out["lon"], out["lat"] = geo.x, geo.y
+            _check_degrees(geo.y, geo.x, cmap, table)
+        else:
+            out["lon"], out["lat"] = _to_wgs84(geo.x, geo.y, crs, table.options)
+    elif table.options.crs is not None:
         x = _numeric(frame, cmap.lon, table, what=f"x coordinate in {table.options.crs}")
         y = _numeric(frame, cmap.lat, table, what=f"y coordinate in {table.options.crs}")
-        out["lon"], out["lat"] = _to_wgs84(x, y, table.options)
+        out["lon"], out["lat"] = _to_wgs84(x, y, table.options.crs, table.options)
     else:
         out["lat"] = _numeric(frame, cmap.lat, table, what="latitude in degrees")
         out["lon"] = _numeric(frame, cmap.lon, table, what="longitude in degrees")
@@ -680,20 +736,35 @@ def _check_degrees(lat: object, lon: object, cmap: ColumnMap, table: Table) -> N
             )
 
 
-def _to_wgs84(x: np.ndarray, y: np.ndarray, options: ReadOptions) -> tuple[np.ndarray, np.ndarray]:
-    """Coordinates in ``options.crs`` as WGS84 longitude/latitude (pyproj, extra ``geo``)."""
-    flag = options.name("crs")
+def _is_lon_lat(crs: object) -> bool:
+    """PROJJSON or text naming WGS84 longitude/latitude (no conversion needed)."""
+    if isinstance(crs, dict):
+        ident = crs.get("id") or {}
+        return isinstance(ident, dict) and (
+            (ident.get("authority"), str(ident.get("code"))) in (("OGC", "CRS84"), ("EPSG", "4326"))
+        )
+    return str(crs).strip().upper() in ("OGC:CRS84", "EPSG:4326", "CRS84")
+
+
+def _to_wgs84(
+    x: np.ndarray, y: np.ndarray, crs: object, options: ReadOptions
+) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates in ``crs`` as WGS84 longitude/latitude (pyproj, extra ``geo``)."""
+    flag = options.name("crs") if options.crs is not None else "the file's CRS"
     try:
         from pyproj import CRS, Transformer
         from pyproj.exceptions import CRSError
     except ImportError:
-        raise ConfigError(f"{flag} needs pyproj: pip install 'gradgps[geo]'") from None
-    try:
-        source = CRS.from_user_input(options.crs)
-    except CRSError as exc:
         raise ConfigError(
-            f"{flag} {options.crs!r} is not a coordinate reference system: {exc}"
+            f"converting coordinates from {flag} needs pyproj: pip install 'gradgps[geo]'"
+            if options.crs is None
+            else f"{flag} needs pyproj: pip install 'gradgps[geo]'"
         ) from None
+    try:
+        source = CRS.from_json_dict(crs) if isinstance(crs, dict) else CRS.from_user_input(crs)
+    except CRSError as exc:
+        shown = "" if isinstance(crs, dict) else f" {crs!r}"
+        raise ConfigError(f"{flag}{shown} is not a coordinate reference system: {exc}") from None
     transformer = Transformer.from_crs(source, "EPSG:4326", always_xy=True)
     lon, lat = transformer.transform(x, y)
     lon = np.asarray(lon, dtype=np.float64)
