@@ -106,7 +106,12 @@ def test_nmea_stream_scores_each_epoch_once():
     # The RMC of an instant repeats the verdict its GGA got, and says which line was scored.
     assert rows[1]["epoch_line"] == "1"
     assert rows[1]["score"] == rows[0]["score"]
-    assert float(rows[2]["time"]) - float(rows[0]["time"]) == 1.0
+    # Times as the batch reader writes NMEA times: the date comes with the first RMC.
+    assert [rows[k]["time"] for k in (0, 1, 2)] == [
+        "12:35:10Z",
+        "1994-03-23T12:35:10Z",
+        "1994-03-23T12:35:11Z",
+    ]
     assert rows[10]["invalid_reason"] == "not a fix sentence"
     assert rows[10]["anomaly"] == ""
     assert rows[11]["invalid_reason"].startswith("rejected sentence: GGA checksum mismatch")
@@ -115,15 +120,20 @@ def test_nmea_stream_scores_each_epoch_once():
 
 
 def test_nmea_stream_times_keep_growing_across_midnight_with_a_stale_date():
-    # Follow mode counts from the first sentence and ignores RMC dates, so a
-    # stale date after midnight (issue 18) cannot send a fix back a day.
+    # Follow mode counts from the first sentence's date, so a stale date after
+    # midnight (issue 18) cannot send a fix back a day.
     lines = []
     for tod, date in (("235958", "311219"), ("235959", "311219"), ("000000", "311219")):
         lines.append(_sentence(f"GPRMC,{tod},A,4807.038,N,01131.000,E,022.4,084.4,{date},003.1,W"))
     lines.append(_sentence("GPGGA,000001,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,"))
     out: list[str] = []
     follow_lines(lines, out.append)
-    assert [float(r["time"]) for r in _rows(out)] == [86398.0, 86399.0, 86400.0, 86401.0]
+    assert [r["time"] for r in _rows(out)] == [
+        "2019-12-31T23:59:58Z",
+        "2019-12-31T23:59:59Z",
+        "2020-01-01T00:00:00Z",
+        "2020-01-01T00:00:01Z",
+    ]
 
 
 @pytest.mark.parametrize(

@@ -71,7 +71,9 @@ def test_gga_and_rmc_of_one_epoch_merge(tmp_path: Path) -> None:
     assert row["fix_quality"] == 1
     assert row["speed"] == pytest.approx(22.4 * 0.514444, rel=1e-5)
     assert row["course"] == 84.4
-    assert row["time"] == calendar.timegm((1994, 3, 23, 12, 35, 19))
+    assert table.times is not None
+    assert table.times[0] == calendar.timegm((1994, 3, 23, 12, 35, 19))
+    assert row["time"] == "1994-03-23T12:35:19Z"  # the form every mode writes (issue 14)
     assert row["line"] == 1
     fixes = to_fixes(table)
     assert fixes["heading"].iloc[0] == 84.4
@@ -163,16 +165,18 @@ def test_no_fix_epochs_keep_their_row_with_missing_position(tmp_path: Path) -> N
     frame = table.frame
     assert len(frame) == 4
     assert frame["lat"].isna().tolist() == [True, True, True, False]
-    assert math.isnan(frame["time"].iloc[0])
+    assert table.times is not None
+    assert math.isnan(table.times[0])
+    assert frame["time"].iloc[0] == ""
     assert frame["fix_quality"].tolist() == [0, 0, 0, 1]
 
 
 def test_times_without_date_roll_over_midnight(tmp_path: Path) -> None:
     table = read_nmea(log(tmp_path, [gga("235959"), gga("000000"), gga("000000.5"), gga("000001")]))
-    assert table.frame["time"].tolist() == [86399.0, 86400.0, 86400.5, 86401.0]
-    assert table.notes == [
-        "no RMC date in the log: times are seconds since midnight UTC of the first day"
-    ]
+    assert table.times is not None
+    assert table.times.tolist() == [86399.0, 86400.0, 86400.5, 86401.0]
+    assert table.frame["time"].tolist() == ["23:59:59Z", "00:00:00Z", "00:00:00.500Z", "00:00:01Z"]
+    assert table.notes == ["no RMC date in the log: times are times of day (UTC), without a date"]
     assert "speed" not in table.frame.columns
     assert table.columns.speed == ""
 
@@ -185,9 +189,10 @@ def test_dates_carry_to_undated_epochs_and_across_midnight(tmp_path: Path) -> No
         gga("000000"),
         rmc("000001", date="010120"),
     ]
-    frame = read_nmea(log(tmp_path, lines)).frame
+    times = read_nmea(log(tmp_path, lines)).times
+    assert times is not None
     midnight = calendar.timegm((2020, 1, 1, 0, 0, 0))
-    assert frame["time"].tolist() == [midnight - 2.0, midnight - 1.0, midnight, midnight + 1.0]
+    assert times.tolist() == [midnight - 2.0, midnight - 1.0, midnight, midnight + 1.0]
 
 
 @pytest.mark.parametrize(
@@ -208,9 +213,11 @@ def test_stale_rmc_date_at_midnight_does_not_send_fixes_back_a_day(
 ) -> None:
     times = ("235958", "235959", "000000", "000001", "000002")
     lines = [rmc(t, date=d) if d else gga(t) for t, d in zip(times, dates, strict=True)]
-    frame = read_nmea(log(tmp_path, lines)).frame
+    table = read_nmea(log(tmp_path, lines))
+    assert table.times is not None
     midnight = calendar.timegm((2020, 1, 1, 0, 0, 0))
-    assert frame["time"].tolist() == [midnight + s for s in (-2.0, -1.0, 0.0, 1.0, 2.0)]
+    assert table.times.tolist() == [midnight + s for s in (-2.0, -1.0, 0.0, 1.0, 2.0)]
+    assert table.frame["time"].iloc[2] == "2020-01-01T00:00:00Z"
 
 
 def test_a_day_behind_later_in_the_day_is_believed() -> None:
@@ -302,10 +309,12 @@ def test_agrees_with_pynmea2(
     line = sentence(body)
     path = tmp_path_factory.mktemp("nmea") / "one.nmea"
     path.write_text(line + "\n")
-    ours = read_nmea(path).frame.iloc[0]
+    table = read_nmea(path)
+    ours = table.frame.iloc[0]
     theirs = pynmea2.parse(line)
     assert ours["lat"] == pytest.approx(theirs.latitude, abs=1e-12)
     assert ours["lon"] == pytest.approx(theirs.longitude, abs=1e-12)
     assert ours["speed"] == pytest.approx(theirs.spd_over_grnd * KNOT_MS, rel=1e-12)
     assert ours["course"] == pytest.approx(theirs.true_course)
-    assert ours["time"] == calendar.timegm((2024, 6, 15, 10, 11, 12)) + 0.2
+    assert table.times is not None
+    assert table.times[0] == calendar.timegm((2024, 6, 15, 10, 11, 12)) + 0.2

@@ -139,6 +139,7 @@ def detect(
     from .._grad.detector import Detector
     from .._grad.events import EventBuilder
     from .._io.read import load_table, resolve_format, write_table
+    from .._io.times import output_time_text
     from .._result import ResultCounts
     from .._tracks.input_checks import input_warnings, validated_rates
     from .._tracks.track import to_fixes
@@ -146,15 +147,18 @@ def detect(
     whole = any(p is not None for p in (report_path, plots_dir, geojson_path, gpx_path))
     events = EventBuilder() if (events_path or report_path or geojson_path) else None
     kept: list[tuple[pd.DataFrame, pd.DataFrame]] = []
+    # The time column as the output writes it, for the report's tables (None: numbers).
+    time_texts: list[Any] = []
     detector = Detector(model_dir, threshold=threshold)
     time_column: Any = None
     if chunk_size > 0 and resolve_format(input_path, fmt) == "csv":
 
-        def collect(fixes: pd.DataFrame, result: pd.DataFrame) -> None:
+        def collect(fixes: pd.DataFrame, result: pd.DataFrame, frame: pd.DataFrame) -> None:
             if events is not None:
                 events.add(fixes, result)
             if whole:
                 kept.append((fixes, result))
+                time_texts.append(output_time_text(frame, _time_name(fixes)))
 
         summary = _detect_in_chunks(
             input_path,
@@ -190,10 +194,15 @@ def detect(
                 )
             if output is not None:
                 step("write")
-                write_table(pd.concat([frame, result.reset_index(drop=True)], axis=1), output)
+                write_table(
+                    pd.concat([frame, result.reset_index(drop=True)], axis=1),
+                    output,
+                    geometry=table.geometry,
+                )
         if events is not None:
             events.add(fixes, result)
         kept.append((fixes, result))
+        time_texts.append(output_time_text(table.frame, _time_name(fixes)))
         counts = ResultCounts.of(result)
         rate = counts.rows / elapsed if elapsed > 0 else float("inf")
     what = str(output) if output is not None else str(input_path)
@@ -242,6 +251,7 @@ def detect(
                 str(input_path),
                 events=table_events,
                 warnings=warnings,
+                time_text=_joined(time_texts),
             )
 
 
@@ -270,6 +280,20 @@ def _need_matplotlib() -> None:
         raise click.ClickException(
             "--report and --plots need matplotlib: pip install 'gradgps[report]'"
         ) from None
+
+
+def _time_name(fixes: Any) -> str | None:
+    cmap = fixes.attrs.get("columns")
+    return None if cmap is None else cmap.time
+
+
+def _joined(texts: list[Any]) -> Any:
+    """The chunks' time texts as one array; None when any chunk's times are numbers."""
+    import numpy as np
+
+    if not texts or any(t is None for t in texts):
+        return None
+    return np.concatenate(texts)
 
 
 def _time_column(frame: Any, fixes: Any) -> Any:
@@ -302,10 +326,11 @@ def _events_in_input_form(events: Any, time_column: Any) -> Any:
         return events
     if pd.api.types.is_numeric_dtype(time_column.dtype):
         return events
+    from .._io.times import iso_utc
+
     out = events.copy()
     for c in ("start", "end"):
-        stamps = pd.to_datetime(out[c].to_numpy(float), unit="s", utc=True)
-        out[c] = [s.isoformat().replace("+00:00", "Z") for s in stamps]
+        out[c] = iso_utc(out[c].to_numpy(float))
     return out
 
 

@@ -75,6 +75,16 @@ _READER: tuple[tuple[str, str, dict[str, Any]], ...] = (
             "or the unit the column name says: speed_kmh, speed_mph, speed_knots]",
         },
     ),
+    (
+        "crs",
+        "--crs",
+        {
+            "metavar": "CRS",
+            "help": "coordinate reference system of projected X/Y (easting/northing) "
+            "columns, e.g. EPSG:25832; converted to WGS84 longitude/latitude (needs "
+            "gradgps[geo])  [default: degrees WGS84]",
+        },
+    ),
 )
 #: The reader flags, for commands that must refuse them (``detect --follow``).
 READER_FLAGS = tuple(flag for _, flag, _ in _READER)

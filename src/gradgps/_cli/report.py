@@ -22,6 +22,7 @@ def write_report_outputs(
     extra_summary: Mapping[str, str] | None = None,
     events: Any = None,
     warnings: Sequence[str] = (),
+    time_text: Any = None,
 ) -> None:
     """Write the HTML report and/or the PNG figures and say where they went."""
     if report_path is None and plots_dir is None:
@@ -44,6 +45,7 @@ def write_report_outputs(
         extra_summary=dict(extra_summary or {}),
         events=events,
         warnings=list(warnings),
+        time_text=time_text,
     )
     if report_path is not None:
         path = write_report(inputs, report_path)

@@ -13,7 +13,9 @@ none, or ``"<name> #<index>"`` when an earlier track has the same name) and
 ``<segment>`` the 0-based segment index within the track. A segment is a
 continuous recording in GPX, so the gap between segments is never bridged.
 
-Columns: ``track``, ``time`` (UTC datetimes, NaT where absent), ``lat``,
+Columns: ``track``, ``time`` (ISO-8601 UTC text as every mode writes GPX
+times, e.g. ``2019-05-23T20:54:11Z``, see :mod:`gradgps._io.times`; empty
+where absent; the seconds are kept as ``Table.times``), ``lat``,
 ``lon``, ``alt`` (from ``<ele>``) and, when any point has them, ``speed``
 (m/s), ``course`` (degrees; also read from ``heading``), ``hdop``,
 ``satellites``. Values are looked up among the point's direct children first
@@ -34,8 +36,9 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import InputError
-from .._tracks.track import ColumnMap, Table
+from .._tracks.track import ColumnMap, Table, datetime_seconds
 from .files import READ_ERRORS, open_bytes
+from .times import iso_utc
 
 __all__ = ["read_gpx"]
 
@@ -175,10 +178,10 @@ def read_gpx(path: str | Path) -> Table:
             source=source,
             hint="export the recorded track, not a route",
         )
-    times = _times(rows["time"], collector.lines, source)
+    seconds = datetime_seconds(_times(rows["time"], collector.lines, source))
     frame: dict[str, object] = {
         "track": np.array(rows["track"], dtype=object),
-        "time": times,
+        "time": iso_utc(seconds),
         "lat": np.array(rows["lat"], dtype=np.float64),
         "lon": np.array(rows["lon"], dtype=np.float64),
         "alt": np.array(rows["alt"], dtype=np.float64),
@@ -197,7 +200,7 @@ def read_gpx(path: str | Path) -> Table:
         heading="course" if "course" in frame else "",
         hdop="hdop" if "hdop" in frame else "",
     )
-    return Table(frame=pd.DataFrame(frame), source=source, columns=columns)
+    return Table(frame=pd.DataFrame(frame), source=source, columns=columns, times=seconds)
 
 
 def _times(texts: list[object], lines: list[int], source: str) -> pd.Series:

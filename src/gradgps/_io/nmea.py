@@ -25,13 +25,17 @@ lines), but it never guesses:
   row count matches the epochs in the log and downstream code reports those
   rows as invalid fixes rather than silently losing them.
 
-Times: when an RMC sentence gives the date, ``time`` is unix seconds (UTC);
-epochs without a date of their own take it from the nearest dated epoch,
-and a stale date (the day that just ended, on the first fixes after
+Times: when an RMC sentence gives the date, the seconds are unix seconds
+(UTC); epochs without a date of their own take it from the nearest dated
+epoch, and a stale date (the day that just ended, on the first fixes after
 midnight) is advanced by a day, so times never jump back 24 h at midnight.
-Without any date, ``time`` is seconds since midnight UTC of the first day,
+Without any date, they are seconds since midnight UTC of the first day,
 growing past 86400 at a midnight rollover (time of day falling by more than
-12 hours), so a drive across midnight stays ordered.
+12 hours), so a drive across midnight stays ordered. Those seconds are what
+the detector uses (``Table.times``); the ``time`` column holds them as text
+in the form every mode writes NMEA times (:mod:`gradgps._io.times`):
+ISO-8601 UTC (``2026-11-23T10:00:05.200Z``) when dated, the
+time of day alone (``10:00:05Z``) when the log has no date.
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ import pandas as pd
 from .._exceptions import InputError
 from .._tracks.track import ColumnMap, Table
 from .files import READ_ERRORS, damaged, open_bytes
+from .times import iso_utc, time_of_day_utc
 
 __all__ = [
     "KNOT_MS",
@@ -326,7 +331,7 @@ def read_nmea(path: str | Path) -> Table:
             source=source,
             hint="is this an NMEA 0183 log? otherwise pass the right format",
         )
-    frame, time_note = _frame(epochs)
+    frame, seconds, time_note = _frame(epochs)
     if time_note:
         notes.append(time_note)
     columns = ColumnMap(
@@ -339,7 +344,14 @@ def read_nmea(path: str | Path) -> Table:
         alt="alt" if "alt" in frame.columns else "",
         hdop="hdop" if "hdop" in frame.columns else "",
     )
-    return Table(frame=frame, source=source, columns=columns, rejected=rejected, notes=notes)
+    return Table(
+        frame=frame,
+        source=source,
+        columns=columns,
+        rejected=rejected,
+        notes=notes,
+        times=seconds,
+    )
 
 
 def epoch_times(tod: np.ndarray, midnight: np.ndarray) -> np.ndarray:
@@ -398,13 +410,14 @@ def epoch_times(tod: np.ndarray, midnight: np.ndarray) -> np.ndarray:
     return np.asarray(continuous + offset.to_numpy(), dtype=np.float64)
 
 
-def _frame(epochs: list[Epoch]) -> tuple[pd.DataFrame, str | None]:
+def _frame(epochs: list[Epoch]) -> tuple[pd.DataFrame, np.ndarray, str | None]:
     tod = np.array([e.tod for e in epochs])
     midnight = np.array([e.midnight for e in epochs])
     time = epoch_times(tod, midnight)
+    dated = bool(np.isfinite(midnight).any())
     no_fix = np.array([e.no_fix for e in epochs])
     columns: dict[str, object] = {
-        "time": time,
+        "time": iso_utc(time) if dated else time_of_day_utc(time),
         "lat": np.where(no_fix, np.nan, [e.lat for e in epochs]),
         "lon": np.where(no_fix, np.nan, [e.lon for e in epochs]),
     }
@@ -418,6 +431,6 @@ def _frame(epochs: list[Epoch]) -> tuple[pd.DataFrame, str | None]:
         columns["satellites"] = pd.array([e.satellites for e in epochs], dtype="Int64")
     columns["line"] = np.array([e.line for e in epochs], dtype=np.int64)
     note = None
-    if not np.isfinite(midnight).any():
-        note = "no RMC date in the log: times are seconds since midnight UTC of the first day"
-    return pd.DataFrame(columns), note
+    if not dated:
+        note = "no RMC date in the log: times are times of day (UTC), without a date"
+    return pd.DataFrame(columns), time, note

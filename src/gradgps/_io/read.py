@@ -6,7 +6,7 @@ gzip-compressed text) or named explicitly (``fmt``); a file with an unknown
 extension is recognised by its first bytes. GPX, NMEA and ROS bags (``.bag``,
 ``.mcap``, ``.db3`` or a ROS 2 bag directory; extra ``ros``) have their own
 modules (:mod:`gradgps._io.gpx`, :mod:`gradgps._io.nmea`, :mod:`gradgps._io.rosbag`);
-CSV and Parquet live here.
+CSV and Parquet live here, GeoParquet's geometry in :mod:`gradgps._io.geoparquet`.
 
 CSV files are read in two passes. The first pass, with the standard
 :mod:`csv` module, checks the *structure* (UTF-8 text, a header line, proper
@@ -23,7 +23,7 @@ errors name the row, the file line and the column.
 
 Where guessing is not good enough, the caller says what a file holds
 (:class:`~gradgps._tracks.track.ReadOptions`: ``decimal``, ``time_format``,
-``skip_rows``, ``speed_unit``; the CLI's ``--decimal`` etc.). Each applies
+``skip_rows``, ``speed_unit``, ``crs``; the CLI's ``--decimal`` etc.). Each applies
 where it means something (CSV; Parquet for all but ``skip_rows``) and is an
 error elsewhere, so an option is never silently ignored.
 """
@@ -45,6 +45,7 @@ import pandas as pd
 from .._exceptions import ConfigError, InputError
 from .._tracks.track import (
     ColumnMap,
+    GeoPoints,
     ReadKeywords,
     ReadOptions,
     Table,
@@ -54,9 +55,11 @@ from .._tracks.track import (
 )
 from .files import READ_ERRORS, check_readable, open_bytes, text_lines
 from .geojson import read_geojson
+from .geoparquet import geo_metadata, read_geoparquet, wkt_points, write_geoparquet
 from .gpx import read_gpx
 from .nmea import read_nmea
 from .rosbag import is_rosbag, read_rosbag
+from .times import csv_ready
 
 __all__ = [
     "FORMATS",
@@ -152,8 +155,10 @@ def read_table(
     as text), ``time_format`` (a strptime format of the time column, e.g.
     ``"%d.%m.%Y %H:%M:%S"``), ``skip_rows`` (lines before a CSV header, e.g.
     a row count), ``speed_unit`` (``"m/s"``, ``"km/h"``, ``"mph"``,
-    ``"knots"``; speeds are converted to m/s). They are kept on the table for
-    :func:`gradgps.to_fixes`, which applies them.
+    ``"knots"``; speeds are converted to m/s), ``crs`` (the coordinate
+    reference system of projected ``X``/``Y`` columns, e.g. ``"EPSG:25832"``;
+    converted to WGS84 longitude/latitude with pyproj, extra ``geo``). They
+    are kept on the table for :func:`gradgps.to_fixes`, which applies them.
     """
     return load_table(path, fmt, columns, reader_options(options))
 
@@ -221,6 +226,7 @@ _OPTION_FORMATS: Final = {
     "time_format": ("csv", "parquet"),
     "skip_rows": ("csv",),
     "speed_unit": ("csv", "parquet"),
+    "crs": ("csv", "parquet"),
 }
 
 
@@ -236,11 +242,20 @@ def _check_options_apply(kind: str, options: ReadOptions, source: str) -> None:
             )
 
 
-def write_table(frame: pd.DataFrame, path: str | Path, fmt: str | None = None) -> None:
+def write_table(
+    frame: pd.DataFrame,
+    path: str | Path,
+    fmt: str | None = None,
+    *,
+    geometry: GeoPoints | None = None,
+) -> None:
     """Write ``frame`` as CSV (gzip for ``.gz``) or Parquet, without the index.
 
     CSV floats are written in their shortest exact form, so reading the file
-    back gives the same numbers.
+    back gives the same numbers; datetime columns as ISO-8601 text.
+    ``geometry``: the points of a GeoParquet input (``Table.geometry``),
+    whose column ``frame`` still holds as WKB: Parquet output stays
+    GeoParquet (the same ``geo`` metadata), CSV output gets them as WKT.
     """
     path = Path(path)
     kind = resolve_format(path, fmt) if fmt is not None else _extension_format(path)
@@ -253,7 +268,12 @@ def write_table(frame: pd.DataFrame, path: str | Path, fmt: str | None = None) -
         raise ConfigError(f"writing {kind} is not supported; write csv or parquet")
     try:
         if kind == "csv":
-            frame.to_csv(path, index=False)
+            if geometry is not None and geometry.column in frame.columns:
+                frame = frame.copy()
+                frame[geometry.column] = wkt_points(geometry.x, geometry.y)
+            csv_ready(frame).to_csv(path, index=False)
+        elif geometry is not None and geometry.column in frame.columns:
+            write_geoparquet(frame, path, geometry)
         else:
             frame.to_parquet(path, index=False)
     except ImportError as exc:
@@ -342,7 +362,7 @@ class TableWriter:
                 self._text = gzip.open(self.partial, "wt", encoding="utf-8", newline="")  # noqa: SIM115
             else:
                 self._text = open(self.partial, "w", encoding="utf-8", newline="")  # noqa: SIM115
-        frame.to_csv(self._text, index=False, header=first)
+        csv_ready(frame).to_csv(self._text, index=False, header=first)
 
     def _write_parquet(self, frame: pd.DataFrame, names: list[str]) -> None:
         try:
@@ -745,4 +765,8 @@ def _read_parquet(path: Path) -> Table:
     if not isinstance(frame.index, pd.RangeIndex):
         # A stored index is data (often the time); make it a column like the rest.
         frame = frame.reset_index()
-    return Table(frame=frame.reset_index(drop=True), source=source)
+    frame = frame.reset_index(drop=True)
+    geo = geo_metadata(path)
+    if geo is not None:
+        return read_geoparquet(path, frame, geo)
+    return Table(frame=frame, source=source)

@@ -71,7 +71,7 @@ def detect_csv_in_chunks(
     chunk_size: int = 200_000,
     on_start: Callable[[int], None] | None = None,
     on_chunk: Callable[[int], None] | None = None,
-    on_result: Callable[[pd.DataFrame, pd.DataFrame], None] | None = None,
+    on_result: Callable[[pd.DataFrame, pd.DataFrame, pd.DataFrame], None] | None = None,
 ) -> DetectSummary:
     """Detect faults in every row of a CSV, ``chunk_size`` rows at a time; write ``output``.
 
@@ -80,8 +80,8 @@ def detect_csv_in_chunks(
     written chunk by chunk and appears under its name only when complete.
     ``on_start(total_rows)`` is called once the file's structure is checked,
     ``on_chunk(rows)`` after each chunk (for progress bars), ``on_result(fixes,
-    result)`` with each chunk's canonical fixes and result (for events, a
-    report or exports). ``output`` ``None`` writes no table. ``options`` are
+    result, frame)`` with each chunk's canonical fixes, result and input rows
+    (for events, a report or exports). ``output`` ``None`` writes no table. ``options`` are
     the reader options (:func:`gradgps._io.read.load_table`).
     """
     started = time.perf_counter()
@@ -121,7 +121,7 @@ def detect_csv_in_chunks(
                 )
                 writer.write(out)
             if on_result is not None:
-                on_result(fixes, result)
+                on_result(fixes, result, table.frame)
             if on_chunk is not None:
                 on_chunk(len(result))
         if writer is not None and not writer.started:  # no chunk: still write our columns

@@ -18,9 +18,13 @@ Input, recognised from the first non-blank line (or named with ``--format``):
   A receiver sends GGA and RMC for the same instant: the first sentence of an
   instant is scored, the second gets the same verdict repeated, with
   ``epoch_line`` naming the line that was scored (a stream cannot wait for the
-  second sentence without delaying every verdict). ``time`` is seconds since
-  midnight UTC of the first sentence, continuing past 86400 at midnight,
-  because a GGA carries no date and only time differences matter here.
+  second sentence without delaying every verdict). ``time`` is written as
+  the batch reader writes NMEA times (:mod:`gradgps._io.times`): ISO-8601
+  UTC once an RMC sentence has given the date, the time of day alone
+  (``10:00:05Z``) before that (a stream cannot wait for a date). The
+  detector counts seconds from the first sentence's midnight, continuing
+  past 86400 at midnight, so a date (or a stale one, the day that just ended
+  on the first RMC after midnight) never moves a fix in time.
 
 Never a crash on bad input: a line that cannot be parsed (wrong field count,
 a number that is not one, a damaged sentence) gets its output line with
@@ -51,7 +55,8 @@ from dataclasses import dataclass
 
 from .._exceptions import ConfigError, InputError
 from .._grad.detector import Detector, MultiTrackDetector
-from .._io.nmea import Malformed, parse_gga, parse_rmc, split_sentence
+from .._io.nmea import STALE_DATE_S, Malformed, parse_gga, parse_rmc, split_sentence
+from .._io.times import iso_utc_one, time_of_day_utc
 from .._result import RESULT_COLUMNS, PointResult
 from .._tracks.track import ColumnMap, resolve_columns
 
@@ -199,6 +204,28 @@ class _NmeaFollower:
     day_offset: float = 0.0
     last_tod: float = math.nan
     last_epoch: tuple[float, int, PointResult] | None = None  # (tod, line, verdict)
+    #: Unix seconds of the midnight ``day_offset`` counts from, once an RMC gave a date.
+    midnight: float = math.nan
+
+    def _date(self, tod: float, midnight: float) -> None:
+        """Take the date of an RMC (already counted past midnight by ``day_offset``).
+
+        As the batch reader (:func:`gradgps._io.nmea.epoch_times`): a date one
+        day behind the one known, in the first minutes of a day, is stale.
+        """
+        if math.isnan(midnight) or math.isnan(tod):
+            return
+        anchor = midnight - self.day_offset
+        if anchor == self.midnight - _DAY and tod < STALE_DATE_S:
+            return
+        self.midnight = anchor
+
+    def _time_text(self, seconds: float) -> str:
+        if math.isnan(seconds):
+            return ""
+        if math.isnan(self.midnight):
+            return str(time_of_day_utc([seconds])[0])
+        return iso_utc_one(self.midnight + seconds)
 
     def out_header(self) -> list[str]:
         return [*NMEA_FIELDS, *RESULT_FIELDS]
@@ -241,7 +268,11 @@ class _NmeaFollower:
                 tod + self.day_offset, lat, lon, epoch.speed, epoch.course
             )
             self.last_epoch = (tod, n, verdict)
-        shown = [_text(v) for v in (tod + self.day_offset, lat, lon, epoch.speed, epoch.course)]
+        self._date(tod, epoch.midnight)
+        shown = [
+            self._time_text(tod + self.day_offset),
+            *(_text(v) for v in (lat, lon, epoch.speed, epoch.course)),
+        ]
         return [str(n), kind, *shown, str(epoch_line), *_result_fields(verdict)], scored
 
 

@@ -97,6 +97,10 @@ class ReportInputs:
     events: pd.DataFrame | None = None
     #: Where the input is outside what the model was validated on (one sentence each).
     warnings: Sequence[str] = ()
+    #: Each row's time as the output table writes it (the input's own text, see
+    #: :mod:`gradgps._io.times`); ``None`` where the input's times are numbers,
+    #: which the tables show as readable UTC instead.
+    time_text: Sequence[str] | None = None
 
 
 def rema_bounds(
@@ -431,7 +435,7 @@ def _anomaly_rows(inputs: ReportInputs) -> tuple[list[str], list[list[str]], int
             [
                 str(i),
                 str(fixes["track"].iloc[i]),
-                readable_time(float(fixes["t"].iloc[i])),
+                _row_time(inputs, i),
                 f"{fixes['lat'].iloc[i]:.6f}",
                 f"{fixes['lon'].iloc[i]:.6f}",
                 f"{result['score'].iloc[i]:.3f}",
@@ -454,6 +458,13 @@ def _anomaly_rows(inputs: ReportInputs) -> tuple[list[str], list[list[str]], int
         "lon clean",
     ]
     return header, rows, int(sel.size)
+
+
+def _row_time(inputs: ReportInputs, i: int) -> str:
+    """Row ``i``'s time as the output writes it (text inputs), else :func:`readable_time`."""
+    if inputs.time_text is not None and str(inputs.time_text[i]):
+        return str(inputs.time_text[i])
+    return readable_time(float(inputs.fixes["t"].iloc[i]))
 
 
 def readable_time(t: float) -> str:

@@ -115,9 +115,14 @@ class InputChecks:
         self.fast = 0
         self.fastest = 0.0
         self._last: dict[str, tuple[float, float, float]] = {}
+        #: What the reader assumed about the columns (``fixes.attrs["notes"]``), once each.
+        self.notes: list[str] = []
 
     def add(self, fixes: pd.DataFrame) -> InputChecks:
         """Take in canonical fixes (columns ``track``, ``t``, ``lat``, ``lon``); returns ``self``."""
+        for note in fixes.attrs.get("notes", ()):
+            if note not in self.notes:
+                self.notes.append(note)
         t = fixes["t"].to_numpy(dtype=np.float64)
         lat = fixes["lat"].to_numpy(dtype=np.float64)
         lon = fixes["lon"].to_numpy(dtype=np.float64)
@@ -179,7 +184,7 @@ class InputChecks:
 
     def warnings(self) -> list[str]:
         """One sentence per way the input is outside what the model was validated on."""
-        out: list[str] = []
+        out: list[str] = list(self.notes)
         if self.steps == 0:
             return out
         median = self.step_quantile(0.5)

@@ -44,10 +44,12 @@ __all__ = [
     "SPEED_UNITS",
     "ColumnKeywords",
     "ColumnMap",
+    "GeoPoints",
     "ReadKeywords",
     "ReadOptions",
     "Table",
     "check_keywords",
+    "datetime_seconds",
     "resolve_columns",
     "to_fixes",
     "track_rows",
@@ -94,6 +96,7 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "y_lat",
         "latwgs84",
         "y",
+        "northing",
     ),
     "lon": (
         "lon",
@@ -108,6 +111,7 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "longitudedeg",
         "lonwgs84",
         "x",
+        "easting",
     ),
     "track": (
         "track",
@@ -225,8 +229,11 @@ class ReadOptions:
     (decimal commas read when a whole column uses them), times parsed as
     numbers, ISO-8601 or day-first dates, a leading row-count line skipped
     (``skip_rows``), speeds in m/s unless the column name says its unit
-    (``speed_kmh``). A value forces the choice, because a guess can be wrong
-    for one file and there must be a way to say what the file holds.
+    (``speed_kmh``), coordinates in degrees WGS84 (``crs``: the CRS of the
+    ``X``/``Y`` or longitude/latitude columns, e.g. ``"EPSG:25832"``,
+    converted to WGS84 with pyproj, extra ``geo``). A value forces the
+    choice, because a guess can be wrong for one file and there must be a
+    way to say what the file holds.
     ``cli`` says whether errors name the CLI's flags (``--time-format``) or
     Python's keyword arguments (``time_format=``), so every message names
     what its reader can type.
@@ -236,6 +243,7 @@ class ReadOptions:
     time_format: str | None = None
     skip_rows: int | None = None
     speed_unit: str | None = None
+    crs: str | None = None
     cli: bool = False
 
     def name(self, option: str) -> str:
@@ -264,6 +272,11 @@ class ReadOptions:
         rows = self.skip_rows
         if rows is not None and (isinstance(rows, bool) or not isinstance(rows, int) or rows < 0):
             raise ConfigError(f"{self.name('skip_rows')} must be a whole number >= 0, got {rows!r}")
+        if self.crs is not None and (not isinstance(self.crs, str) or not self.crs.strip()):
+            raise ConfigError(
+                f"{self.name('crs')} must name a coordinate reference system, e.g. "
+                f"'EPSG:25832', got {self.crs!r}"
+            )
         if self.speed_unit is not None and self.speed_unit not in SPEED_UNITS:
             raise ConfigError(
                 f"{self.name('speed_unit')} must be one of {', '.join(SPEED_UNITS)}, "
@@ -285,6 +298,7 @@ class ReadKeywords(TypedDict, total=False):
     time_format: str | None
     skip_rows: int | None
     speed_unit: str | None
+    crs: str | None
 
 
 @dataclass
@@ -299,7 +313,11 @@ class Table:
     errors name rows of the file. ``rejected`` counts records a lenient reader
     skipped (bad NMEA checksums), with ``notes`` saying which. ``options``
     says how :func:`to_fixes` reads the values (decimal separator, time
-    format, speed unit), as the caller of the reader asked.
+    format, speed unit), as the caller of the reader asked. ``times``: the
+    seconds of each row where the reader assembled them itself (NMEA: a time
+    of day plus a date it may have carried; GPX), while the time column holds
+    the input's own text (:mod:`gradgps._io.times`); :func:`to_fixes` uses
+    them unless another time column is named.
     """
 
     frame: pd.DataFrame
@@ -310,6 +328,25 @@ class Table:
     notes: list[str] | None = None
     row_offset: int = 0
     options: ReadOptions = ReadOptions()
+    times: np.ndarray | None = None
+    #: The point geometry of a GeoParquet file (:mod:`gradgps._io.geoparquet`).
+    geometry: GeoPoints | None = None
+
+
+@dataclass(frozen=True)
+class GeoPoints:
+    """Points decoded from a geometry column: ``x``/``y`` in ``crs``, and how to write them back.
+
+    ``crs``: PROJJSON (a dict) or text pyproj reads; ``None`` is longitude/latitude
+    (GeoParquet's default, OGC:CRS84). ``metadata``: the file's ``geo`` metadata,
+    written back unchanged with the geometry column, so the output stays GeoParquet.
+    """
+
+    column: str
+    x: np.ndarray
+    y: np.ndarray
+    crs: object = None
+    metadata: bytes = b""
 
 
 _CLI_FLAGS = {"time": "--time-col", "lat": "--lat-col", "lon": "--lon-col"}
@@ -461,7 +498,7 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
     series = frame[col]
     if pd.api.types.is_datetime64_any_dtype(series.dtype):
         dt = pd.to_datetime(series, utc=True)
-        return _datetime_seconds(dt)
+        return datetime_seconds(dt)
     if table.options.time_format is not None:
         return _formatted_times(series, col, table, table.options.time_format)
     in_ms = _norm(col).endswith("ms") and _norm(col) not in ("times", "timestamps")
@@ -482,6 +519,9 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
         # Mostly numbers: the few text values are the mistakes, not the numbers.
         pos = int(np.flatnonzero(not_number.to_numpy())[0])
         raise _row_error(table, pos, col, f"not a time (seconds or ISO-8601): {series.iloc[pos]!r}")
+    of_day = _times_of_day(as_str.where(~blank, None))
+    if of_day is not None:
+        return of_day
     try:
         parsed = pd.to_datetime(
             as_str.where(~blank, None), utc=True, format="ISO8601", errors="coerce"
@@ -503,7 +543,33 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
         raise _row_error(
             table, pos, col, f"time out of range (years 1678-2261): {series.iloc[pos]!r}"
         )
-    return _datetime_seconds(parsed)
+    return datetime_seconds(parsed)
+
+
+#: A time of day without a date, in the ISO-8601 form NMEA logs without a date are written in.
+_UTC_TIME_OF_DAY = re.compile(r"^(\d{2}):(\d{2}):(\d{2}(?:\.\d+)?)Z$")
+
+
+def _times_of_day(text: pd.Series) -> np.ndarray | None:
+    """Times of day (``10:00:05.200Z``) as seconds since the first one's midnight, else None.
+
+    What an NMEA log without a date is written as (:mod:`gradgps._io.times`),
+    read back the way the NMEA reader counts: a time of day falling by more
+    than 12 hours is the next day, so a drive across midnight stays ordered.
+    """
+    present = text.dropna()
+    if present.empty:
+        return None
+    parts = present.str.extract(_UTC_TIME_OF_DAY)
+    if bool(parts.isna().any().any()):
+        return None
+    seconds = np.full(len(text), np.nan)
+    values = (
+        parts[0].astype(float) * 3600.0 + parts[1].astype(float) * 60.0 + parts[2].astype(float)
+    ).to_numpy()
+    days = np.concatenate([[0], np.cumsum(np.diff(values) < -43200.0)])
+    seconds[np.flatnonzero(text.notna().to_numpy())] = values + days * 86400.0
+    return seconds
 
 
 def _formatted_times(series: pd.Series, col: str, table: Table, fmt: str) -> np.ndarray:
@@ -533,7 +599,7 @@ def _formatted_times(series: pd.Series, col: str, table: Table, fmt: str) -> np.
             f"time {series.iloc[pos]!r} does not match {option}",
             hint="fix the value, or give the format the times are written in",
         )
-    return _datetime_seconds(parsed)
+    return datetime_seconds(parsed)
 
 
 #: Day-first dates (``23.11.2026 10:00:05``, ``23/11/2026``), read when ISO-8601 does not fit.
@@ -552,7 +618,7 @@ def _day_first(text: pd.Series, iso: pd.Series) -> pd.Series:
     return parsed if int(parsed.notna().sum()) >= int(iso.notna().sum()) else iso
 
 
-def _datetime_seconds(dt: pd.Series) -> np.ndarray:
+def datetime_seconds(dt: pd.Series) -> np.ndarray:
     """Unix seconds of UTC datetimes, in their own unit: a Parquet or GPX time in year 1
     (a logger's placeholder) or 3000 does not fit nanoseconds, but is still a time."""
     naive = dt.dt.tz_convert("UTC").dt.tz_localize(None).to_numpy()
@@ -614,7 +680,9 @@ def to_fixes(
     assert cmap.lat is not None
     assert cmap.lon is not None
     date_col = _date_partner(frame, cmap.time)
-    if date_col is not None:
+    if table.times is not None and cmap.time == table.columns.time:
+        out["t"] = np.asarray(table.times, dtype=np.float64)
+    elif date_col is not None:
         joined = (
             frame[date_col].astype("string").str.strip()
             + " "
@@ -623,10 +691,28 @@ def to_fixes(
         out["t"] = _times(pd.DataFrame({cmap.time: joined}), cmap.time, table)
     else:
         out["t"] = _times(frame, cmap.time, table)
-    out["lat"] = _numeric(frame, cmap.lat, table, what="latitude in degrees")
-    out["lon"] = _numeric(frame, cmap.lon, table, what="longitude in degrees")
-    if _norm(cmap.lat) == "y" or _norm(cmap.lon) == "x":
-        _check_degrees(out["lat"], out["lon"], cmap, table)
+    notes: list[str] = []
+    geo = table.geometry
+    if geo is not None and cmap.lat == geo.column and cmap.lon == geo.column:
+        crs = table.options.crs if table.options.crs is not None else geo.crs
+        if crs is None or _is_lon_lat(crs):
+            out["lon"], out["lat"] = geo.x, geo.y
+            _check_degrees(geo.y, geo.x, cmap, table)
+        else:
+            out["lon"], out["lat"] = _to_wgs84(geo.x, geo.y, crs, table.options)
+    elif table.options.crs is not None:
+        x = _numeric(frame, cmap.lon, table, what=f"x coordinate in {table.options.crs}")
+        y = _numeric(frame, cmap.lat, table, what=f"y coordinate in {table.options.crs}")
+        out["lon"], out["lat"] = _to_wgs84(x, y, table.options.crs, table.options)
+    else:
+        out["lat"] = _numeric(frame, cmap.lat, table, what="latitude in degrees")
+        out["lon"] = _numeric(frame, cmap.lon, table, what="longitude in degrees")
+        if _norm(cmap.lat) in _XY_NAMES or _norm(cmap.lon) in _XY_NAMES:
+            _check_degrees(out["lat"], out["lon"], cmap, table)
+            notes.append(
+                f"columns {cmap.lon!r}/{cmap.lat!r} taken as longitude/latitude in degrees "
+                f"(WGS84); if they are projected coordinates, pass {_crs_flag(table.options)}"
+            )
     for role in OPTIONAL_CHANNELS:
         col = getattr(cmap, role)
         if col is not None:
@@ -651,6 +737,8 @@ def to_fixes(
     fixes = pd.DataFrame(out, index=pd.RangeIndex(n))
     fixes.attrs["columns"] = cmap
     fixes.attrs["source"] = table.source
+    if notes:
+        fixes.attrs["notes"] = notes
     return fixes
 
 
@@ -673,18 +761,70 @@ def _date_partner(frame: pd.DataFrame, time_col: str) -> str | None:
     return None
 
 
+#: Column names that say "x/y coordinates", which may or may not be degrees.
+_XY_NAMES = ("x", "y", "easting", "northing")
+
+
+def _crs_flag(options: ReadOptions) -> str:
+    return "--crs EPSG:xxxx" if options.cli else "crs='EPSG:xxxx' to the reader"
+
+
 def _check_degrees(lat: object, lon: object, cmap: ColumnMap, table: Table) -> None:
     """``X``/``Y`` columns are taken as longitude/latitude only when they hold degrees."""
     lat_a = np.asarray(lat, dtype=np.float64)
     lon_a = np.asarray(lon, dtype=np.float64)
-    ok = np.isfinite(lat_a) & np.isfinite(lon_a)
-    if ok.any() and (np.abs(lat_a[ok]).max() > 90 or np.abs(lon_a[ok]).max() > 180):
-        raise InputError(
-            f"columns {cmap.lon!r}/{cmap.lat!r} hold projected coordinates, not degrees",
-            source=table.source,
-            hint="convert them to WGS84 longitude/latitude first (in Python: pass a "
-            "GeoDataFrame with its CRS to gradgps.detect)",
+    for values, col, limit in ((lon_a, cmap.lon, 180.0), (lat_a, cmap.lat, 90.0)):
+        outside = np.flatnonzero(np.isfinite(values) & (np.abs(values) > limit))
+        if outside.size:
+            assert col is not None
+            raise _row_error(
+                table,
+                int(outside[0]),
+                col,
+                f"column {col!r} holds projected coordinates ({values[outside[0]]:g}), not degrees",
+                hint=f"say which coordinate reference system they are in: pass "
+                f"{_crs_flag(table.options)} (e.g. EPSG:25832 for UTM zone 32N); "
+                "in Python a GeoDataFrame with its CRS works too",
+            )
+
+
+def _is_lon_lat(crs: object) -> bool:
+    """PROJJSON or text naming WGS84 longitude/latitude (no conversion needed)."""
+    if isinstance(crs, dict):
+        ident = crs.get("id") or {}
+        return isinstance(ident, dict) and (
+            (ident.get("authority"), str(ident.get("code"))) in (("OGC", "CRS84"), ("EPSG", "4326"))
         )
+    return str(crs).strip().upper() in ("OGC:CRS84", "EPSG:4326", "CRS84")
+
+
+def _to_wgs84(
+    x: np.ndarray, y: np.ndarray, crs: object, options: ReadOptions
+) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates in ``crs`` as WGS84 longitude/latitude (pyproj, extra ``geo``)."""
+    flag = options.name("crs") if options.crs is not None else "the file's CRS"
+    try:
+        from pyproj import CRS, Transformer
+        from pyproj.exceptions import CRSError
+    except ImportError:
+        raise ConfigError(
+            f"converting coordinates from {flag} needs pyproj: pip install 'gradgps[geo]'"
+            if options.crs is None
+            else f"{flag} needs pyproj: pip install 'gradgps[geo]'"
+        ) from None
+    try:
+        source = CRS.from_json_dict(crs) if isinstance(crs, dict) else CRS.from_user_input(crs)
+    except CRSError as exc:
+        shown = "" if isinstance(crs, dict) else f" {crs!r}"
+        raise ConfigError(f"{flag}{shown} is not a coordinate reference system: {exc}") from None
+    transformer = Transformer.from_crs(source, "EPSG:4326", always_xy=True)
+    lon, lat = transformer.transform(x, y)
+    lon = np.asarray(lon, dtype=np.float64)
+    lat = np.asarray(lat, dtype=np.float64)
+    lost = ~(np.isfinite(lon) & np.isfinite(lat))
+    lon[lost] = np.nan
+    lat[lost] = np.nan
+    return lon, lat
 
 
 def with_columns(table: Table, columns: Mapping[str, str | None]) -> Table:

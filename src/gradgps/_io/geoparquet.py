@@ -1,0 +1,140 @@
+"""GeoParquet: point geometry (WKB) with ``geo`` metadata, read and written back.
+
+A Parquet file whose schema metadata has a ``geo`` key (GeoParquet 1.x) is
+read with its primary geometry column decoded here from WKB (2D, Z, M, ZM
+points; ISO and EWKB flavours), with plain pyarrow: no GeoPandas needed.
+The column's ``crs`` (PROJJSON; absent means OGC:CRS84 longitude/latitude)
+says how to get degrees: anything else is converted with pyproj (extra
+``geo``), as ``--crs`` would. Every column, the geometry included, is kept
+as read, so ``-o out.parquet`` writes the geometry back as WKB with the
+same ``geo`` metadata (:func:`write_geoparquet`): a GeoParquet stays one.
+A CSV output gets the geometry as WKT (``POINT (x y)``).
+
+Null or empty points are missing positions (invalid fixes, rows kept);
+anything but a point is an error naming the row, since a track is points.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .._exceptions import ConfigError, InputError
+from .._tracks.track import ColumnMap, GeoPoints, Table
+
+__all__ = ["geo_metadata", "read_geoparquet", "wkt_points", "write_geoparquet"]
+
+_TYPES = {1: "Point", 2: "LineString", 3: "Polygon", 4: "MultiPoint", 5: "MultiLineString"}
+
+
+def geo_metadata(path: Path) -> bytes | None:
+    """The ``geo`` metadata of a Parquet file, or None (not GeoParquet, or unreadable)."""
+    try:
+        import pyarrow.parquet as pq
+    except ImportError:
+        return None
+    try:
+        meta = pq.read_schema(path).metadata or {}
+    except (OSError, ValueError):
+        return None
+    value = meta.get(b"geo")
+    return bytes(value) if value is not None else None
+
+
+def read_geoparquet(path: Path, frame: pd.DataFrame, metadata: bytes) -> Table:
+    """A Table of ``frame`` (the file as pandas read it) with its point geometry decoded."""
+    source = str(path)
+    try:
+        geo = json.loads(metadata)
+        column = str(geo["primary_column"])
+        spec = geo["columns"][column]
+    except (ValueError, KeyError, TypeError) as exc:
+        raise InputError(
+            f"damaged GeoParquet 'geo' metadata ({type(exc).__name__}: {exc})",
+            source=source,
+            hint="write the file again with GeoPandas or GDAL",
+        ) from None
+    encoding = str(spec.get("encoding", "WKB")).upper()
+    if encoding != "WKB":
+        raise InputError(
+            f"GeoParquet geometry encoding {encoding!r} is not read; only WKB",
+            source=source,
+            column=column,
+            hint="write the file with WKB geometry (GeoPandas' default)",
+        )
+    if column not in frame.columns:
+        raise InputError(f"the geometry column {column!r} is missing", source=source)
+    x, y = _points(frame[column], source, column)
+    crs = spec.get("crs", "OGC:CRS84")
+    points = GeoPoints(column=column, x=x, y=y, crs=crs, metadata=metadata)
+    return Table(
+        frame=frame,
+        source=source,
+        columns=ColumnMap(lat=column, lon=column),
+        geometry=points,
+    )
+
+
+def _points(values: pd.Series, source: str, column: str) -> tuple[np.ndarray, np.ndarray]:
+    n = len(values)
+    x = np.full(n, np.nan)
+    y = np.full(n, np.nan)
+    for i, blob in enumerate(values.tolist()):
+        if not isinstance(blob, bytes | bytearray | memoryview) and pd.isna(blob):
+            continue
+        try:
+            x[i], y[i] = _wkb_point(bytes(blob))
+        except (struct.error, ValueError, TypeError) as exc:
+            raise InputError(
+                f"geometry is not a WKB point: {exc}",
+                source=source,
+                row=i + 1,
+                column=column,
+                hint="gradgps reads tracks of points; convert lines to their vertices first",
+            ) from None
+    return x, y
+
+
+def _wkb_point(blob: bytes) -> tuple[float, float]:
+    if not blob:
+        raise ValueError("empty value")
+    order = "<" if blob[0] == 1 else ">" if blob[0] == 0 else None
+    if order is None:
+        raise ValueError(f"byte-order mark {blob[0]} is neither 0 nor 1")
+    (kind,) = struct.unpack_from(order + "I", blob, 1)
+    offset = 5 + (4 if kind & 0x20000000 else 0)  # EWKB with an SRID
+    base = (kind & 0x0FFFFFFF) % 1000
+    if base != 1:
+        raise ValueError(f"a {_TYPES.get(base, f'type {base}')}, not a Point")
+    px, py = struct.unpack_from(order + "dd", blob, offset)
+    return float(px), float(py)
+
+
+def wkt_points(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``POINT (x y)`` per row (``POINT EMPTY`` where missing), for a CSV output."""
+    return np.asarray(
+        [
+            f"POINT ({a!r} {b!r})" if math.isfinite(a) and math.isfinite(b) else "POINT EMPTY"
+            for a, b in zip(x.tolist(), y.tolist(), strict=True)
+        ],
+        dtype=object,
+    )
+
+
+def write_geoparquet(frame: pd.DataFrame, path: Path, points: GeoPoints) -> None:
+    """``frame`` as Parquet with the input's ``geo`` metadata: the geometry column stays WKB."""
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError as exc:
+        raise ConfigError(f"writing Parquet needs pyarrow ({exc}); install gradgps[io]") from None
+    table: Any = pa.Table.from_pandas(frame, preserve_index=False)
+    metadata = dict(table.schema.metadata or {})
+    metadata[b"geo"] = points.metadata
+    pq.write_table(table.replace_schema_metadata(metadata), path)

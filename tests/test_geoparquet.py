@@ -1,0 +1,85 @@
+"""GeoParquet in and out (issue 14): point geometry read with its CRS, written back as GeoParquet."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from gradgps import InputError, read_fixes
+from gradgps._cli import main
+
+pytest.importorskip("pyarrow")
+gpd = pytest.importorskip("geopandas")
+shapely = pytest.importorskip("shapely")
+
+LAT = 48.1 + np.arange(30) * 1.35e-4
+LON = np.full(30, 11.55)
+
+
+def _geoparquet(path: Path, crs: str = "EPSG:4326") -> Path:
+    frame = gpd.GeoDataFrame(
+        {"time": pd.date_range("2026-11-23 10:00", periods=30, freq="1s", tz="UTC"), "car": "a"},
+        geometry=gpd.points_from_xy(LON, LAT),
+        crs="EPSG:4326",
+    ).to_crs(crs)
+    frame.to_parquet(path)
+    return path
+
+
+def _detect(args: list[str]) -> None:
+    result = CliRunner().invoke(main, ["detect", *args])
+    assert result.exit_code == 0, result.output
+
+
+@pytest.mark.parametrize("crs", ["EPSG:4326", "EPSG:25832"])
+def test_geoparquet_positions_are_read_from_the_geometry_in_its_crs(tmp_path: Path, crs) -> None:
+    path = _geoparquet(tmp_path / "drive.parquet", crs)
+    fixes = read_fixes(path)
+    assert fixes["lat"].to_numpy() == pytest.approx(LAT, abs=1e-9)
+    assert fixes["lon"].to_numpy() == pytest.approx(LON, abs=1e-9)
+    assert fixes["t"].iloc[1] - fixes["t"].iloc[0] == 1.0
+
+
+def test_geoparquet_is_read_without_geopandas(tmp_path: Path, monkeypatch) -> None:
+    path = _geoparquet(tmp_path / "drive.parquet")
+    monkeypatch.setitem(sys.modules, "geopandas", None)  # plain pyarrow decodes the WKB
+    fixes = read_fixes(path)
+    assert fixes["lat"].to_numpy() == pytest.approx(LAT, abs=1e-12)
+
+
+def test_geoparquet_in_gives_geoparquet_out(tmp_path: Path) -> None:
+    path = _geoparquet(tmp_path / "drive.parquet", "EPSG:25832")
+    out = tmp_path / "out.parquet"
+    _detect([str(path), "-o", str(out)])
+    back = gpd.read_parquet(out)  # fails unless the output has geometry and 'geo' metadata
+    original = gpd.read_parquet(path)
+    assert back.crs == original.crs
+    assert len(back) == 30
+    assert back.geometry.geom_equals_exact(original.geometry, tolerance=0).all()
+    assert list(back.columns[:3]) == ["time", "car", "geometry"]
+    assert back["lat_clean"].to_numpy() == pytest.approx(LAT, abs=1e-5)
+
+
+def test_geoparquet_to_csv_writes_the_geometry_as_wkt(tmp_path: Path) -> None:
+    path = _geoparquet(tmp_path / "drive.parquet")
+    out = tmp_path / "out.csv"
+    _detect([str(path), "-o", str(out)])
+    frame = pd.read_csv(out)
+    assert len(frame) == 30
+    assert frame["geometry"].iloc[0] == "POINT (11.55 48.1)"
+    assert frame["time"].iloc[0] == "2026-11-23T10:00:00Z"
+
+
+def test_geoparquet_with_lines_names_the_row(tmp_path: Path) -> None:
+    geometry = list(gpd.points_from_xy(LON, LAT))
+    geometry[4] = shapely.LineString([(11.5, 48.1), (11.6, 48.2)])
+    frame = gpd.GeoDataFrame({"t": np.arange(30.0)}, geometry=geometry, crs="EPSG:4326")
+    frame.to_parquet(tmp_path / "lines.parquet")
+    with pytest.raises(InputError, match=r"row 5.*geometry|geometry.*row 5") as info:
+        read_fixes(tmp_path / "lines.parquet")
+    assert "a LineString, not a Point" in str(info.value)
