@@ -10,7 +10,7 @@ Why one step: a car needs a verdict per fix in microseconds, and every
 Python-level call costs about a microsecond of dispatch. So parameters live
 in one float64 vector ``P``, state in one float64 vector ``S`` plus the GRU's
 float32 hidden state ``H``, and :func:`grad_step` does everything. The batch
-path (:func:`grad_segment`) loops the *same* per-point function over a
+path (:func:`grad_segments`) loops the *same* per-point function over each
 segment, so batch and streaming give identical numbers, bit for bit.
 
 The features (the GRU's input) depend only on the fixes, never on the GRU's
@@ -96,7 +96,6 @@ __all__ = [
     "PERIOD_STEPS",
     "PipelineParams",
     "grad_features",
-    "grad_segment",
     "grad_segments",
     "grad_step",
     "new_state",
@@ -654,22 +653,3 @@ def grad_features(
         P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names)
     )
     return SegmentFeatures(np.asarray(features), np.asarray(bounds))
-
-
-def grad_segment(
-    params: PipelineParams,
-    frame: LocalFrame,
-    gp: NDArray[np.float32],
-    dims: NDArray[np.int64],
-    t: FloatArray,
-    lat: FloatArray,
-    lon: FloatArray,
-    speed: FloatArray,
-    heading: FloatArray,
-) -> FloatArray:
-    """Per-point outputs (n, 7) for one segment, from a fresh state (see the O_* columns)."""
-    P = params.array(segment_period(t), frame, dims)
-    H = np.zeros(int(dims[1] + dims[2]), np.float32)
-    return np.asarray(
-        _segment_kernel(P, new_state(P), H, gp, _segment_dt(t), lat, lon, speed, heading)
-    )
