@@ -147,3 +147,33 @@ def test_freeze_holds_start_on_a_moving_vehicle() -> None:
         t[starts] - t[starts - 1]
     )
     assert (speed >= 9.0).all()
+
+
+def test_stale_start_fixes_teach_nothing_and_the_fixes_after_the_jump_teach_normal() -> None:
+    """A stale start's held fixes cannot be told from a parked car until the jump:
+    they carry the ignore label (their loss does not count), every other point
+    keeps its label, and the first fix after the jump is normal (a cold start's
+    jump to the truth ends a fault; Austin validation: a real one)."""
+    from gradgps._grad.pipeline import PipelineParams
+    from gradgps._train.grad import labelled_sequences
+    from gradgps._train.labels import IGNORE_LABEL
+
+    labelled = _labelled(2)
+    # A stale start needs its track's first fixes free of grad's faults.
+    frozen = next(
+        f
+        for f in (inject_freeze(labelled, seed=s, share=0.0, stale_start=1.0) for s in range(50))
+        if f["label_stale"].sum() > 0
+    )
+    stale = frozen["label_stale"].to_numpy()
+    assert (frozen["label_anomaly"].to_numpy()[stale == 1] == 1).all()
+    sequences = labelled_sequences(frozen, PipelineParams())
+    anomaly = np.concatenate([s[1] for s in sequences])
+    bias = np.concatenate([s[2] for s in sequences])
+    assert anomaly.size == len(frozen)  # one point per row in this table
+    np.testing.assert_array_equal(anomaly == IGNORE_LABEL, stale == 1)
+    np.testing.assert_array_equal(bias == IGNORE_LABEL, stale == 1)
+    kept = stale == 0
+    np.testing.assert_array_equal(anomaly[kept], frozen["label_anomaly"].to_numpy()[kept])
+    after = np.flatnonzero(np.diff(stale) == -1) + 1
+    assert (anomaly[after] == labelled["label_anomaly"].to_numpy()[after]).all()

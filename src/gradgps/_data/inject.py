@@ -584,7 +584,10 @@ def inject_freeze(
     ``stale_start`` per track: the first fixes repeat a position from before,
     ``stale_offset_m`` away, until the first real fix). Held fixes are
     labelled ``label_anomaly = 1`` with bias ``freeze`` (time type
-    ``transient``); the jump back to the truth is *not* a fault. Holds are
+    ``transient``); the jump back to the truth is *not* a fault. A stale
+    start's held fixes also get ``label_stale = 1`` (0 elsewhere): until the
+    jump no causal detector can tell them from a parked car, so training
+    does not count them (:mod:`gradgps._train.labels`). Holds are
     placed where the vehicle moves at :data:`_FREEZE_ONSET_SPEED` (10 m/s) or
     more when the fix freezes and at 2 m/s or more for most of the hold (a frozen fix of a parked or crawling car is a true
     fix, and a hold that starts as the car brakes to a stop is a real stop) and only on fixes without a label, about ``share`` of each track's
@@ -605,6 +608,7 @@ def inject_freeze(
     anomaly = result["label_anomaly"].to_numpy().astype(np.int8).copy()
     bias = result["label_bias"].to_numpy(dtype=object).copy()
     time_type = result["label_time"].to_numpy(dtype=object).copy()
+    stale = np.zeros(len(result), np.int8)
     t_all = fixes["t"].to_numpy(dtype=np.float64)
     for rows in track_rows(fixes, invalid_reasons(fixes) == ""):
         if rows.size < 10:
@@ -630,6 +634,7 @@ def inject_freeze(
                 held = rows[:end]
                 lat[held], lon[held] = s_lat, s_lon
                 anomaly[held], bias[held], time_type[held] = 1, "freeze", "transient"
+                stale[held] = 1
                 free[:end] = False
         budget = share * rows.size
         tries = 0
@@ -658,4 +663,5 @@ def inject_freeze(
     result["label_anomaly"] = anomaly
     result["label_bias"] = bias
     result["label_time"] = time_type
+    result["label_stale"] = stale
     return result

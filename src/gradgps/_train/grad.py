@@ -30,6 +30,7 @@ from .._grad.model_io import save_model
 from .._grad.pipeline import PipelineParams, grad_features, pipeline_feature_names
 from .._tracks.track import ColumnMap, to_fixes
 from .cache import cached_path
+from .labels import IGNORE_LABEL
 
 __all__ = ["GradTrainingSet", "labelled_sequences", "train_grad"]
 
@@ -47,7 +48,9 @@ def labelled_sequences(
 
     ``labelled`` is a table with ``label_anomaly`` and ``label_bias`` columns
     (an injection protocol's output). A point that merges several rows takes
-    the strongest label among them.
+    the strongest label among them. Rows with ``label_stale`` = 1 (a stale
+    start's held fixes) get :data:`~gradgps._train.labels.IGNORE_LABEL`: their
+    loss does not count.
     """
     for col in ("label_anomaly", "label_bias"):
         if col not in labelled.columns:
@@ -69,6 +72,12 @@ def labelled_sequences(
         raise ConfigError(f"bias label {exc} is not one of {list(bias_classes)}") from exc
     bias = np.zeros(n_pts, np.int64)
     np.maximum.at(bias, prepared.row_point[ok], bias_rows[ok])
+    if "label_stale" in labelled.columns:
+        # A stale start's held fixes: no causal detector can know them yet (labels.py).
+        stale = np.zeros(n_pts, np.int64)
+        np.maximum.at(stale, prepared.row_point[ok], labelled["label_stale"].to_numpy(np.int64)[ok])
+        anomaly[stale == 1] = IGNORE_LABEL
+        bias[stale == 1] = IGNORE_LABEL
     pts = prepared.points
     nan = np.full(n_pts, np.nan)
     speed = pts["speed"].to_numpy(np.float64) if "speed" in pts else nan

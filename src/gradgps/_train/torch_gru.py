@@ -46,12 +46,13 @@ from .._exceptions import ConfigError
 from .._grad.gru import MODES
 from .._grad.model_io import export_torch
 from .._result import f1_score
+from .labels import IGNORE_LABEL
 from .thresholds import best_f1_threshold, recall_floor_threshold
 
 __all__ = ["EpochMetrics", "GRADNet", "TrainConfig", "TrainedModel", "train_model"]
 
 LabelledSequence = tuple[np.ndarray, np.ndarray, np.ndarray]
-_IGNORE = -100  # torch's CrossEntropyLoss ignore_index: padding and non-target steps
+_IGNORE = IGNORE_LABEL  # torch's CrossEntropyLoss ignore_index: padding, non-target, unknowable
 
 
 @dataclass
@@ -274,9 +275,10 @@ def _check_sequences(sequences: Sequence[LabelledSequence], n_bias: int, what: s
                 f"{what}[{i}]: need one anomaly and one bias label per row "
                 f"({len(features)}), got {anomaly.shape} and {bias.shape}"
             )
-        if not np.isin(anomaly, (0, 1)).all():
-            raise ConfigError(f"{what}[{i}]: anomaly labels must be 0 or 1")
-        if bias.size and (bias.min() < 0 or bias.max() >= n_bias):
+        if not np.isin(anomaly, (0, 1, _IGNORE)).all():
+            raise ConfigError(f"{what}[{i}]: anomaly labels must be 0, 1 or {_IGNORE} (ignored)")
+        counted = bias[bias != _IGNORE]
+        if counted.size and (counted.min() < 0 or counted.max() >= n_bias):
             raise ConfigError(
                 f"{what}[{i}]: bias labels must be in 0..{n_bias - 1} (one per bias class)"
             )
