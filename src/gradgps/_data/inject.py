@@ -30,7 +30,6 @@ ones and append label columns. Same input and seed give the same bytes.
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -516,18 +515,10 @@ class _GnssScheduler:
         return _GnssEpisode("outage", start, stop, "transient", zero, zero, missing)
 
 
-def _receiver_columns(table: pd.DataFrame, cmap: ColumnMap) -> dict[str, str]:
-    """Input column for each of :data:`QUALITY_COLUMNS` (its own name where it has none)."""
-    found = {"fix_quality": None, "satellites": None, "hdop": cmap.hdop}
-    by_norm = {re.sub(r"[^0-9a-z]", "", str(c).lower()): str(c) for c in table.columns}
-    for role, names in (
-        ("fix_quality", ("fixquality", "quality", "fix", "gpsquality")),
-        ("satellites", ("satellites", "sats", "numsats", "numsat", "nsats", "sat")),
-    ):
-        for name in names:
-            if name in by_norm:
-                found[role] = by_norm[name]
-                break
+def _receiver_columns(cmap: ColumnMap) -> dict[str, str]:
+    """Input column for each of :data:`QUALITY_COLUMNS`, found as :func:`to_fixes` finds
+    them (its canonical name where the input has none)."""
+    found = {"fix_quality": cmap.fix_quality, "satellites": cmap.satellites, "hdop": cmap.hdop}
     return {role: col if col is not None else role for role, col in found.items()}
 
 
@@ -633,20 +624,18 @@ def inject_gnss(
     result = table.reset_index(drop=True).copy()
     result[cmap.lat] = lat
     result[cmap.lon] = lon
-    quality = _receiver_columns(result, cmap)
-    if outage.any() or any(c not in result.columns for c in quality.values()):
-        for role, value in (
-            ("fix_quality", OUTAGE_FIX_QUALITY),
-            ("satellites", OUTAGE_SATELLITES),
-            ("hdop", OUTAGE_HDOP),
-        ):
-            col = quality[role]
-            values = (
-                pd.to_numeric(result[col], errors="coerce").to_numpy(dtype=np.float64)
-                if col in result.columns
-                else np.full(n, np.nan)
-            )
-            result[col] = np.where(outage, float(value), values)
+    quality = _receiver_columns(cmap)
+    for role, value in (
+        ("fix_quality", OUTAGE_FIX_QUALITY),
+        ("satellites", OUTAGE_SATELLITES),
+        ("hdop", OUTAGE_HDOP),
+    ):
+        col = quality[role]
+        if col in result.columns:  # the input's own column, its other values as they were
+            if outage.any():
+                result[col] = result[col].where(~outage, value)
+        else:
+            result[col] = np.where(outage, float(value), np.nan)
     result["label_anomaly"] = ((la.episode >= 0) | (lo.episode >= 0)).astype(np.int8)
     result["label_lat"] = (la.episode >= 0).astype(np.int8)
     result["label_lon"] = (lo.episode >= 0).astype(np.int8)
