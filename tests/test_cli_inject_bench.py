@@ -36,7 +36,7 @@ def small_csv(shared_data: Path, tmp_path: Path) -> Path:
 
 
 @pytest.mark.shared
-@pytest.mark.parametrize("protocol", ["grad", "sensor-grid"])
+@pytest.mark.parametrize("protocol", ["grad", "gnss", "sensor-grid"])
 def test_inject_writes_the_same_bytes_for_the_same_seed(
     small_csv: Path, tmp_path: Path, protocol: str
 ) -> None:
@@ -51,7 +51,9 @@ def test_inject_writes_the_same_bytes_for_the_same_seed(
         outs.append(out.read_bytes())
     assert outs[0] == outs[1]
     assert "achieved fault rates" in res.output
-    assert ("intermittent" if protocol == "grad" else "drift") in res.output
+    assert {"grad": "intermittent", "gnss": "multipath", "sensor-grid": "drift"}[protocol] in (
+        res.output
+    )
     table = pd.read_csv(tmp_path / "out0.csv")
     original = pd.read_csv(small_csv)
     assert list(table.columns[: original.shape[1]]) == list(original.columns)

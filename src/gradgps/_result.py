@@ -31,6 +31,9 @@ import pandas as pd
 from numpy.typing import ArrayLike
 
 __all__ = [
+    "FIX_QUALITY_WORDS",
+    "NO_FIX",
+    "NO_SATELLITES",
     "NULL_ISLAND",
     "RESULT_COLUMNS",
     "RESULT_DTYPES",
@@ -41,9 +44,11 @@ __all__ = [
     "decode_floats",
     "encode_floats",
     "f1_score",
+    "fix_quality_code",
     "fix_reason",
     "invalid_reasons",
     "reading",
+    "receiver_reason",
     "result_frame",
     "results_frame",
 ]
@@ -111,13 +116,94 @@ def reading(value: object) -> float:
 
 #: Reason for a fix at exactly (0, 0), what receivers report before they have a position.
 NULL_ISLAND = "position exactly (0, 0): no fix yet"
+#: Reason for a fix whose receiver reports fix quality 0 (GGA 0, RMC ``V``, GPX ``none``).
+NO_FIX = "receiver reports no fix"
+#: Reason for a fix whose receiver reports 0 satellites in use.
+NO_SATELLITES = "receiver reports no fix (0 satellites)"
+
+#: Fix-quality words (lower case, spaces and dashes dropped) and their GGA-style code:
+#: 0 = no fix. RMC status letters, GPX ``<fix>`` values and common logger words.
+FIX_QUALITY_WORDS: dict[str, float] = {
+    "v": 0.0,
+    "n": 0.0,
+    "none": 0.0,
+    "nofix": 0.0,
+    "invalid": 0.0,
+    "nosolution": 0.0,
+    "a": 1.0,
+    "gps": 1.0,
+    "fix": 1.0,
+    "valid": 1.0,
+    "2d": 1.0,
+    "3d": 1.0,
+    "2dfix": 1.0,
+    "3dfix": 1.0,
+    "d": 2.0,
+    "dgps": 2.0,
+    "dgnss": 2.0,
+    "sbas": 2.0,
+    "pps": 3.0,
+    "rtk": 4.0,
+    "rtkfixed": 4.0,
+    "float": 5.0,
+    "rtkfloat": 5.0,
+    "e": 6.0,
+    "dr": 6.0,
+    "estimated": 6.0,
+    "deadreckoning": 6.0,
+}
+
+
+def fix_quality_code(value: object) -> float:
+    """A receiver's fix quality as a GGA-style number: 0 = no fix, NaN = not reported.
+
+    Numbers are taken as they are (a GGA quality or a receiver's fix type);
+    text is a number or one of :data:`FIX_QUALITY_WORDS` (``"V"``,
+    ``"none"``, ``"3d"``...). Anything else is *not reported* (NaN), never an
+    error: the receiver's fields are hints, and an unreadable one must not
+    stop detection.
+    """
+    if value is None or isinstance(value, bool):
+        return math.nan
+    if isinstance(value, int | float | np.integer | np.floating):
+        number = float(value)
+        return number if math.isfinite(number) else math.nan
+    text = str(value).strip().lower().replace(" ", "").replace("-", "").replace("_", "")
+    try:
+        number = float(text)
+    except ValueError:
+        return FIX_QUALITY_WORDS.get(text, math.nan)
+    return number if math.isfinite(number) else math.nan
+
+
+def receiver_reason(fix_quality: object = None, satellites: object = None) -> str:
+    """Why the receiver's own fields say a fix is no fix (``""`` when they do not, or are absent).
+
+    ``fix_quality`` as :func:`fix_quality_code` reads it (0: no fix);
+    ``satellites`` a count (0: no fix). The scalar twin of the receiver
+    checks in :func:`invalid_reasons`.
+    """
+    if fix_quality_code(fix_quality) == 0.0:
+        return NO_FIX
+    if as_number(satellites) == 0.0:
+        return NO_SATELLITES
+    return ""
+
+
 #: Tolerance on a time step compared with a minimum step: timestamps such as
 #: 1.7e9 + 0.001 s are not exact in float64, so a 1 ms step may read 0.99999 ms.
 STEP_TOLERANCE_S = 1e-5
 
 
 def fix_reason(
-    t: float, lat: float, lon: float, last_t: float | None = None, min_step_s: float = 0.0
+    t: float,
+    lat: float,
+    lon: float,
+    last_t: float | None = None,
+    min_step_s: float = 0.0,
+    *,
+    fix_quality: object = None,
+    satellites: object = None,
 ) -> str:
     """Why one fix cannot be used (``""`` if it can); the scalar twin of :func:`invalid_reasons`.
 
@@ -125,9 +211,14 @@ def fix_reason(
     is invalid; with ``min_step_s`` > 0 (GRAD, which needs a sampling
     period) so is one not at least ``min_step_s`` after it. Without it a
     repeated time is a reading ``dt = 0`` after the previous one, as in batch.
+    ``fix_quality``, ``satellites``: what the receiver reports, when it does
+    (:func:`receiver_reason`); a fix it calls no fix is invalid.
     """
     if not math.isfinite(t):
         return "time missing or not finite"
+    receiver = receiver_reason(fix_quality, satellites)
+    if receiver:
+        return receiver
     if not math.isfinite(lat):
         return "latitude missing or not finite"
     if abs(lat) > 90.0:
@@ -149,18 +240,36 @@ def fix_reason(
 
 
 def invalid_reasons(fixes: pd.DataFrame) -> np.ndarray:
-    """Per row of canonical fixes: ``""`` for a usable fix, else why not (first problem found)."""
+    """Per row of canonical fixes: ``""`` for a usable fix, else why not (first problem found).
+
+    The receiver's own verdict (canonical columns ``fix_quality`` and
+    ``satellites``, where present) comes before any position problem: a
+    no-fix epoch's missing position is explained by the receiver.
+    """
     n = len(fixes)
     reason = np.full(n, "", dtype=object)
     t = fixes["t"].to_numpy(dtype=np.float64)
     lat = fixes["lat"].to_numpy(dtype=np.float64)
     lon = fixes["lon"].to_numpy(dtype=np.float64)
+    none = np.zeros(n, dtype=bool)
+    no_sats = (
+        fixes["satellites"].to_numpy(dtype=np.float64, na_value=np.nan) == 0.0
+        if "satellites" in fixes.columns
+        else none
+    )
+    no_fix = (
+        fixes["fix_quality"].to_numpy(dtype=np.float64, na_value=np.nan) == 0.0
+        if "fix_quality" in fixes.columns
+        else none
+    )
     checks = (
         ((lat == 0.0) & (lon == 0.0), NULL_ISLAND),
         (~np.isfinite(lon), "longitude missing or not finite"),
         (np.isfinite(lon) & (np.abs(lon) > 180.0), "longitude outside +-180"),
         (~np.isfinite(lat), "latitude missing or not finite"),
         (np.isfinite(lat) & (np.abs(lat) > 90.0), "latitude outside +-90"),
+        (no_sats, NO_SATELLITES),
+        (no_fix, NO_FIX),
         (~np.isfinite(t), "time missing or not finite"),
     )
     # Later checks overwrite earlier ones, so the most basic problem (time) wins.

@@ -1,4 +1,4 @@
-"""Fault injection (public): the ``grad`` and ``sensor-grid`` protocols; see :mod:`gradgps._data.inject`."""
+"""Fault injection (public): the ``grad``, ``gnss`` and ``sensor-grid`` protocols; see :mod:`gradgps._data.inject`."""
 
 from __future__ import annotations
 

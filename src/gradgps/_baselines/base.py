@@ -132,17 +132,28 @@ class StreamingBaseline(BatchBaseline):
         lon: float,
         speed: float | None = None,
         heading: float | None = None,
+        *,
+        fix_quality: Any = None,
+        satellites: Any = None,
         **channels: float,
     ) -> PointResult:
         """Judge one fix of this detector's track; never raises on bad values.
 
         Unusable fixes (time, latitude or longitude missing, not a number, out
-        of range, or time before the previous usable fix) are flagged with
-        their reason and change nothing. Optional readings that are missing
-        or not numbers count as absent (NaN).
+        of range, time before the previous usable fix, or a fix the receiver
+        reports as no fix through ``fix_quality`` or ``satellites``) are
+        flagged with their reason and change nothing. Optional readings that
+        are missing or not numbers count as absent (NaN).
         """
         t_f, lat_f, lon_f = as_number(t), as_number(lat), as_number(lon)
-        reason = fix_reason(t_f, lat_f, lon_f, self._stream_last_t())
+        reason = fix_reason(
+            t_f,
+            lat_f,
+            lon_f,
+            self._stream_last_t(),
+            fix_quality=fix_quality,
+            satellites=satellites,
+        )
         if reason:
             return PointResult.invalid(reason, classifies=False)
         extra = {name: reading(value) for name, value in channels.items()}

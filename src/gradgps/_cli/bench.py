@@ -70,6 +70,52 @@ def _robustness(
         click.echo(f"wrote {json_path}")
 
 
+def _gnss(
+    detector: str,
+    train_dataset: str | None,
+    data_dir: Path | None,
+    model: Path | None,
+    seed: int,
+    scale: float,
+    json_path: Path | None,
+) -> None:
+    """``--protocol gnss``: every real test split, positions only and with its columns."""
+    import shlex
+
+    from .._eval.bench import make_detector
+    from .._eval.gnss import gnss_markdown, run_gnss_bench
+    from .._eval.robustness import ROBUSTNESS_DATASETS
+
+    with click_errors():
+        det = make_detector(
+            "grad" if detector == "grad-default" and model is not None else detector,
+            dataset=train_dataset or "driveplotr",
+            data_dir=data_dir,
+            model=model,
+        )
+        with _step_progress("gnss", 2 * len(ROBUSTNESS_DATASETS)) as advance:
+            report = run_gnss_bench(
+                det,
+                detector,
+                model=model,
+                data_dir=data_dir,
+                seed=seed,
+                scale=scale,
+                advance=advance,
+            )
+    words = ["gradgps", "bench", "--protocol", "gnss", "--detector", detector]
+    words += ["--model", str(model)] if model is not None else []
+    words += ["--dataset", train_dataset] if train_dataset is not None else []
+    words += ["--seed", str(seed)] if seed else []
+    words += ["--scale", f"{scale:g}"] if scale != 1.0 else []
+    words += ["--data-dir", str(data_dir)] if data_dir is not None else []
+    words += ["--json", str(json_path)] if json_path is not None else []
+    click.echo("\n".join(gnss_markdown(report, shlex.join(words))))
+    if json_path is not None:
+        json_path.write_text(json.dumps(report, indent=1) + "\n")
+        click.echo(f"wrote {json_path}")
+
+
 def _fmt(value: object) -> str:
     return "-" if value is None else f"{value:.3f}" if isinstance(value, float) else str(value)
 
@@ -86,8 +132,11 @@ def _fmt(value: object) -> str:
 )
 @option(
     "--protocol",
-    type=click.Choice(["grad", "sensor-grid"]),
-    help="fault protocol (docs/protocols.md); required without --suite",
+    type=click.Choice(["grad", "gnss", "sensor-grid"]),
+    help="fault protocol (docs/protocols.md); required without --suite. 'gnss' runs on "
+    "every real data set's test split, positions only and with its columns (--dataset "
+    "then names where detectors that need training are trained; one --detector, default "
+    "grad-default)",
 )
 @option(
     "--dataset",
@@ -179,6 +228,11 @@ def bench(
 
     if suite == "robustness":
         _robustness(detectors or "grad-default", dataset, data_dir, model, json_path)
+        return
+    if suite is None and protocol == "gnss":
+        if detectors is not None and "," in detectors:
+            raise click.UsageError("--protocol gnss takes one --detector")
+        _gnss(detectors or "grad-default", dataset, data_dir, model, seed, scale, json_path)
         return
     if suite == "peers":
         from .peers import peers_suite

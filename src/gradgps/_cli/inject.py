@@ -27,9 +27,10 @@ def _read_input(path: Path, fmt: str | None, reading: ReadOptions) -> Table:
 )
 @option(
     "--protocol",
-    type=click.Choice(["grad", "sensor-grid"]),
+    type=click.Choice(["grad", "gnss", "sensor-grid"]),
     required=True,
-    help="grad: position faults (paper Table 1); sensor-grid: speed/accel/yaw-rate faults",
+    help="grad: position faults (paper Table 1); gnss: grad plus the faults real receivers "
+    "make (freeze, drift, multipath, outage); sensor-grid: speed/accel/yaw-rate faults",
 )
 @option(
     "--row",
@@ -72,7 +73,14 @@ def inject(
     from rich.console import Console
     from rich.table import Table as RichTable
 
-    from .._data.inject import grad_rates, inject_grad, inject_sensor_grid, sensor_grid_rates
+    from .._data.inject import (
+        gnss_rates,
+        grad_rates,
+        inject_gnss,
+        inject_grad,
+        inject_sensor_grid,
+        sensor_grid_rates,
+    )
 
     columns: ColumnMap = column_map(cols)
     reading = read_options(cols)
@@ -84,7 +92,7 @@ def inject(
             f"{', '.join(reading.name(o) for o in unsupported)}: not supported by inject, which "
             "writes the values back as the input has them; convert the file first"
         )
-    if protocol == "grad" and row is not None:
+    if protocol != "sensor-grid" and row is not None:
         raise click.UsageError("--row applies to --protocol sensor-grid only")
     with click_errors():
         table = _read_input(input_path, fmt, reading)
@@ -92,6 +100,9 @@ def inject(
         if protocol == "grad":
             labelled = inject_grad(table.frame, seed=seed, scale=scale, columns=columns)
             rates = grad_rates(labelled)
+        elif protocol == "gnss":
+            labelled = inject_gnss(table.frame, seed=seed, scale=scale, columns=columns)
+            rates = gnss_rates(labelled)
         else:
             labelled = inject_sensor_grid(
                 table.frame,
@@ -105,11 +116,14 @@ def inject(
     from .._io.read import write_table
 
     write_table(labelled, output)
-    shown = RichTable(title=f"achieved fault rates, % of {len(labelled)} rows ({protocol})")
+    title = f"achieved fault rates, % of {len(labelled)} rows ({protocol})"
+    shown = RichTable(title=title + (", and episodes" if protocol == "gnss" else ""))
     shown.add_column("")
     for c in rates.columns:
         shown.add_column(str(c), justify="right")
     for name, values in rates.iterrows():
-        shown.add_row(str(name), *[f"{v:.2f}" for v in values])
+        shown.add_row(
+            str(name), *[f"{v:.0f}" if c == "episodes" else f"{v:.2f}" for c, v in values.items()]
+        )
     Console().print(shown)
     click.echo(f"wrote {output}")

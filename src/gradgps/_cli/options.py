@@ -30,6 +30,12 @@ _ROLES = (
     ("heading", "--heading-col", "heading/course column, degrees"),
     ("alt", "--alt-col", "altitude column, metres"),
     ("hdop", "--hdop-col", "HDOP column"),
+    (
+        "fix_quality",
+        "--fix-col",
+        "receiver fix quality column (GGA quality, RMC status A/V, GPX fix; 0, V or none = no fix)",
+    ),
+    ("satellites", "--sats-col", "satellites-in-use column (0 = no fix)"),
 )
 
 

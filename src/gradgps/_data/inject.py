@@ -1,7 +1,7 @@
-"""Seeded fault injection: the two benchmark protocols (see ``docs/protocols.md``).
+"""Seeded fault injection: the three benchmark protocols (see ``docs/protocols.md``).
 
 The real drives carry no labels, so benchmarks corrupt them on purpose and
-record exactly what was done. Two protocols:
+record exactly what was done. Three protocols:
 
 ``grad``
     Position faults after the paper's Table 1. Latitude and longitude are
@@ -10,19 +10,26 @@ record exactly what was done. Two protocols:
     whose bias is *noise* or a *jump*. Rates are steered to their targets by
     a point budget (below), so a benchmark split gets the paper's mix, not
     just its expectation.
+``gnss``
+    ``grad`` plus the faults real receivers make, on both channels at once:
+    a *freeze* (the last fix repeated while the vehicle moves), a *drift*
+    (an offset growing at a few m/s: a spoofing take-over), *multipath*
+    (correlated offsets of tens of metres) and an *outage* the receiver
+    reports itself (fix quality 0, no satellites).
 ``sensor-grid``
     Faults in speed, longitudinal acceleration and yaw rate after van Wyk et
     al. (2020) / Javed et al. (2021): *instant*, *constant*, *bias* and
     *drift* faults, one table row (magnitude, duration) at a time: the rows
     of the paper's comparison table.
 
-Both take a table (any columns; track/time/lat/lon found as in
+All take a table (any columns; track/time/lat/lon found as in
 :func:`gradgps.to_fixes`), keep every input column, overwrite the corrupted
 ones and append label columns. Same input and seed give the same bytes.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +43,8 @@ from .._tracks.track import ColumnMap, to_fixes, track_rows
 __all__ = [
     "BIAS_TYPES",
     "CONSTANT_MODES",
+    "GNSS_RATES",
+    "GNSS_TYPES",
     "GRAD_RATES",
     "GRAVITY",
     "SENSOR_CHANNELS",
@@ -43,8 +52,10 @@ __all__ = [
     "SENSOR_TYPES",
     "TIME_TYPES",
     "SensorFaultRow",
+    "gnss_rates",
     "grad_rates",
     "inject_freeze",
+    "inject_gnss",
     "inject_grad",
     "inject_sensor_grid",
     "sensor_grid_rates",
@@ -76,7 +87,15 @@ NOISE_M = (10.0, 50.0)
 JUMP_M = (20.0, 200.0)
 
 _TIME_RANK = {"none": 0, "transient": 1, "intermittent": 2, "permanent": 3}
-_BIAS_RANK = {"none": 0, "noise": 1, "jump": 2}
+_BIAS_RANK = {
+    "none": 0,
+    "noise": 1,
+    "jump": 2,
+    "freeze": 3,
+    "drift": 4,
+    "multipath": 5,
+    "outage": 6,
+}
 
 
 @dataclass
@@ -159,8 +178,10 @@ class _GradScheduler:
         self.budget = {"lat": dict.fromkeys(TIME_TYPES, 0.0), "lon": dict.fromkeys(TIME_TYPES, 0.0)}
         self.next_episode = 0
 
-    def channel(self, name: str, n: int) -> _Channel:
-        ch = _Channel.empty(n)
+    def channel(self, name: str, n: int, base: _Channel | None = None) -> _Channel:
+        """Episodes on one channel of ``n`` points; ``base``: a channel already holding
+        episodes (protocol ``gnss``), which the new ones keep their gaps to."""
+        ch = _Channel.empty(n) if base is None else base
         budget = self.budget[name]
         for lo in range(0, n, SEGMENT_POINTS):
             hi = min(lo + SEGMENT_POINTS, n)
@@ -306,6 +327,348 @@ def grad_rates(labelled: pd.DataFrame) -> pd.DataFrame:
                 count += int(np.sum(sel & (bt == bias)))
             row[bias] = 100.0 * count / n
         table[kind] = row
+    return pd.DataFrame.from_dict(table, orient="index")
+
+
+# ---------------------------------------------------------------- protocol gnss
+
+#: The bias types protocol ``gnss`` adds to ``grad``'s noise and jump: faults real
+#: receivers make. Each moves (or invalidates) both channels at once.
+GNSS_TYPES = ("freeze", "drift", "multipath", "outage")
+#: Target share of each track's usable fixes per added bias type (steered by a
+#: point budget, as under ``grad``); ``grad``'s own time types keep their rates.
+GNSS_RATES = {"freeze": 0.02, "drift": 0.05, "multipath": 0.02, "outage": 0.015}
+#: Seconds a frozen fix repeats the last value (the hold's first to last held fix
+#: lie within this span of the fix before it).
+FREEZE_S = (3.0, 60.0)
+#: m/s: a freeze starts only when the vehicle moves this fast over the step into
+#: the hold (:data:`_FREEZE_ONSET_SPEED`), and moves at 2 m/s or more for at
+#: least half of the held steps: a frozen fix of a stopped car is a true fix.
+FREEZE_MOVING_MPS = 2.0
+#: Seconds the offset of a drift grows, and the rate it grows at (m/s).
+DRIFT_S = (20.0, 300.0)
+DRIFT_RATE_MPS = (0.2, 3.0)
+#: Probability that a drift holds its final offset to the end of the track (the
+#: spoofer keeps the receiver) instead of snapping back to the truth.
+DRIFT_HOLD_PROBABILITY = 0.5
+#: Seconds a held drift keeps its final offset before the track ends.
+DRIFT_HOLD_S = (10.0, 120.0)
+#: Seconds a multipath burst lasts, the correlation time of its AR(1) offsets,
+#: and the size of its offsets in metres.
+MULTIPATH_S = (2.0, 20.0)
+MULTIPATH_TAU_S = (2.0, 20.0)
+MULTIPATH_M = (10.0, 80.0)
+#: Radians the direction of a multipath offset wanders either side of its start.
+MULTIPATH_TURN_RAD = np.pi / 4
+#: Seconds an outage lasts; the probability that its positions are missing (NaN)
+#: rather than frozen at the last fix; what the receiver reports meanwhile.
+OUTAGE_S = (1.0, 30.0)
+OUTAGE_MISSING_PROBABILITY = 0.5
+OUTAGE_FIX_QUALITY = 0
+OUTAGE_SATELLITES = 0
+OUTAGE_HDOP = 99.99
+#: Draws per bias type and track before the type gives up until the next track.
+GNSS_TRIES = 60
+#: The receiver-quality columns an outage writes when the input has none of its own.
+QUALITY_COLUMNS = ("fix_quality", "satellites", "hdop")
+
+
+@dataclass
+class _GnssEpisode:
+    """One placed episode of an added bias type, in positions of its track's rows."""
+
+    kind: str
+    start: int
+    stop: int  # exclusive
+    time_type: str
+    east: np.ndarray  # written offsets (m) or, for freeze/outage, unused
+    north: np.ndarray
+    missing: bool = False
+
+
+def _span(t: np.ndarray, start: int, seconds: float) -> int:
+    """End (exclusive) of the fixes from ``start`` whose time is before ``t[start] + seconds``."""
+    return int(np.searchsorted(t, t[start] + seconds, side="left"))
+
+
+def _std_normal_cdf(x: np.ndarray) -> np.ndarray:
+    """Φ, the standard normal distribution function, per element (in [0, 1])."""
+    return np.array([0.5 * math.erfc(-v / math.sqrt(2.0)) for v in x.tolist()], dtype=np.float64)
+
+
+class _GnssScheduler:
+    """Places the added bias types on one track after another (budgets carry over)."""
+
+    def __init__(self, rng: np.random.Generator, scale: float) -> None:
+        self.rng = rng
+        self.scale = scale
+        self.budget = dict.fromkeys(GNSS_TYPES, 0.0)
+
+    def track(self, t: np.ndarray, east: np.ndarray, north: np.ndarray) -> list[_GnssEpisode]:
+        n = t.size
+        busy = np.zeros(n, dtype=bool)
+        step = np.r_[np.hypot(np.diff(east), np.diff(north)) / np.maximum(np.diff(t), 1e-9), 0.0]
+        placed: list[_GnssEpisode] = []
+        for kind in GNSS_TYPES:
+            self.budget[kind] += GNSS_RATES[kind] * n
+        if n < 2 * MIN_GAP_POINTS:
+            return placed
+        for kind in GNSS_TYPES:
+            for _ in range(GNSS_TRIES):
+                if self.budget[kind] <= 0:
+                    break
+                episode = self._draw(kind, t, east, north, step)
+                if episode is None:
+                    continue
+                k = episode.stop - episode.start
+                if self.budget[kind] < k / 2:
+                    continue
+                lo = max(episode.start - MIN_GAP_POINTS, 0)
+                hi = min(episode.stop + MIN_GAP_POINTS, n)
+                if busy[lo:hi].any():
+                    continue
+                busy[lo:hi] = True
+                placed.append(episode)
+                self.budget[kind] -= k
+        placed.sort(key=lambda e: e.start)
+        return placed
+
+    def _draw(
+        self,
+        kind: str,
+        t: np.ndarray,
+        east: np.ndarray,
+        north: np.ndarray,
+        step: np.ndarray,
+    ) -> _GnssEpisode | None:
+        """One episode of ``kind`` at a random place; ``None`` when the draw does not fit."""
+        rng = self.rng
+        n = t.size
+        start = int(rng.integers(1, n))
+        if kind == "drift":
+            seconds = float(rng.uniform(*DRIFT_S))
+            rate = float(rng.uniform(*DRIFT_RATE_MPS)) * self.scale
+            angle = float(rng.uniform(0.0, 2.0 * np.pi))
+            hold = bool(rng.random() < DRIFT_HOLD_PROBABILITY)
+            if hold:
+                held = float(rng.uniform(*DRIFT_HOLD_S))
+                start = int(np.searchsorted(t, t[-1] - held - seconds, side="left"))
+                stop = n
+            else:
+                stop = _span(t, start, seconds)
+            if start < 1 or stop - start < 1 or (not hold and stop >= n):
+                return None
+            grown = rate * np.minimum(t[start:stop] - t[start - 1], seconds)
+            return _GnssEpisode(
+                "drift",
+                start,
+                stop,
+                "permanent" if hold else "transient",
+                grown * np.sin(angle),
+                grown * np.cos(angle),
+            )
+        if kind == "freeze":
+            stop = _span(t, start - 1, float(rng.uniform(*FREEZE_S)))
+            if stop - start < 1 or stop >= n:
+                return None
+            moved = np.hypot(
+                east[start:stop] - east[start - 1], north[start:stop] - north[start - 1]
+            )
+            if (
+                step[start - 1] < _FREEZE_ONSET_SPEED
+                or (step[start - 1 : stop - 1] >= FREEZE_MOVING_MPS).mean() < 0.5
+                or not (moved > 0).all()
+            ):
+                return None
+            zero = np.zeros(stop - start)
+            return _GnssEpisode("freeze", start, stop, "transient", zero, zero)
+        if kind == "multipath":
+            stop = _span(t, start, float(rng.uniform(*MULTIPATH_S)))
+            if stop - start < 1 or stop >= n:
+                return None
+            tau = float(rng.uniform(*MULTIPATH_TAU_S))
+            k = stop - start
+            rho = np.exp(-np.r_[0.0, np.diff(t[start:stop])] / tau)
+            shocks = rng.standard_normal((2, k))
+            latent = np.empty((2, k))
+            latent[:, 0] = shocks[:, 0]
+            for i in range(1, k):
+                latent[:, i] = rho[i] * latent[:, i - 1] + np.sqrt(1.0 - rho[i] ** 2) * shocks[:, i]
+            lo, hi = MULTIPATH_M
+            size = (lo + (hi - lo) * _std_normal_cdf(latent[0])) * self.scale
+            heading = float(rng.uniform(0.0, 2.0 * np.pi)) + MULTIPATH_TURN_RAD * (
+                2.0 * _std_normal_cdf(latent[1]) - 1.0
+            )
+            return _GnssEpisode(
+                "multipath",
+                start,
+                stop,
+                "transient",
+                size * np.sin(heading),
+                size * np.cos(heading),
+            )
+        stop = _span(t, start, float(rng.uniform(*OUTAGE_S)))
+        if stop - start < 1 or stop >= n:
+            return None
+        zero = np.zeros(stop - start)
+        missing = bool(rng.random() < OUTAGE_MISSING_PROBABILITY)
+        return _GnssEpisode("outage", start, stop, "transient", zero, zero, missing)
+
+
+def _receiver_columns(cmap: ColumnMap) -> dict[str, str]:
+    """Input column for each of :data:`QUALITY_COLUMNS`, found as :func:`to_fixes` finds
+    them (its canonical name where the input has none)."""
+    found = {"fix_quality": cmap.fix_quality, "satellites": cmap.satellites, "hdop": cmap.hdop}
+    return {role: col if col is not None else role for role, col in found.items()}
+
+
+def inject_gnss(
+    table: pd.DataFrame, *, seed: int, scale: float = 1.0, columns: ColumnMap | None = None
+) -> pd.DataFrame:
+    """Corrupt positions with protocol ``gnss``; return the table with labels appended.
+
+    Protocol ``grad``'s episodes (noise and jump; transient, intermittent,
+    permanent; same shapes, rates and per-channel labels) plus the faults
+    real receivers make, on both channels at once (see ``docs/protocols.md``
+    for every rate and range):
+
+    ``freeze``
+        the fix repeats the last value for 3-60 s while the vehicle moves;
+    ``drift``
+        an offset growing at 0.2-3 m/s in a random direction for 20-300 s,
+        then snapping back (time type ``transient``) or holding its final
+        offset to the end of the track (``permanent``): a spoofing take-over;
+    ``multipath``
+        offsets of 10-80 m for 2-20 s, AR(1)-correlated over 2-20 s;
+    ``outage``
+        for 1-30 s the receiver reports no fix (``fix_quality`` 0,
+        ``satellites`` 0, ``hdop`` 99.99, written into the input's own
+        receiver-quality columns, added where it has none) and the position
+        is frozen at the last fix or missing.
+
+    The added types are placed first (their own point budgets), ``grad``'s
+    around them, with at least 10 normal fixes between any two episodes of a
+    channel. Columns as :func:`inject_grad`'s, the bias types extended,
+    plus ``label_episode`` (the episode that decides the row's labels, -1
+    for none) and ``label_offset_m`` (distance of the written position from
+    the truth in metres, NaN where it is missing). Speed, heading and every
+    other column are left true. Same input and seed, same bytes.
+    """
+    _check_scale(scale)
+    fixes = to_fixes(table, columns)
+    cmap: ColumnMap = fixes.attrs["columns"]
+    assert cmap.lat is not None
+    assert cmap.lon is not None
+    n = len(fixes)
+    lat_true = fixes["lat"].to_numpy(dtype=np.float64)
+    lon_true = fixes["lon"].to_numpy(dtype=np.float64)
+    t_all = fixes["t"].to_numpy(dtype=np.float64)
+    lat = lat_true.copy()
+    lon = lon_true.copy()
+    offset_m = np.zeros(n)
+    outage = np.zeros(n, dtype=bool)
+    labels = {name: _Channel.empty(n) for name in ("lat", "lon")}
+    rng = np.random.default_rng(seed)
+    scheduler = _GradScheduler(rng, scale)
+    gnss = _GnssScheduler(rng, scale)
+    for rows in track_rows(fixes, invalid_reasons(fixes) == ""):
+        frame = LocalFrame(float(lat_true[rows[0]]), float(lon_true[rows[0]]))
+        east, north = frame.to_local(lat_true[rows], lon_true[rows])
+        base = _Channel.empty(rows.size)
+        de, dn = np.zeros(rows.size), np.zeros(rows.size)
+        for episode in gnss.track(t_all[rows], east, north):
+            span = slice(episode.start, episode.stop)
+            at = rows[span]
+            base.time_type[span] = episode.time_type
+            base.bias_type[span] = episode.kind
+            base.episode[span] = scheduler.next_episode
+            scheduler.next_episode += 1
+            if episode.kind in ("freeze", "outage"):
+                # The last fix repeated exactly, or (an outage) no position at all.
+                ref = rows[episode.start - 1]
+                lat[at], lon[at] = lat_true[ref], lon_true[ref]
+                de[span] = east[episode.start - 1] - east[span]
+                dn[span] = north[episode.start - 1] - north[span]
+                outage[at] = episode.kind == "outage"
+                if episode.missing:
+                    lat[at], lon[at] = np.nan, np.nan
+                    de[span], dn[span] = np.nan, np.nan
+            else:
+                de[span], dn[span] = episode.east, episode.north
+                lat[at], lon[at] = frame.to_geodetic(east[span] + de[span], north[span] + dn[span])
+        for name in ("lat", "lon"):
+            own = _Channel(
+                base.offset_m.copy(),
+                base.time_type.copy(),
+                base.bias_type.copy(),
+                base.episode.copy(),
+            )
+            ch = scheduler.channel(name, rows.size, own)
+            # grad's faults, written one channel at a time exactly as inject_grad writes them.
+            hit = (ch.episode >= 0) & (base.episode < 0)
+            if name == "lat":
+                lat[rows[hit]] = frame.to_geodetic(east[hit], north[hit] + ch.offset_m[hit])[0]
+                dn[hit] = ch.offset_m[hit]
+            else:
+                lon[rows[hit]] = frame.to_geodetic(east[hit] + ch.offset_m[hit], north[hit])[1]
+                de[hit] = ch.offset_m[hit]
+            out = labels[name]
+            out.offset_m[rows] = ch.offset_m
+            out.time_type[rows] = ch.time_type
+            out.bias_type[rows] = ch.bias_type
+            out.episode[rows] = ch.episode
+        offset_m[rows] = np.hypot(de, dn)
+
+    la, lo = labels["lat"], labels["lon"]
+    use_lon = _rank(lo.time_type, lo.bias_type) > _rank(la.time_type, la.bias_type)
+    result = table.reset_index(drop=True).copy()
+    result[cmap.lat] = lat
+    result[cmap.lon] = lon
+    quality = _receiver_columns(cmap)
+    for role, value in (
+        ("fix_quality", OUTAGE_FIX_QUALITY),
+        ("satellites", OUTAGE_SATELLITES),
+        ("hdop", OUTAGE_HDOP),
+    ):
+        col = quality[role]
+        if col in result.columns:  # the input's own column, its other values as they were
+            if outage.any():
+                result[col] = result[col].where(~outage, value)
+        else:
+            result[col] = np.where(outage, float(value), np.nan)
+    result["label_anomaly"] = ((la.episode >= 0) | (lo.episode >= 0)).astype(np.int8)
+    result["label_lat"] = (la.episode >= 0).astype(np.int8)
+    result["label_lon"] = (lo.episode >= 0).astype(np.int8)
+    result["label_bias"] = np.where(use_lon, lo.bias_type, la.bias_type)
+    result["label_time"] = np.where(use_lon, lo.time_type, la.time_type)
+    for name, ch in labels.items():
+        result[f"label_bias_{name}"] = ch.bias_type
+        result[f"label_time_{name}"] = ch.time_type
+        result[f"label_episode_{name}"] = ch.episode
+    result["label_episode"] = np.where(use_lon, lo.episode, la.episode)
+    result["label_offset_m"] = offset_m
+    result["lat_true"] = lat_true
+    result["lon_true"] = lon_true
+    return result
+
+
+def gnss_rates(labelled: pd.DataFrame) -> pd.DataFrame:
+    """Achieved shares of protocol ``gnss``: percent of all rows and episodes per bias type.
+
+    Rows: every bias type (``grad``'s noise and jump, then :data:`GNSS_TYPES`)
+    and ``total``; columns ``rows`` (percent of rows whose combined label is
+    that type) and ``episodes`` (how many episodes decide some row's label).
+    """
+    n = max(len(labelled), 1)
+    bias = labelled["label_bias"].to_numpy(dtype=object)
+    episode = labelled["label_episode"].to_numpy(dtype=np.int64)
+    table: dict[str, dict[str, float]] = {}
+    for kind in (*BIAS_TYPES, *GNSS_TYPES, "total"):
+        sel = (bias != "none") if kind == "total" else (bias == kind)
+        table[kind] = {
+            "rows": 100.0 * float(np.sum(sel)) / n,
+            "episodes": float(np.unique(episode[sel & (episode >= 0)]).size),
+        }
     return pd.DataFrame.from_dict(table, orient="index")
 
 

@@ -2,7 +2,8 @@
 
 Two faces, one computation (:mod:`gradgps._grad.pipeline`):
 
-* streaming, river style: ``update(t, lat, lon, speed=None, heading=None)``
+* streaming, river style: ``update(t, lat, lon, speed=None, heading=None,
+  fix_quality=None, satellites=None)``
   per fix of *one* track returns a :class:`~gradgps._result.PointResult`;
   ``get_state()`` / ``set_state()`` move the whole state as plain JSON-able
   data (checkpoint, restore in another process, continue);
@@ -17,7 +18,8 @@ track (a repeated or backward timestamp) is *invalid* in both: flagged with a
 reason, never merged or averaged with its neighbours, never used.
 
 Invalid fixes (time, latitude or longitude missing, not finite or out of
-range; a repeated or backward time) come back with
+range; a repeated or backward time; a fix the receiver itself reports as no
+fix, where its fix quality or satellite count is given) come back with
 ``anomaly=1``, ``invalid_reason`` saying why, NaN score and clean position,
 and never touch the detector's state. Speed and heading are optional: a
 missing, non-numeric or infinite reading is treated as absent (NaN), and the
@@ -398,6 +400,9 @@ class Detector:
         lon: float,
         speed: float | None = None,
         heading: float | None = None,
+        *,
+        fix_quality: Any = None,
+        satellites: Any = None,
         **channels: float,
     ) -> PointResult:
         """Score one fix of this detector's track; returns at once, never raises on bad values.
@@ -405,11 +410,26 @@ class Detector:
         ``t``: seconds (unix or relative), or a datetime, ``pandas.Timestamp``
         or ISO-8601 string (naive ones read as UTC).
 
+        ``fix_quality`` (GGA quality, RMC status ``"A"``/``"V"``, GPX fix
+        ``"none"``/``"3d"``...) and ``satellites``: what the receiver says
+        about this fix, when it says it. A fix it reports as no fix (quality
+        0, ``"V"``, ``"none"``, 0 satellites) comes back flagged with
+        ``invalid_reason`` ``"receiver reports no fix"`` and never touches
+        the detector's state; ``None`` or an unreadable value: not reported.
+
         ``channels`` (other sensor readings) are accepted for interface
         compatibility and ignored by the position model.
         """
         t_f, lat_f, lon_f = _time_number(t), as_number(lat), as_number(lon)
-        reason = fix_reason(t_f, lat_f, lon_f, self._last_t, MIN_STEP_S)
+        reason = fix_reason(
+            t_f,
+            lat_f,
+            lon_f,
+            self._last_t,
+            MIN_STEP_S,
+            fix_quality=fix_quality,
+            satellites=satellites,
+        )
         if reason:
             return PointResult.invalid(reason)
         fix = (t_f, lat_f, lon_f, reading(speed), reading(heading))
@@ -790,8 +810,20 @@ class MultiTrackDetector:
         lon = fixes["lon"].to_numpy(np.float64).tolist()
         speed = fixes["speed"].to_numpy(np.float64).tolist() if "speed" in fixes else nan
         heading = fixes["heading"].to_numpy(np.float64).tolist() if "heading" in fixes else nan
+        quality = (
+            fixes["fix_quality"].to_numpy(np.float64).tolist() if "fix_quality" in fixes else nan
+        )
+        sats = fixes["satellites"].to_numpy(np.float64).tolist() if "satellites" in fixes else nan
         results = (
-            self.detector(str(tracks[i])).update(t[i], lat[i], lon[i], speed[i], heading[i])
+            self.detector(str(tracks[i])).update(
+                t[i],
+                lat[i],
+                lon[i],
+                speed[i],
+                heading[i],
+                fix_quality=quality[i],
+                satellites=sats[i],
+            )
             for i in range(n)
         )
         return results_frame(results, fixes.index)

@@ -18,7 +18,9 @@ times, e.g. ``2019-05-23T20:54:11Z``, see :mod:`gradgps._io.times`; empty
 where absent; the seconds are kept as ``Table.times``), ``lat``,
 ``lon``, ``alt`` (from ``<ele>``) and, when any point has them, ``speed``
 (m/s), ``course`` (degrees; also read from ``heading``), ``hdop``,
-``satellites``. Values are looked up among the point's direct children first
+``satellites`` (from ``<sat>``) and ``fix`` (the ``<fix>`` text: ``none``,
+``2d``, ``3d``, ``dgps``, ``pps``; ``none`` or 0 satellites makes the point an
+invalid fix, ``receiver reports no fix``). Values are looked up among the point's direct children first
 and then inside ``<extensions>`` (Garmin ``TrackPointExtension``, OsmAnd and
 similar put ``speed``/``course`` there), whatever the namespace.
 Waypoints and routes are plans, not recordings, and are ignored.
@@ -52,6 +54,8 @@ _VALUE_TAGS: Final = {
     "sat": "satellites",
 }
 _OPTIONAL: Final = ("speed", "course", "hdop", "satellites")
+#: ``<fix>``: the receiver's fix type (none, 2d, 3d, dgps, pps), kept as text.
+_FIX: Final = "fix"
 
 
 def _local(tag: str) -> str:
@@ -66,7 +70,9 @@ class _Collector:
     source: str
     parser: expat.XMLParserType
     rows: dict[str, list[object]] = field(
-        default_factory=lambda: {k: [] for k in ("track", "time", "lat", "lon", "alt", *_OPTIONAL)}
+        default_factory=lambda: {
+            k: [] for k in ("track", "time", "lat", "lon", "alt", *_OPTIONAL, _FIX)
+        }
     )
     lines: list[int] = field(default_factory=list)
     stack: list[str] = field(default_factory=list)
@@ -115,7 +121,7 @@ class _Collector:
             self._add_point(self.point)
             self.point = None
         elif self.point is not None:
-            key = "time" if name == "time" else _VALUE_TAGS.get(name)
+            key = name if name in ("time", _FIX) else _VALUE_TAGS.get(name)
             # First occurrence wins: direct children precede <extensions>.
             if key is not None:
                 self.point.setdefault(key, text)
@@ -129,6 +135,7 @@ class _Collector:
         self.rows["time"].append(point.get("time", ""))
         for key in ("lat", "lon", "alt", *_OPTIONAL):
             self.rows[key].append(self._number(point.get(key, ""), key, line))
+        self.rows[_FIX].append(point.get(_FIX, ""))
 
     def _number(self, text: str, key: str, line: int) -> float:
         if text == "":
@@ -190,6 +197,8 @@ def read_gpx(path: str | Path) -> Table:
         values = np.array(rows[key], dtype=np.float64)
         if np.isfinite(values).any():
             frame[key] = values
+    if any(rows[_FIX]):
+        frame[_FIX] = np.array(rows[_FIX], dtype=object)
     columns = ColumnMap(
         time="time",
         lat="lat",
@@ -199,6 +208,8 @@ def read_gpx(path: str | Path) -> Table:
         speed="speed" if "speed" in frame else "",
         heading="course" if "course" in frame else "",
         hdop="hdop" if "hdop" in frame else "",
+        fix_quality=_FIX if _FIX in frame else "",
+        satellites="satellites" if "satellites" in frame else "",
     )
     return Table(frame=pd.DataFrame(frame), source=source, columns=columns, times=seconds)
 

@@ -21,9 +21,10 @@ lines), but it never guesses:
   health says nothing about the fixes. Bytes that are not ASCII are replaced,
   so a noisy sentence fails its checksum instead of stopping the read.
 * An epoch the receiver marks as having no fix (GGA quality 0, RMC status
-  ``V`` or mode ``N``) is kept as a row with NaN latitude/longitude, so the
-  row count matches the epochs in the log and downstream code reports those
-  rows as invalid fixes rather than silently losing them.
+  ``V`` or mode ``N``) is kept as a row with NaN latitude/longitude and
+  ``fix_quality`` 0, so the row count matches the epochs in the log and
+  downstream code reports those rows as invalid fixes (``receiver reports
+  no fix``) rather than silently losing them.
 
 Times: when an RMC sentence gives the date, the seconds are unix seconds
 (UTC); epochs without a date of their own take it from the nearest dated
@@ -300,8 +301,10 @@ def read_nmea(path: str | Path) -> Table:
     """Read an NMEA 0183 log (optionally ``.gz``) into a Table; see the module docstring.
 
     Columns: ``time``, ``lat``, ``lon`` and, when the log has them, ``speed``
-    (m/s), ``course`` (degrees), ``alt`` (m), ``hdop``, ``fix_quality``,
-    ``satellites``; plus ``line``, the file line of the epoch's first sentence.
+    (m/s), ``course`` (degrees), ``alt`` (m), ``hdop``, ``fix_quality`` (GGA's
+    fix quality; 0 for every no-fix epoch, RMC status ``V`` or mode ``N``
+    included; empty for an RMC-only epoch with a fix), ``satellites``; plus
+    ``line``, the file line of the epoch's first sentence.
     """
     path = Path(path)
     source = str(path)
@@ -343,6 +346,8 @@ def read_nmea(path: str | Path) -> Table:
         heading="course" if "course" in frame.columns else "",
         alt="alt" if "alt" in frame.columns else "",
         hdop="hdop" if "hdop" in frame.columns else "",
+        fix_quality="fix_quality" if "fix_quality" in frame.columns else "",
+        satellites="satellites" if "satellites" in frame.columns else "",
     )
     return Table(
         frame=frame,
@@ -427,7 +432,13 @@ def _frame(epochs: list[Epoch]) -> tuple[pd.DataFrame, np.ndarray, str | None]:
     if any(e.has_gga for e in epochs):
         columns["alt"] = np.array([e.alt for e in epochs])
         columns["hdop"] = np.array([e.hdop for e in epochs])
-        columns["fix_quality"] = pd.array([e.quality for e in epochs], dtype="Int64")
+    if any(e.has_gga for e in epochs) or no_fix.any():
+        # The receiver's own verdict: GGA's quality, 0 for any epoch it calls no fix
+        # (RMC status V or mode N too), so every mode reads one column for it.
+        columns["fix_quality"] = pd.array(
+            [0 if e.no_fix else e.quality for e in epochs], dtype="Int64"
+        )
+    if any(e.has_gga for e in epochs):
         columns["satellites"] = pd.array([e.satellites for e in epochs], dtype="Int64")
     columns["line"] = np.array([e.line for e in epochs], dtype=np.int64)
     note = None

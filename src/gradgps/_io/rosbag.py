@@ -12,7 +12,9 @@ What is read:
   the fix), or the bag's record time when the stamp is zero (drivers that do
   not fill it); ``lat``/``lon``/``alt`` as given; ``status`` the NavSatStatus
   (``-1`` = no fix: the row is kept with NaN position, so it is reported as an
-  invalid fix rather than lost, as the NMEA reader does); ``topic`` names the
+  invalid fix, ``receiver reports no fix``, rather than lost, as the NMEA
+  reader does), also as ``fix_quality`` (GGA-style: -1 -> 0, FIX -> 1,
+  SBAS/GBAS -> 2); ``topic`` names the
   track when there are several receivers;
 * optionally the speed from a ``geometry_msgs/msg/TwistStamped`` topic
   (``twist_topic``, or the only such topic in the bag):
@@ -87,7 +89,7 @@ def read_rosbag(
     """Read the fixes of a ROS 1 or ROS 2 bag into a Table (see the module docstring).
 
     Columns: ``time`` (unix s), ``lat``, ``lon``, ``alt``, ``status``,
-    ``topic``, and ``speed`` (m/s) when a twist topic is found.
+    ``topic``, ``fix_quality``, and ``speed`` (m/s) when a twist topic is found.
     """
     try:
         from rosbags.highlevel import AnyReader, AnyReaderError
@@ -183,6 +185,9 @@ def read_rosbag(
         frame["speed"] = _speeds(
             frame["time"].to_numpy(np.float64), twist_times, twist_speeds, max_speed_lag_s
         )
+    # NavSatStatus as a GGA-style fix quality: NO_FIX (-1) -> 0, FIX -> 1, SBAS/GBAS -> 2.
+    status = frame["status"].to_numpy(dtype=np.int64) if len(frame) else np.zeros(0, np.int64)
+    frame["fix_quality"] = np.where(status == _NO_FIX, 0, np.minimum(status + 1, 2))
     columns = ColumnMap(
         time="time",
         lat="lat",
@@ -192,6 +197,8 @@ def read_rosbag(
         heading="",
         alt="alt",
         hdop="",
+        fix_quality="fix_quality",
+        satellites="",
     )
     return Table(frame=frame, source=source, columns=columns, notes=notes or None)
 

@@ -1,8 +1,9 @@
 """Live fleet detection on Redis Streams: a consumer-group worker with exactly-once effect.
 
 Vehicles push fixes to one input stream (fields ``vehicle_id``, ``t``,
-``lat``, ``lon``, optional ``speed``, ``heading`` and other numeric
-channels). Any number of :class:`RedisStreamWorker` processes share one
+``lat``, ``lon``, optional ``speed``, ``heading``, the receiver's own
+``fix_quality`` and ``satellites`` (a fix it reports as no fix is flagged,
+never used) and other numeric channels). Any number of :class:`RedisStreamWorker` processes share one
 consumer group on it; for every input message exactly one result message
 lands on the output stream (``source_id`` = the input message id), in each
 vehicle's order, even when workers are killed (SIGKILL) and restarted or
@@ -51,8 +52,8 @@ repeated (``vehicle_id`` twice), gets its own result, flagged with the
 reason, and never reaches a detector. A message belongs to the vehicle of
 its *first* ``vehicle_id`` field, as raw bytes, in the router and in the
 worker alike (so ownership, ordering and deduplication agree). Fields other
-than the position fields are ignored (they are never passed on as keyword
-arguments). A stored state that cannot be restored (damaged JSON, another
+than the position fields, ``fix_quality`` and ``satellites`` are ignored
+(they are never passed on as keyword arguments). A stored state that cannot be restored (damaged JSON, another
 model, a hand-edited array) is replaced by a fresh detector for that vehicle
 and reported on the dead-letter stream ``<key_prefix>dead-letter``, in the
 same transaction; so is a message whose processing raised, which also gets a
@@ -590,6 +591,8 @@ class RedisStreamWorker:
                         _number(f.get("lon")),
                         _number(f.get("speed")),
                         _number(f.get("heading")),
+                        fix_quality=f.get("fix_quality"),
+                        satellites=_number(f.get("satellites")),
                     )
                 except Exception as exc:  # a bug must not stop the fleet: report it, go on
                     text = f"{type(exc).__name__}: {exc}"[:2000]

@@ -32,7 +32,10 @@ a number that is not one, a damaged sentence) gets its output line with
 Detector reports an unusable fix; NMEA sentences that are not fixes (GSV,
 GSA, text) get a line with empty result columns and ``invalid_reason`` ``not a
 fix sentence``. Blank lines are skipped (nothing to answer). A fix whose time
-is not after the previous fix of its track is invalid, as in any stream.
+is not after the previous fix of its track is invalid, as in any stream; so
+is one the receiver reports as no fix (GGA quality 0, RMC status ``V``, a
+CSV fix-quality column saying 0/``V``/``none``, 0 satellites), with
+``invalid_reason`` ``receiver reports no fix``, as in batch.
 
 Banner lines: loggers often start a file with a line of their own (``#
 GPSLogger 3.2 started 2026-11-23``, a count, a title). Until the first NMEA
@@ -135,6 +138,16 @@ def parse_time(text: str) -> float:
     return value
 
 
+def _satellites(text: str | None) -> float | None:
+    """A satellite count as the batch reader reads it: a number, else not reported."""
+    if not text:
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
 class _CsvFollower:
     """One CSV stream: the header fixes the columns, then one fix per line."""
 
@@ -186,7 +199,16 @@ class _CsvFollower:
                 f"column {self.header[k]!r} ({role}) is not {what}: {fields[k]!r}"
             )
         track = self._value(fields, "track") or ""
-        return self.streams.detector(track).update(t, lat, lon, speed, heading)
+        # The receiver's own fields are hints: an unreadable one is not reported, as in batch.
+        return self.streams.detector(track).update(
+            t,
+            lat,
+            lon,
+            speed,
+            heading,
+            fix_quality=self._value(fields, "fix_quality"),
+            satellites=_satellites(self._value(fields, "satellites")),
+        )
 
     def line(self, text: str) -> tuple[list[str], PointResult | None]:
         fields = next(csv.reader([text]))
@@ -265,7 +287,13 @@ class _NmeaFollower:
                 self.last_tod = tod
             epoch_line = n
             verdict = scored = self.detector.update(
-                tod + self.day_offset, lat, lon, epoch.speed, epoch.course
+                tod + self.day_offset,
+                lat,
+                lon,
+                epoch.speed,
+                epoch.course,
+                fix_quality=0 if epoch.no_fix else epoch.quality,
+                satellites=epoch.satellites,
             )
             self.last_epoch = (tod, n, verdict)
         self._date(tod, epoch.midnight)

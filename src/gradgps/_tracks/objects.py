@@ -119,7 +119,7 @@ def as_track_input(data: Any, columns: Mapping[str, str | None] | None = None) -
     if unknown:
         raise ConfigError(
             f"unknown column argument(s) {unknown}; use time=, lat=, lon=, track=, "
-            "speed=, heading=, alt=, hdop="
+            "speed=, heading=, alt=, hdop=, fix_quality=, satellites="
         )
     kind = _geo_kind(data)
     if kind is None and not isinstance(data, pd.DataFrame):

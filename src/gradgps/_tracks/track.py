@@ -17,7 +17,17 @@ speed      float64     m/s, optional
 heading    float64     degrees, optional, taken modulo 360
 alt        float64     metres, optional
 hdop       float64     optional
+fix_quality float64    optional: the receiver's fix quality, GGA-style (0 = no
+                       fix; RMC ``V``, GPX ``none`` read as 0; other words
+                       see :data:`gradgps._result.FIX_QUALITY_WORDS`; NaN
+                       where not reported or unreadable)
+satellites float64     optional: satellites in use (NaN where not reported)
 =========  ==========  ======================================================
+
+A fix whose receiver reports no fix (``fix_quality`` 0 or 0 ``satellites``)
+is invalid in every mode (:func:`gradgps._result.invalid_reasons`). Unlike
+the other columns, an unreadable receiver field is *not reported* (NaN),
+never an error: they are hints, never required.
 
 Its index is the input row number (0-based), so every later result maps back
 1:1 to the input rows. Missing or out-of-range *values* are kept (NaN) and
@@ -37,10 +47,12 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
+from .._result import fix_quality_code
 
 __all__ = [
     "CANONICAL_COLUMNS",
     "OPTIONAL_CHANNELS",
+    "RECEIVER_COLUMNS",
     "SPEED_UNITS",
     "ColumnKeywords",
     "ColumnMap",
@@ -56,7 +68,9 @@ __all__ = [
 ]
 
 OPTIONAL_CHANNELS = ("speed", "heading", "alt", "hdop")
-CANONICAL_COLUMNS = ("track", "t", "lat", "lon", *OPTIONAL_CHANNELS)
+#: What the receiver says about its own fix, read leniently (see the module docstring).
+RECEIVER_COLUMNS = ("fix_quality", "satellites")
+CANONICAL_COLUMNS = ("track", "t", "lat", "lon", *OPTIONAL_CHANNELS, *RECEIVER_COLUMNS)
 
 # Common spellings, compared after lower-casing and dropping everything that is
 # not a letter or digit ("GPS Latitude" -> "gpslatitude"). First match wins.
@@ -155,6 +169,29 @@ _ALIASES: dict[str, tuple[str, ...]] = {
     ),
     "alt": ("alt", "altm", "altitude", "elevation", "ele", "height", "altitudem"),
     "hdop": ("hdop",),
+    "fix_quality": (
+        "fix_quality",
+        "fixquality",
+        "quality",
+        "fix",
+        "gpsquality",
+        "gpsfix",
+        "fixtype",
+        "fix_type",
+        "fixmode",
+    ),
+    "satellites": (
+        "satellites",
+        "sats",
+        "num_sats",
+        "numsats",
+        "nsats",
+        "numsat",
+        "sat",
+        "satellitesused",
+        "satsused",
+        "numsv",
+    ),
 }
 
 
@@ -178,6 +215,8 @@ class ColumnMap:
     heading: str | None = None
     alt: str | None = None
     hdop: str | None = None
+    fix_quality: str | None = None
+    satellites: str | None = None
 
     def as_dict(self) -> dict[str, str | None]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -200,6 +239,8 @@ class ColumnKeywords(TypedDict, total=False):
     heading: str | None
     alt: str | None
     hdop: str | None
+    fix_quality: str | None
+    satellites: str | None
 
 
 def check_keywords(given: Mapping[str, Any], spec: Any) -> None:
@@ -725,6 +766,12 @@ def to_fixes(
                 unit = table.options.speed_unit
                 values = values * (speed_factor(col) if unit is None else SPEED_UNITS[unit])
             out[role] = values
+    if cmap.fix_quality is not None:
+        out["fix_quality"] = _fix_qualities(frame[cmap.fix_quality])
+    if cmap.satellites is not None:
+        out["satellites"] = pd.to_numeric(frame[cmap.satellites], errors="coerce").to_numpy(
+            dtype=np.float64, na_value=np.nan
+        )
     for col in channels:
         if col not in frame.columns:
             raise InputError(
@@ -743,6 +790,15 @@ def to_fixes(
 
 
 _TIME_OF_DAY = re.compile(r"^\d{1,2}:\d{2}(:\d{2}(\.\d+)?)?$")
+
+
+def _fix_qualities(series: pd.Series) -> np.ndarray:
+    """A fix-quality column as GGA-style numbers (:func:`gradgps._result.fix_quality_code`)."""
+    if pd.api.types.is_numeric_dtype(series.dtype) and not pd.api.types.is_bool_dtype(series.dtype):
+        values = series.to_numpy(dtype=np.float64, na_value=np.nan)
+        return np.where(np.isfinite(values), values, np.nan)
+    codes = {v: fix_quality_code(v) for v in series.dropna().unique()}
+    return np.array([codes.get(v, np.nan) for v in series.tolist()], dtype=np.float64)
 
 
 def _date_partner(frame: pd.DataFrame, time_col: str) -> str | None:

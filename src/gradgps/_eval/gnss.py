@@ -1,0 +1,273 @@
+"""``gradgps bench --protocol gnss``: the faults real receivers make, on every real test split.
+
+Protocol ``gnss`` (:func:`gradgps._data.inject.inject_gnss`, seed 0 by
+default) is injected into the test split of every real data set
+(:data:`gradgps._eval.robustness.ROBUSTNESS_DATASETS`), and one detector runs
+on two column variants of each:
+
+* ``positions``: track, t, lat, lon only. An outage is then visible only
+  through its positions (frozen, or missing: a missing position is an invalid
+  fix and always flagged);
+* ``+columns``: every column the detector reads that the labelled table has
+  (speed, heading, altitude where the file has them, left true) plus the
+  receiver's ``fix_quality``, ``satellites`` and ``hdop``, which the outage
+  writes (added to files that had none, empty outside outages).
+
+Per cell, over the rows with ``glitch`` = 0 (a file's real glitches have no
+truth to score against), for every bias type (``noise``, ``jump``,
+``freeze``, ``drift``, ``multipath``, ``outage``):
+
+* ``recall``: share of the type's rows flagged (``anomaly`` = 1);
+* ``event_recall``: share of its episodes (``label_episode``) with at least
+  one flagged row, and ``delay_median_s``: over found episodes, the median
+  time from the episode's first fix to its first flagged fix;
+* ``precision``: share of the rows the detector flagged *and typed* as this
+  type that truly are; the detector's type of a row is its ``bias_type``,
+  except a fix it refused because the receiver reported no fix, whose type is
+  ``outage``. ``None`` where the detector never names the type (the shipped
+  model's bias head knows none, noise, jump and freeze only).
+
+For ``drift`` also per found episode the offset of the position from the
+truth at its first flagged fix (``label_offset_m``, metres) and the delay
+(seconds): medians as ``offset_at_detection_median_m`` and
+``delay_median_s``, and the episodes themselves under ``drift_episodes``.
+Overall: anomaly and normal precision/recall/F1 and bias-type accuracy on
+detected faults (same typing).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .._data.datasets import load_dataset
+from .._data.inject import BIAS_TYPES, GNSS_TYPES, inject_gnss
+from .._exceptions import ConfigError
+from .._result import NO_FIX, NO_SATELLITES
+from .._tracks.track import ColumnMap, to_fixes
+from .metrics import class_scores, type_accuracy
+from .robustness import ROBUSTNESS_DATASETS, Detector, machine
+
+__all__ = ["GNSS_BIAS", "GNSS_VARIANTS", "gnss_cell", "gnss_markdown", "run_gnss_bench"]
+
+GNSS_VARIANTS = ("positions", "+columns")
+#: Every bias type of protocol ``gnss``, in report order.
+GNSS_BIAS = (*BIAS_TYPES, *GNSS_TYPES)
+_RECEIVER_REASONS = (NO_FIX, NO_SATELLITES)
+
+
+def _variant(labelled: pd.DataFrame, full: ColumnMap, variant: str) -> tuple[list[str], ColumnMap]:
+    """The columns of ``variant`` and the column map reading them."""
+    assert full.time is not None
+    assert full.lat is not None
+    assert full.lon is not None
+    core = [c for c in (full.track, full.time, full.lat, full.lon) if c]
+    if variant == "positions":
+        cmap = ColumnMap(
+            time=full.time,
+            lat=full.lat,
+            lon=full.lon,
+            track=full.track or "",
+            speed="",
+            heading="",
+            alt="",
+            hdop="",
+            fix_quality="",
+            satellites="",
+        )
+        return core, cmap
+    roles = {
+        role: getattr(full, role)
+        for role in ("speed", "heading", "alt", "hdop", "fix_quality", "satellites")
+    }
+    extra = [c for c in roles.values() if c]
+    return core + extra, ColumnMap(
+        time=full.time,
+        lat=full.lat,
+        lon=full.lon,
+        track=full.track or "",
+        **{k: v or "" for k, v in roles.items()},
+    )
+
+
+def _predicted_types(result: pd.DataFrame) -> np.ndarray:
+    """The detector's type of each row: its ``bias_type``; ``outage`` where it refused the fix
+    because the receiver reported no fix."""
+    kinds = result["bias_type"].to_numpy(dtype=object).copy()
+    reason = result["invalid_reason"].fillna("").to_numpy(dtype=object)
+    kinds[np.isin(reason, _RECEIVER_REASONS)] = "outage"
+    return kinds
+
+
+def _episodes(
+    episode: np.ndarray, hit: np.ndarray, t: np.ndarray, offset: np.ndarray
+) -> pd.DataFrame:
+    """Per episode: found, delay (s) and the offset (m) at the first flagged fix."""
+    frame = pd.DataFrame({"episode": episode, "t": t, "hit": hit, "offset": offset})
+    frame = frame.sort_values(["episode", "t"], kind="stable")
+    rows = []
+    for _, part in frame.groupby("episode", sort=True):
+        flagged = part[part["hit"]]
+        found = not flagged.empty
+        rows.append(
+            {
+                "episode": int(part["episode"].iloc[0]),
+                "fixes": len(part),
+                "found": found,
+                "delay_s": float(flagged["t"].iloc[0] - part["t"].iloc[0]) if found else None,
+                "offset_at_detection_m": float(flagged["offset"].iloc[0]) if found else None,
+            }
+        )
+    return pd.DataFrame(
+        rows, columns=["episode", "fixes", "found", "delay_s", "offset_at_detection_m"]
+    )
+
+
+def _median(values: pd.Series) -> float | None:
+    v = pd.to_numeric(values, errors="coerce").dropna()
+    return float(np.median(v)) if len(v) else None
+
+
+def gnss_cell(
+    det: Detector, labelled: pd.DataFrame, cols: list[str], cmap: ColumnMap
+) -> dict[str, Any]:
+    """Score ``det`` on one variant (``cols`` read by ``cmap``) of a ``gnss``-labelled table."""
+    started = time.perf_counter()
+    fixes = to_fixes(labelled[cols], cmap)
+    result = det.detect(fixes)
+    scored = (
+        labelled["glitch"].to_numpy(dtype=np.int64) != 1
+        if "glitch" in labelled.columns
+        else np.ones(len(labelled), dtype=bool)
+    )
+    hit = result["anomaly"].to_numpy(dtype=np.int64) == 1
+    bias = labelled["label_bias"].to_numpy(dtype=object)
+    truth = bias != "none"
+    episode = labelled["label_episode"].to_numpy(dtype=np.int64)
+    offset = labelled["label_offset_m"].to_numpy(dtype=np.float64)
+    t = fixes["t"].to_numpy(dtype=np.float64)
+    predicted = _predicted_types(result)
+    out: dict[str, Any] = {
+        "rows": int(scored.sum()),
+        "faulty_rows": int((truth & scored).sum()),
+        **class_scores(truth[scored], hit[scored]),
+        "bias_type_accuracy": type_accuracy(bias[scored], predicted[scored], hit[scored]),
+    }
+    types: dict[str, Any] = {}
+    for kind in GNSS_BIAS:
+        rows = (bias == kind) & scored
+        typed = hit & (predicted == kind) & scored
+        per = _episodes(episode[rows], hit[rows], t[rows], offset[rows])
+        entry: dict[str, Any] = {
+            "rows": int(rows.sum()),
+            "episodes": len(per),
+            "recall": float(hit[rows].mean()) if rows.any() else None,
+            "event_recall": float(per["found"].mean()) if len(per) else None,
+            "precision": float((bias[typed] == kind).mean()) if typed.any() else None,
+            "delay_median_s": _median(per["delay_s"]),
+        }
+        if kind == "drift":
+            entry["offset_at_detection_median_m"] = _median(per["offset_at_detection_m"])
+            entry["drift_episodes"] = per.to_dict(orient="records")
+        types[kind] = entry
+    out["types"] = types
+    out["seconds"] = time.perf_counter() - started
+    return out
+
+
+def run_gnss_bench(
+    det: Detector,
+    detector: str,
+    *,
+    model: Path | None = None,
+    datasets: Sequence[str] = ROBUSTNESS_DATASETS,
+    data_dir: str | Path | None = None,
+    seed: int = 0,
+    scale: float = 1.0,
+    advance: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Run ``det`` on every data set's test split under protocol ``gnss``; JSON-ready report."""
+    for name in datasets:
+        if name not in ROBUSTNESS_DATASETS:
+            raise ConfigError(
+                f"data set {name!r} has no real test split for protocol gnss; choose from "
+                f"{', '.join(ROBUSTNESS_DATASETS)}"
+            )
+    began = time.perf_counter()
+    cells: list[dict[str, Any]] = []
+    for name in datasets:
+        table = load_dataset(name, "test", data_dir=data_dir)
+        labelled = inject_gnss(table, seed=seed, scale=scale)
+        full: ColumnMap = to_fixes(labelled).attrs["columns"]
+        for variant in GNSS_VARIANTS:
+            cols, cmap = _variant(labelled, full, variant)
+            cell = {"dataset": name, "variant": variant, "columns": cols}
+            cell.update(gnss_cell(det, labelled, cols, cmap))
+            cells.append(cell)
+            if advance is not None:
+                advance(f"{name} {variant}")
+    report = {
+        "protocol": "gnss",
+        "detector": detector,
+        "model": None if model is None else str(model),
+        "split": "test",
+        "seed": seed,
+        "scale": scale,
+        "datasets": list(datasets),
+        "machine": machine(),
+        "seconds": time.perf_counter() - began,
+        "cells": cells,
+    }
+    text = json.dumps(report, default=lambda v: v.item())
+    jsonable: dict[str, Any] = json.loads(text, parse_constant=lambda _: None)
+    return jsonable
+
+
+def _num(v: float | None, digits: int = 3) -> str:
+    return "-" if v is None else f"{v:.{digits}f}"
+
+
+def gnss_markdown(report: dict[str, Any], command: str) -> list[str]:
+    """The report as Markdown lines: per cell, one row per bias type."""
+    lines = [
+        f"### Protocol `gnss`: `{report['detector']}` on real drives, test splits",
+        "",
+        f"Command: `{command}`. Machine: {report['machine']}; wall time "
+        f"{report['seconds']:.0f} s; seed {report['seed']}."
+        + (f" Model: `{report['model']}`." if report["model"] else ""),
+        "",
+        "Recall over the type's fixes; event recall over its episodes; precision over the fixes "
+        "the detector typed so (`-`: it never names the type); delay: median seconds from an "
+        "episode's first fix to its first flag. Definitions: `src/gradgps/_eval/gnss.py`.",
+        "",
+        "| data set | columns | rows | anomaly P / R / F1 | normal R | bias acc | "
+        + " | ".join(GNSS_BIAS)
+        + " | drift offset at detection m |",
+        "|---|---|---|---|---|---|" + "---|" * len(GNSS_BIAS) + "---|",
+    ]
+    for c in report["cells"]:
+        a, n = c["anomaly"], c["normal"]
+        per = []
+        for kind in GNSS_BIAS:
+            e = c["types"][kind]
+            if not e["episodes"]:
+                per.append("-")
+                continue
+            per.append(
+                f"R {_num(e['recall'], 2)}, evt {_num(e['event_recall'], 2)} of "
+                f"{e['episodes']}, P {_num(e['precision'], 2)}, {_num(e['delay_median_s'], 1)} s"
+            )
+        lines.append(
+            f"| {c['dataset']} | {c['variant']} | {c['rows']:,} | "
+            f"{_num(a['precision'])} / {_num(a['recall'])} / {_num(a['f1'])} | "
+            f"{_num(n['recall'])} | {_num(c['bias_type_accuracy'])} | "
+            + " | ".join(per)
+            + f" | {_num(c['types']['drift'].get('offset_at_detection_median_m'), 1)} |"
+        )
+    return [*lines, ""]
