@@ -231,6 +231,38 @@ def _check_scale(scale: float) -> None:
         raise ConfigError(f"scale must be a positive finite number, got {scale}")
 
 
+def _truth(
+    table: pd.DataFrame, columns: ColumnMap | None
+) -> tuple[pd.DataFrame, ColumnMap, np.ndarray, np.ndarray]:
+    """The table's fixes, the column map that read them, and the true latitudes and
+    longitudes every protocol corrupts copies of."""
+    fixes = to_fixes(table, columns)
+    cmap: ColumnMap = fixes.attrs["columns"]
+    assert cmap.lat is not None
+    assert cmap.lon is not None
+    return (
+        fixes,
+        cmap,
+        fixes["lat"].to_numpy(dtype=np.float64),
+        fixes["lon"].to_numpy(dtype=np.float64),
+    )
+
+
+def _write_labels(result: pd.DataFrame, labels: dict[str, _Channel], use_lon: np.ndarray) -> None:
+    """The per-point label columns every protocol writes: anomaly (either channel),
+    per channel, and the point's bias and time type from its stronger channel."""
+    la, lo = labels["lat"], labels["lon"]
+    result["label_anomaly"] = ((la.episode >= 0) | (lo.episode >= 0)).astype(np.int8)
+    result["label_lat"] = (la.episode >= 0).astype(np.int8)
+    result["label_lon"] = (lo.episode >= 0).astype(np.int8)
+    result["label_bias"] = np.where(use_lon, lo.bias_type, la.bias_type)
+    result["label_time"] = np.where(use_lon, lo.time_type, la.time_type)
+    for name, ch in labels.items():
+        result[f"label_bias_{name}"] = ch.bias_type
+        result[f"label_time_{name}"] = ch.time_type
+        result[f"label_episode_{name}"] = ch.episode
+
+
 def inject_grad(
     table: pd.DataFrame, *, seed: int, scale: float = 1.0, columns: ColumnMap | None = None
 ) -> pd.DataFrame:
@@ -250,13 +282,8 @@ def inject_grad(
     fixes (time/lat/lon missing) are never corrupted.
     """
     _check_scale(scale)
-    fixes = to_fixes(table, columns)
-    cmap: ColumnMap = fixes.attrs["columns"]
-    assert cmap.lat is not None
-    assert cmap.lon is not None
+    fixes, cmap, lat_true, lon_true = _truth(table, columns)
     n = len(fixes)
-    lat_true = fixes["lat"].to_numpy(dtype=np.float64)
-    lon_true = fixes["lon"].to_numpy(dtype=np.float64)
     lat = lat_true.copy()
     lon = lon_true.copy()
     labels = {name: _Channel.empty(n) for name in ("lat", "lon")}
@@ -284,15 +311,7 @@ def inject_grad(
     result = table.reset_index(drop=True).copy()
     result[cmap.lat] = lat
     result[cmap.lon] = lon
-    result["label_anomaly"] = ((la.episode >= 0) | (lo.episode >= 0)).astype(np.int8)
-    result["label_lat"] = (la.episode >= 0).astype(np.int8)
-    result["label_lon"] = (lo.episode >= 0).astype(np.int8)
-    result["label_bias"] = np.where(use_lon, lo.bias_type, la.bias_type)
-    result["label_time"] = np.where(use_lon, lo.time_type, la.time_type)
-    for name, ch in labels.items():
-        result[f"label_bias_{name}"] = ch.bias_type
-        result[f"label_time_{name}"] = ch.time_type
-        result[f"label_episode_{name}"] = ch.episode
+    _write_labels(result, labels, use_lon)
     result["lat_true"] = lat_true
     result["lon_true"] = lon_true
     return result
@@ -555,13 +574,8 @@ def inject_gnss(
     other column are left true. Same input and seed, same bytes.
     """
     _check_scale(scale)
-    fixes = to_fixes(table, columns)
-    cmap: ColumnMap = fixes.attrs["columns"]
-    assert cmap.lat is not None
-    assert cmap.lon is not None
+    fixes, cmap, lat_true, lon_true = _truth(table, columns)
     n = len(fixes)
-    lat_true = fixes["lat"].to_numpy(dtype=np.float64)
-    lon_true = fixes["lon"].to_numpy(dtype=np.float64)
     t_all = fixes["t"].to_numpy(dtype=np.float64)
     lat = lat_true.copy()
     lon = lon_true.copy()
@@ -636,15 +650,7 @@ def inject_gnss(
                 result[col] = result[col].where(~outage, value)
         else:
             result[col] = np.where(outage, float(value), np.nan)
-    result["label_anomaly"] = ((la.episode >= 0) | (lo.episode >= 0)).astype(np.int8)
-    result["label_lat"] = (la.episode >= 0).astype(np.int8)
-    result["label_lon"] = (lo.episode >= 0).astype(np.int8)
-    result["label_bias"] = np.where(use_lon, lo.bias_type, la.bias_type)
-    result["label_time"] = np.where(use_lon, lo.time_type, la.time_type)
-    for name, ch in labels.items():
-        result[f"label_bias_{name}"] = ch.bias_type
-        result[f"label_time_{name}"] = ch.time_type
-        result[f"label_episode_{name}"] = ch.episode
+    _write_labels(result, labels, use_lon)
     result["label_episode"] = np.where(use_lon, lo.episode, la.episode)
     result["label_offset_m"] = offset_m
     result["lat_true"] = lat_true
