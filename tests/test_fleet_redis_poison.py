@@ -189,9 +189,7 @@ def test_a_damaged_state_key_gives_a_fresh_detector_and_a_dead_letter(
 
 
 @pytest.mark.parametrize("damage", ["prefix", "inside last_id", "inside the state"])
-def test_a_state_key_with_non_utf8_bytes_does_not_stop_the_worker(
-    server: Any, damage: str
-) -> None:
+def test_a_state_key_with_non_utf8_bytes_does_not_stop_the_worker(server: Any, damage: str) -> None:
     """A state key holding bytes that are not UTF-8: on main the client's decoding raised
     UnicodeDecodeError for the whole page, the worker stopped with it pending, and so did
     every restart. Now the vehicle restarts with a fresh detector and a dead-letter entry."""
