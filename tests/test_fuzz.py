@@ -459,23 +459,31 @@ def _nested(depth: int) -> object:
     return node
 
 
-_STATE_NUMBER = st.one_of(
+_JSONABLE_NUMBER = st.one_of(
     st.floats(allow_nan=False),
     st.integers(-(10**30), 10**30),
     st.sampled_from(["nan", "inf", "-inf", "x", 0.5, -1, 2**53, 1e300, True, None]),
-    st.integers(300, 5000).map(lambda digits: 10**digits),  # no float holds it
-    st.integers(2, 3000).map(_nested),  # nested junk, deeper than any state
+    st.integers(2, 300).map(_nested),
     st.dictionaries(st.sampled_from(["S", "H", "format", ""]), _SCALAR, max_size=2),
+)
+# Beyond what json.dumps writes: a 300- to 5,000-digit integer (no float holds it) and
+# junk nested up to 3,000 deep (past the interpreter's recursion limit).
+_STATE_NUMBER = st.one_of(
+    _JSONABLE_NUMBER,
+    st.integers(300, 5000).map(lambda digits: 10**digits),
+    st.integers(2, 3000).map(_nested),
 )
 
 
-def _tamper(state: dict[str, object], data: st.DataObject) -> dict[str, object]:
+def _tamper(
+    state: dict[str, object], data: st.DataObject, number: st.SearchStrategy[object] = _STATE_NUMBER
+) -> dict[str, object]:
     """``state`` (changed in place) with one to three of: a key deleted, added or replaced by
     any value; a list cut, extended, or one element (or an element's element) replaced."""
     for _ in range(data.draw(st.integers(1, 3))):
         if not state or data.draw(st.integers(0, 9)) == 0:
             state[data.draw(st.sampled_from(["extra", "S ", "warm", "tracks", ""]))] = data.draw(
-                _JSON | _STATE_NUMBER
+                _JSON | number
             )
             continue
         key = data.draw(st.sampled_from(sorted(state)))
@@ -486,19 +494,19 @@ def _tamper(state: dict[str, object], data: st.DataObject) -> dict[str, object]:
         if how == "delete":
             del state[key]
         elif how == "replace" or not isinstance(value, list) or not value:
-            state[key] = data.draw(_JSON | _STATE_NUMBER)
+            state[key] = data.draw(_JSON | number)
         elif how == "truncate":
             state[key] = value[: data.draw(st.integers(0, len(value) - 1))]
         elif how == "extend":
-            state[key] = value + data.draw(st.lists(_STATE_NUMBER, min_size=1, max_size=3))
+            state[key] = value + data.draw(st.lists(number, min_size=1, max_size=3))
         else:
             at = data.draw(st.integers(0, len(value) - 1))
             if isinstance(value[at], list) and value[at]:
                 inner = list(value[at])
-                inner[data.draw(st.integers(0, len(inner) - 1))] = data.draw(_STATE_NUMBER)
+                inner[data.draw(st.integers(0, len(inner) - 1))] = data.draw(number)
                 value[at] = inner
             else:
-                value[at] = data.draw(_STATE_NUMBER)
+                value[at] = data.draw(number)
     return state
 
 
@@ -1066,19 +1074,29 @@ def test_fuzz_redis_state_keys(
     )
 
     assert isinstance(redis_worker, RedisStreamWorker)
-    how = data.draw(st.sampled_from(["bytes", "state", "state", "last_id", "record"]))
+    how = data.draw(st.sampled_from(["bytes", "text", "state", "state", "last_id", "record"]))
     record = json.loads(stored_record)
     if how == "bytes":
         stored = data.draw(_damaged_binary(stored_record))
+    elif how == "text":  # what json.dumps never writes: too deep, too many digits
+        junk = data.draw(
+            st.sampled_from([b"[" * 100_000 + b"]" * 100_000, b"1" * 5000, b"-" + b"9" * 4400])
+        )
+        key = data.draw(st.sampled_from([b'"H": ', b'"segment_count": ', b'"last_id": ']))
+        stored = stored_record.replace(key, key + junk + b", " + key[:-2] + b"_was: ", 1)
     else:
         if how == "state":
-            _tamper(record["detector"], data)
+            _tamper(record["detector"], data, _JSONABLE_NUMBER)
         elif how == "last_id":
             record["last_id"] = data.draw(
                 _JSON | st.sampled_from(["0-0", "1029-0", "1029-1", "99999-0", "1-", "-1", "a-b"])
             )
         else:
-            record = data.draw(_JSON) if data.draw(st.booleans()) else _tamper(record, data)
+            record = (
+                data.draw(_JSON)
+                if data.draw(st.booleans())
+                else _tamper(record, data, _JSONABLE_NUMBER)
+            )
         stored = json.dumps(record).encode()
     # What the worker must take from it: the record's last id when the JSON has a detector
     # and a well-formed last id (whether or not the detector state is refused), else 0-0.
