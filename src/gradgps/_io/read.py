@@ -785,7 +785,9 @@ def parquet_tables(
         )
 
     def chunks() -> Iterator[Table]:
-        from pandas.io._util import arrow_table_to_pandas  # what pandas.read_parquet calls
+        from pandas.io._util import (  # type: ignore[import-not-found]  # what pd.read_parquet calls
+            arrow_table_to_pandas,
+        )
 
         offset = 0
         batches = file.iter_batches(batch_size=chunksize, use_pandas_metadata=True)

@@ -532,7 +532,11 @@ class RedisStreamWorker:
                     # Raw bytes: a state key holding non-UTF-8 bytes (hand-written, damaged)
                     # must not make the client raise for the whole page, on every restart.
                     stored: list[Any] = (
-                        pipe.execute_command("MGET", *keys, **{NEVER_DECODE: []}) if keys else []
+                        pipe.execute_command(  # type: ignore[no-untyped-call]
+                            "MGET", *keys, **{NEVER_DECODE: []}
+                        )
+                        if keys
+                        else []
                     )
                     tracks = {v: self._track(v, s) for v, s in zip(vehicles, stored, strict=True)}
                     outputs, changed = self._run_detectors(messages, tracks)
