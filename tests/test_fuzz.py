@@ -9,8 +9,10 @@ pytest turns into an error) is a bug. When no error is raised, every input
 row must come back as exactly one result row.
 
 ``make test`` runs a few dozen cases per test; ``make fuzz`` sets
-``GRADGPS_FUZZ_EXAMPLES`` (2,500 per test, 22,500 in all). Beyond files, ROS bags,
-Redis messages and checkpoint states are fuzzed too.
+``GRADGPS_FUZZ_EXAMPLES`` (2,500 per test, 32,500 in all) and builds the compiled
+kernels with bounds checks (an out-of-bounds index is then an IndexError, not a
+silent read or a SIGSEGV). Beyond files: ROS 1 and ROS 2 bags, Redis messages and
+state keys (end to end and at the function level), and checkpoint states.
 """
 
 from __future__ import annotations
