@@ -186,3 +186,35 @@ def test_a_damaged_state_key_gives_a_fresh_detector_and_a_dead_letter(
     det = Detector()
     expected = [det.update(1000 + i, 48.1, 11.5 + i * 1e-4).score for i in range(20, 60)]
     assert out.loc[later, "score"].tolist() == expected
+
+
+@pytest.mark.parametrize("damage", ["prefix", "inside last_id", "inside the state"])
+def test_a_state_key_with_non_utf8_bytes_does_not_stop_the_worker(server: Any, damage: str) -> None:
+    """A state key holding bytes that are not UTF-8: on main the client's decoding raised
+    UnicodeDecodeError for the whole page, the worker stopped with it pending, and so did
+    every restart. Now the vehicle restarts with a fresh detector and a dead-letter entry."""
+    client = _client(server)
+    worker = _worker(server)
+    first = [client.xadd(IN, _fix("a", i)) for i in range(10)]
+    _drain(worker)
+    key = f"gradgps:{IN}:{GROUP}:state:a"
+    text = client.get(key).encode()
+    stored = {
+        "prefix": b"\xff" + text,
+        "inside last_id": text.replace(b'"last_id": "', b'"last_id": "\xc3('),
+        "inside the state": text.replace(b'"format"', b'"form\xfet"'),
+    }[damage]
+    assert stored != text
+    _raw(server).set(key, stored)
+    later = [client.xadd(IN, _fix("a", i)) for i in range(10, 30)]
+    worker._tracks.clear()
+    _drain(worker)
+    out = _results(server)
+    assert list(out.index) == [*first, *later]
+    assert (out["invalid_reason"] == "").all()
+    assert client.xpending(IN, GROUP)["pending"] == 0
+    dead = client.xrange(worker.dead_letter_stream)
+    assert [d[1]["key"] for d in dead] == [key]
+    det = Detector()
+    expected = [det.update(1000 + i, 48.1, 11.5 + i * 1e-4).score for i in range(10, 30)]
+    assert out.loc[later, "score"].tolist() == expected

@@ -9,14 +9,18 @@ pytest turns into an error) is a bug. When no error is raised, every input
 row must come back as exactly one result row.
 
 ``make test`` runs a few dozen cases per test; ``make fuzz`` sets
-``GRADGPS_FUZZ_EXAMPLES`` (2,500 per test, 22,500 in all). Beyond files, ROS bags,
-Redis messages and checkpoint states are fuzzed too.
+``GRADGPS_FUZZ_EXAMPLES`` (2,500 per test, 32,500 in all) and builds the compiled
+kernels with bounds checks (an out-of-bounds index is then an IndexError, not a
+silent read or a SIGSEGV). Beyond files: ROS 1 and ROS 2 bags, Redis messages and
+state keys (end to end and at the function level), and checkpoint states.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
-from collections.abc import Callable
+import signal
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TypeVar
 
@@ -450,24 +454,40 @@ def saved_states() -> list[dict[str, object]]:
     return states
 
 
-_STATE_NUMBER = st.one_of(
+def _nested(depth: int) -> object:
+    node: object = 1.0
+    for _ in range(depth):
+        node = [node]
+    return node
+
+
+_JSONABLE_NUMBER = st.one_of(
     st.floats(allow_nan=False),
     st.integers(-(10**30), 10**30),
     st.sampled_from(["nan", "inf", "-inf", "x", 0.5, -1, 2**53, 1e300, True, None]),
+    st.integers(2, 300).map(_nested),
+    st.dictionaries(st.sampled_from(["S", "H", "format", ""]), _SCALAR, max_size=2),
+)
+# Beyond what json.dumps writes: a 300- to 5,000-digit integer (no float holds it) and
+# junk nested up to 3,000 deep (past the interpreter's recursion limit).
+_STATE_NUMBER = st.one_of(
+    _JSONABLE_NUMBER,
+    st.integers(300, 5000).map(lambda digits: 10**digits),
+    st.integers(2, 3000).map(_nested),
 )
 
 
-@fuzz
-@given(data=st.data())
-def test_fuzz_checkpoint_states(saved_states: list[dict[str, object]], data: st.DataObject) -> None:
-    """A tampered state is refused with ConfigError, or restores a detector that works:
-    never a crash, a hang or an out-of-bounds access in the compiled step (issue 18)."""
-    import copy
-
-    from gradgps import ConfigError
-
-    state = copy.deepcopy(data.draw(st.sampled_from(saved_states)))
+def _tamper(
+    state: dict[str, object], data: st.DataObject, number: st.SearchStrategy[object] = _STATE_NUMBER
+) -> dict[str, object]:
+    """``state`` (changed in place) with one to three of: a key deleted, added or replaced by
+    any value; a list cut, extended, or one element (or an element's element) replaced."""
     for _ in range(data.draw(st.integers(1, 3))):
+        if not state or data.draw(st.integers(0, 9)) == 0:
+            state[data.draw(st.sampled_from(["extra", "S ", "warm", "tracks", ""]))] = data.draw(
+                _JSON | number
+            )
+            continue
         key = data.draw(st.sampled_from(sorted(state)))
         value = state[key]
         how = data.draw(
@@ -476,30 +496,108 @@ def test_fuzz_checkpoint_states(saved_states: list[dict[str, object]], data: st.
         if how == "delete":
             del state[key]
         elif how == "replace" or not isinstance(value, list) or not value:
-            state[key] = data.draw(_JSON | _STATE_NUMBER)
+            state[key] = data.draw(_JSON | number)
         elif how == "truncate":
             state[key] = value[: data.draw(st.integers(0, len(value) - 1))]
         elif how == "extend":
-            state[key] = value + data.draw(st.lists(_STATE_NUMBER, min_size=1, max_size=3))
+            state[key] = value + data.draw(st.lists(number, min_size=1, max_size=3))
         else:
             at = data.draw(st.integers(0, len(value) - 1))
             if isinstance(value[at], list) and value[at]:
                 inner = list(value[at])
-                inner[data.draw(st.integers(0, len(inner) - 1))] = data.draw(_STATE_NUMBER)
+                inner[data.draw(st.integers(0, len(inner) - 1))] = data.draw(number)
                 value[at] = inner
             else:
-                value[at] = data.draw(_STATE_NUMBER)
+                value[at] = data.draw(number)
+    return state
+
+
+def _keeps_working(det: Detector, n: int = 24) -> None:
+    """A restored detector takes ``n`` more fixes; each verdict is flagged or a score in [0, 1]
+    with a finite repaired position."""
+    import math
+
+    t0 = det._last_t if det._last_t is not None else 1.7e9
+    for i in range(1, n + 1):
+        r = det.update(t0 + i, 48.1, 11.5 + 1e-4 * i)
+        assert r.invalid_reason == "" or r.anomaly == 1
+        if r.invalid_reason == "":
+            assert 0.0 <= r.score <= 1.0
+            assert math.isfinite(r.lat_clean)
+            assert math.isfinite(r.lon_clean)
+
+
+@fuzz
+@given(data=st.data())
+def test_fuzz_checkpoint_states(saved_states: list[dict[str, object]], data: st.DataObject) -> None:
+    """A tampered state is refused with ConfigError, or restores a detector that works:
+    never a crash, a hang or an out-of-bounds access in the compiled step (issue 18).
+    (``make fuzz`` compiles the kernels with bounds checks: an out-of-bounds index there
+    is an IndexError, which fails this test, instead of a silent read or a SIGSEGV.)"""
+    import copy
+
+    from gradgps import ConfigError
+
+    state = _tamper(copy.deepcopy(data.draw(st.sampled_from(saved_states))), data)
     det = Detector()
+    before = det.get_state()
     refused = _gradgps_error(lambda: det.set_state(state))
     if isinstance(refused, GradGPSError):
         assert isinstance(refused, ConfigError)
         assert str(refused)
+        assert "\n" not in str(refused)
+        assert det.get_state() == before  # a refused state leaves the detector as it was
         return
-    t0 = det._last_t if det._last_t is not None else 1.7e9
-    for i in range(1, 25):
-        r = det.update(t0 + i, 48.1, 11.5 + 1e-4 * i)
-        assert r.invalid_reason == "" or r.anomaly == 1
-        assert r.invalid_reason != "" or 0.0 <= r.score <= 1.0
+    _keeps_working(det)
+
+
+@fuzz
+@given(data=st.data())
+def test_fuzz_multi_track_checkpoint_states(
+    saved_states: list[dict[str, object]], data: st.DataObject
+) -> None:
+    """The same for a MultiTrackDetector's state (chunked detection's tracks): a tampered
+    track state, a track id of another type or a damaged ``tracks`` mapping is refused with
+    ConfigError, or every track keeps working."""
+    import copy
+
+    import pandas as pd
+
+    from gradgps import ConfigError
+
+    tracks: dict[object, object] = {
+        name: copy.deepcopy(data.draw(st.sampled_from(saved_states))) for name in ("a", "b")
+    }
+    victim = data.draw(st.sampled_from(["a", "b"]))
+    how = data.draw(st.sampled_from(["state", "state", "state", "id", "tracks", "top"]))
+    state: object = {"tracks": tracks}
+    if how == "state":
+        _tamper(tracks[victim], data)  # type: ignore[arg-type]
+    elif how == "id":
+        tracks[data.draw(_SCALAR)] = tracks.pop(victim)
+    elif how == "tracks":
+        state = {"tracks": data.draw(_JSON | _STATE_NUMBER)}
+    else:
+        state = data.draw(_JSON | _STATE_NUMBER)
+    multi = MultiTrackDetector()
+    refused = _gradgps_error(lambda: multi.set_state(state))  # type: ignore[arg-type]
+    if isinstance(refused, GradGPSError):
+        assert isinstance(refused, ConfigError)
+        assert str(refused)
+        assert "\n" not in str(refused)
+        return
+    for det in multi.detectors.values():
+        _keeps_working(det, 6)
+    names = list(multi.detectors) or ["new"]
+    fixes = pd.DataFrame(
+        {
+            "track": [names[i % len(names)] for i in range(12)],
+            "t": [2e9 + i for i in range(12)],
+            "lat": 48.1,
+            "lon": [11.5 + 1e-4 * i for i in range(12)],
+        }
+    )
+    assert len(multi.update_fixes(fixes)) == 12
 
 
 # --- Redis messages ---------------------------------------------------------------
@@ -620,12 +718,416 @@ def ros1_bag(tmp_path_factory: pytest.TempPathFactory) -> bytes:
     return path.read_bytes()
 
 
+class _Hang(BaseException):
+    """A case ran past its time limit (a BaseException: readers catch Exception)."""
+
+
+@contextlib.contextmanager
+def _time_limit(seconds: float) -> Iterator[None]:
+    """Raise :class:`_Hang` in the block when it runs longer than ``seconds`` (main thread)."""
+
+    def expire(signum: int, frame: object) -> None:
+        raise _Hang(f"still running after {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+# Lengths and counts a damaged bag might hold (ROS 1 uses 32-bit, MCAP 64-bit fields).
+_HOSTILE_LENGTHS = [0, 1, 2, 4, 8, 0x7F, 0xFF, 0xFFFF, 0x7FFFFFFF, 0x80000000, 0xFFFFFFFF]
+
+
+def _damaged_binary(original: bytes) -> st.SearchStrategy[bytes]:
+    """``original`` with one to three damages: cut off, bytes spliced in, a byte flipped,
+    or a 4- or 8-byte little-endian field overwritten with a hostile length."""
+
+    @st.composite
+    def build(draw: st.DrawFn) -> bytes:
+        data = original
+        for _ in range(draw(st.integers(1, 3))):
+            how = draw(st.sampled_from(["truncate", "splice", "flip", "flip", "length", "length"]))
+            at = draw(st.integers(0, max(0, len(data) - 1)))
+            if how == "truncate":
+                data = data[:at]
+            elif how == "splice":
+                data = data[:at] + draw(st.binary(min_size=1, max_size=8)) + data[at:]
+            elif not data:
+                continue
+            elif how == "flip":
+                data = data[:at] + bytes([data[at] ^ draw(st.integers(1, 255))]) + data[at + 1 :]
+            else:
+                width = draw(st.sampled_from([4, 8]))
+                value = draw(st.sampled_from(_HOSTILE_LENGTHS) | st.integers(0, 2**32 - 1))
+                field = value.to_bytes(width, "little")
+                data = data[:at] + field + data[at + width :]
+        return data
+
+    return build()
+
+
+def _survives_bag(path: Path) -> None:
+    """Read ``path`` as a bag within 60 s: rows, or a one-line gradgps error naming the file."""
+    with _time_limit(60):
+        table = _gradgps_error(lambda: read_table(path))
+        if isinstance(table, GradGPSError):
+            assert str(path) in str(table)
+            assert "\n" not in str(table)  # the CLI's one `error:` line
+            return
+        _survives(path)
+
+
 @fuzz
 @given(data=st.data())
 def test_fuzz_ros_bag_bytes(tmp_path: Path, ros1_bag: bytes, data: st.DataObject) -> None:
-    """A damaged ROS 1 bag (cut off, bytes spliced in or flipped) is read or refused with
-    an InputError, never a traceback from the bag library (issue 18, item 7)."""
-    bag = data.draw(_mutated(st.just(ros1_bag)))
+    """A damaged ROS 1 bag (cut off, bytes spliced in or flipped, a length field given a
+    hostile value) is read or refused with an InputError, never a traceback from the bag
+    library or a hang (issue 18, item 7)."""
+    bag = data.draw(_mutated(st.just(ros1_bag)) | _damaged_binary(ros1_bag))
     path = tmp_path / "in.bag"
     path.write_bytes(bag)
-    _survives(path)
+    _survives_bag(path)
+
+
+@pytest.fixture(scope="module")
+def ros2_bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, bytes]]:
+    """Small ROS 2 bags (MCAP and SQLite storage) as their files' bytes: ``metadata.yaml``
+    and the storage file, 20 NavSatFix at 1 Hz (one without a fix) and a TwistStamped topic."""
+    pytest.importorskip("rosbags")
+    import numpy as np
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from gradgps._io.rosbag import NAVSATFIX, TWIST_STAMPED
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    types = store.types
+    bags: dict[str, dict[str, bytes]] = {}
+    for name, plugin in (("mcap", StoragePlugin.MCAP), ("db3", StoragePlugin.SQLITE3)):
+        path = tmp_path_factory.mktemp("bag2") / "drive"
+        with Writer(path, version=9, storage_plugin=plugin) as writer:
+            fix = writer.add_connection("/gps/fix", NAVSATFIX, typestore=store)
+            vel = writer.add_connection("/gps/vel", TWIST_STAMPED, typestore=store)
+            v3 = types["geometry_msgs/msg/Vector3"]
+            for i in range(20):
+                ns = (1_700_000_000 + i) * 10**9
+                header = types["std_msgs/msg/Header"](
+                    stamp=types["builtin_interfaces/msg/Time"](sec=1_700_000_000 + i, nanosec=0),
+                    frame_id="gps",
+                )
+                msg = types[NAVSATFIX](
+                    header=header,
+                    status=types["sensor_msgs/msg/NavSatStatus"](
+                        status=-1 if i == 7 else 0, service=1
+                    ),
+                    latitude=48.0 + i * 9e-5,
+                    longitude=11.0,
+                    altitude=500.0,
+                    position_covariance=np.zeros(9),
+                    position_covariance_type=0,
+                )
+                writer.write(fix, ns, store.serialize_cdr(msg, NAVSATFIX))
+                twist = types[TWIST_STAMPED](
+                    header=header,
+                    twist=types["geometry_msgs/msg/Twist"](
+                        linear=v3(x=6.0, y=8.0, z=0.0), angular=v3(x=0.0, y=0.0, z=0.0)
+                    ),
+                )
+                writer.write(vel, ns, store.serialize_cdr(twist, TWIST_STAMPED))
+        bags[name] = {f.name: f.read_bytes() for f in path.iterdir()}
+    return bags
+
+
+def _damaged_yaml(text: str) -> st.SearchStrategy[bytes]:
+    """``metadata.yaml`` with a value replaced by junk, a line dropped, or damaged bytes."""
+    lines = text.splitlines()
+
+    @st.composite
+    def edit(draw: st.DrawFn) -> bytes:
+        edited = list(lines)
+        at = draw(st.integers(0, len(edited) - 1))
+        if draw(st.booleans()):
+            del edited[at]
+        else:
+            key = edited[at].split(":", 1)[0]
+            junk = draw(
+                st.sampled_from(
+                    ["", "-1", "1e400", "[]", "{}", "null", "~", "!!binary AA==", "*x", "&x [*x]"]
+                )
+                | st.integers(-(2**70), 2**70).map(str)
+                | st.text(max_size=8)
+            )
+            edited[at] = f"{key}: {junk}"
+        return "\n".join(edited).encode()
+
+    return edit() | _damaged_binary(text.encode())
+
+
+@fuzz
+@given(data=st.data(), kind=st.sampled_from(["mcap", "db3"]))
+def test_fuzz_ros2_bag_bytes(
+    tmp_path: Path, ros2_bags: dict[str, dict[str, bytes]], data: st.DataObject, kind: str
+) -> None:
+    """A damaged ROS 2 bag, bare storage file (.mcap, .db3) or bag directory with a
+    damaged ``metadata.yaml`` and/or storage file, is read or refused with an InputError,
+    never another exception or a hang."""
+    import tempfile
+
+    files = ros2_bags[kind]
+    storage = next(name for name in files if name.endswith(f".{kind}"))
+    as_directory = data.draw(st.booleans())
+    folder = Path(tempfile.mkdtemp(dir=tmp_path))
+    if not as_directory:
+        path = folder / f"in.{kind}"
+        path.write_bytes(data.draw(_damaged_binary(files[storage])))
+    else:
+        path = folder / "bag"
+        path.mkdir()
+        damage = data.draw(st.sampled_from(["metadata", "storage", "both"]))
+        metadata, content = files["metadata.yaml"], files[storage]
+        if damage != "storage":
+            metadata = data.draw(_damaged_yaml(metadata.decode()))
+        if damage != "metadata":
+            content = data.draw(_damaged_binary(content))
+        (path / "metadata.yaml").write_bytes(metadata)
+        (path / storage).write_bytes(content)
+    _survives_bag(path)
+
+
+# --- Redis messages and state keys, at the function level ----------------------------
+# The worker's own decoding and per-message processing, fed hostile pages directly (no
+# routing, no transactions): thousands of cases a second, where the end-to-end test above
+# does tens.
+
+_HOSTILE_NAMES = st.sampled_from(
+    [
+        *(b"vehicle_id", b"t", b"lat", b"lon", b"speed", b"heading", b"self", b"__class__"),
+        *(b"kwargs", b"t\xff", b"\xc3(", b"", b"lat ", b"LAT", b"extra", b"x" * 300),
+    ]
+) | st.binary(max_size=6)
+_HOSTILE_VALUES = st.one_of(
+    st.sampled_from(
+        [
+            *(b"", b"nan", b"NaN", b"-nan", b"inf", b"-Infinity", b"1e400", b"-1e400", b"0x10"),
+            *(b"1_000", b" 48.1 ", b"\xd9\xa1\xd9\xa2", b"48,1", b"\xff", b"\xc3(", b"\x00"),
+            *(b"9" * 400, b"1" + b"0" * 5000, b"-" + b"9" * 4300 + b".5", b"1e-400"),
+            b"4.9e-324",
+        ]
+    ),
+    st.floats(allow_nan=True, allow_infinity=True).map(lambda x: repr(x).encode()),
+    st.integers(-(10**30), 10**30).map(lambda x: str(x).encode()),
+    st.binary(max_size=8),
+)
+
+
+@st.composite
+def _hostile_page(draw: st.DrawFn) -> list[tuple[str, list[bytes]]]:
+    """A page of messages in id order: mostly good fixes of vehicles a and b, some with any
+    field repeated, dropped or added (any name, any bytes), an odd field count, or empty."""
+    page = []
+    ms = 1000
+    for i in range(draw(st.integers(1, 12))):
+        ms += draw(st.integers(0, 2))
+        vehicle = draw(st.sampled_from([b"a", b"b"]))
+        fields = [b"vehicle_id", vehicle, b"t", str(1000 + i).encode()]
+        fields += [b"lat", repr(48.1 + 1e-5 * i).encode(), b"lon", repr(11.5 + 1e-4 * i).encode()]
+        for _ in range(draw(st.integers(0, 3))):
+            how = draw(st.sampled_from(["add", "add", "replace", "drop", "odd", "empty"]))
+            if how == "add":
+                fields += [draw(_HOSTILE_NAMES), draw(_HOSTILE_VALUES)]
+            elif how == "replace" and fields:
+                at = draw(st.integers(0, len(fields) - 1))
+                fields[at] = draw(_HOSTILE_NAMES if at % 2 == 0 else _HOSTILE_VALUES)
+            elif how == "drop" and len(fields) > 1:
+                at = 2 * draw(st.integers(0, len(fields) // 2 - 1))
+                del fields[at : at + 2]
+            elif how == "odd":
+                fields.append(draw(_HOSTILE_NAMES))
+            elif how == "empty":
+                fields = []  # a message deleted from the stream before it was read
+        page.append((f"{ms}-{i}", fields))
+    return page
+
+
+@pytest.fixture(scope="module")
+def redis_worker() -> object:
+    """A worker object for its decoding and processing methods (the client is never used)."""
+    fakeredis = pytest.importorskip("fakeredis")
+    from gradgps._run.fleet_redis import RedisStreamWorker
+
+    client = fakeredis.FakeRedis(server=fakeredis.FakeServer(), decode_responses=True)
+    return RedisStreamWorker(client, "in", "out", "g", "w1")
+
+
+def _process_page(
+    worker: object, page: list[tuple[str, list[bytes]]], stored: dict[bytes, bytes | None]
+) -> tuple[list[dict[str, str]], set[bytes], dict[bytes, object]]:
+    """What the worker's transaction would write for ``page`` (outputs, changed vehicles,
+    tracks), decoding the page as :data:`READ_SCRIPT` hands it over (hex)."""
+    from gradgps._run.fleet_redis import RedisStreamWorker, _decode_message
+
+    assert isinstance(worker, RedisStreamWorker)
+    worker._tracks.clear()
+    worker._dead = []
+    messages = [_decode_message(i, [f.hex() for f in fields]) for i, fields in page]
+    vehicles = sorted({m.vehicle for m in messages})
+    tracks = {v: worker._track(v, stored.get(v)) for v in vehicles}
+    outputs, changed = worker._run_detectors(messages, tracks)
+    return outputs, changed, dict(tracks)
+
+
+def _check_outputs(outputs: list[dict[str, str]], expected_ids: list[str]) -> None:
+    """One output per message, in order, every field text that Redis can store, and every
+    verdict flagged or a score in [0, 1] with a finite repaired position."""
+    import math
+
+    from gradgps._run.fleet_redis import OUTPUT_FIELDS, parse_output
+
+    assert [o["source_id"] for o in outputs] == expected_ids
+    for o in outputs:
+        assert tuple(o) == OUTPUT_FIELDS
+        assert all(isinstance(v, str) for v in o.values())
+        "".join(o.values()).encode("utf-8")  # no lone surrogates: redis-py can send it
+        r = parse_output(o)
+        if r["invalid_reason"]:
+            assert r["anomaly"] == 1
+        else:
+            assert 0.0 <= r["score"] <= 1.0
+            assert math.isfinite(r["lat_clean"])
+            assert math.isfinite(r["lon_clean"])
+
+
+@fuzz
+@given(page=_hostile_page())
+def test_fuzz_redis_message_fields(
+    redis_worker: object, page: list[tuple[str, list[bytes]]]
+) -> None:
+    """Any fields, any bytes: every message gets exactly one result, flagged when it cannot
+    be used, and nothing raises (a processing error would be caught by the worker's safety
+    net and dead-lettered: here that counts as a failure, since it hides a bug)."""
+    import json
+
+    from gradgps._run.fleet_redis import RedisStreamWorker
+
+    outputs, changed, tracks = _process_page(redis_worker, page, {})
+    _check_outputs(outputs, [i for i, _ in page])
+    assert isinstance(redis_worker, RedisStreamWorker)
+    assert redis_worker._dead == []
+    for i, fields in page:
+        names = fields[0::2]
+        out = next(o for o in outputs if o["source_id"] == i)
+        if len(set(names)) != len(names) or len(fields) % 2:
+            assert out["invalid_reason"].startswith("bad message")  # repeated or odd
+    # the states the transaction would store are strict JSON, and restore as they were
+    for vehicle in changed:
+        track = tracks[vehicle]
+        record = json.dumps(
+            {"last_id": track.last_id, "detector": track.detector.get_state()},  # type: ignore[attr-defined]
+            allow_nan=False,
+        )
+        again = redis_worker._track(vehicle, record.encode())
+        assert redis_worker._dead == []
+        assert again.detector.get_state() == track.detector.get_state()  # type: ignore[attr-defined]
+
+
+def _lon(i: int) -> bytes:
+    return repr(11.5 + 1e-4 * i).encode()
+
+
+@pytest.fixture(scope="module")
+def stored_record(redis_worker: object) -> bytes:
+    """A vehicle's state key as the worker stores it, 30 fixes into a drive."""
+    import json
+
+    page = [
+        (
+            f"{1000 + i}-0",
+            [b"vehicle_id", b"a", b"t", b"%d" % (1000 + i), b"lat", b"48.1", b"lon", _lon(i)],
+        )
+        for i in range(30)
+    ]
+    _, _, tracks = _process_page(redis_worker, page, {})
+    track = tracks[b"a"]
+    return json.dumps(
+        {"last_id": track.last_id, "detector": track.detector.get_state()}  # type: ignore[attr-defined]
+    ).encode()
+
+
+@fuzz
+@given(data=st.data())
+def test_fuzz_redis_state_keys(
+    redis_worker: object, stored_record: bytes, data: st.DataObject
+) -> None:
+    """A damaged ``state:`` key (bytes cut, flipped or not UTF-8; the JSON's detector state
+    tampered as in test_fuzz_checkpoint_states; ``last_id`` junk) never stops the page: it is
+    restored, or the vehicle restarts with a fresh detector and one dead-letter entry. Either
+    way every message gets one result, and none already processed is processed again."""
+    import json
+
+    from gradgps._run.fleet_redis import (
+        _MESSAGE_ID,
+        RedisStreamWorker,
+        _decode_message,
+        _id_key,
+    )
+
+    assert isinstance(redis_worker, RedisStreamWorker)
+    how = data.draw(st.sampled_from(["bytes", "text", "state", "state", "last_id", "record"]))
+    record = json.loads(stored_record)
+    if how == "bytes":
+        stored = data.draw(_damaged_binary(stored_record))
+    elif how == "text":  # what json.dumps never writes: too deep, too many digits
+        junk = data.draw(
+            st.sampled_from([b"[" * 100_000 + b"]" * 100_000, b"1" * 5000, b"-" + b"9" * 4400])
+        )
+        key = data.draw(st.sampled_from([b'"H": ', b'"segment_count": ', b'"last_id": ']))
+        stored = stored_record.replace(key, key + junk + b", " + key[:-2] + b"_was: ", 1)
+    else:
+        if how == "state":
+            _tamper(record["detector"], data, _JSONABLE_NUMBER)
+        elif how == "last_id":
+            record["last_id"] = data.draw(
+                _JSON | st.sampled_from(["0-0", "1029-0", "1029-1", "99999-0", "1-", "-1", "a-b"])
+            )
+        else:
+            record = (
+                data.draw(_JSON)
+                if data.draw(st.booleans())
+                else _tamper(record, data, _JSONABLE_NUMBER)
+            )
+        stored = json.dumps(record).encode()
+    # What the worker must take from it: the record's last id when the JSON has a detector
+    # and a well-formed last id (whether or not the detector state is refused), else 0-0.
+    try:
+        parsed = json.loads(stored)
+        parsed["detector"]
+        want_last = str(parsed["last_id"])
+        if not _MESSAGE_ID.fullmatch(want_last):
+            want_last = "0-0"
+    except (ValueError, KeyError, TypeError, RecursionError):
+        want_last = "0-0"
+    redis_worker._tracks.clear()
+    redis_worker._dead = []
+    track = redis_worker._track(b"a", stored)
+    dead = list(redis_worker._dead)
+    assert track.last_id == want_last
+    assert len(dead) <= 1
+    if dead:
+        assert "fresh detector" in dead[0]["problem"]
+        assert track.detector.get_state() == Detector().get_state()
+    page = [
+        (
+            f"{1025 + k}-0",
+            [b"vehicle_id", b"a", b"t", b"%d" % (1025 + k), b"lat", b"48.1", b"lon", _lon(25 + k)],
+        )
+        for k in range(10)
+    ]
+    messages = [_decode_message(i, [f.hex() for f in fields]) for i, fields in page]
+    outputs, _ = redis_worker._run_detectors(messages, {b"a": track})
+    assert redis_worker._dead == dead  # no message's processing failed
+    # resent messages (not after the stored last id) get no second result; the rest one each
+    _check_outputs(outputs, [i for i, _ in page if _id_key(i) > _id_key(want_last)])

@@ -374,3 +374,38 @@ def test_merging_fixes_either_side_of_the_antimeridian_stays_there() -> None:
     merged = preprocess(fixes, interpolate=False).points
     assert len(merged) == 3
     assert (np.abs(merged["lon"]) > 179.99).all()
+
+
+def _deep(depth: int) -> object:
+    node: object = 1.0
+    for _ in range(depth):
+        node = [node]
+    return node
+
+
+@pytest.mark.parametrize("key", ["H", "S", "frame", "format", "segment_count", "warm"])
+def test_junk_nested_thousands_deep_is_refused_with_config_error(key: str) -> None:
+    """A value nested 5,000 deep anywhere in a state: on main the error message's repr of
+    it raised RecursionError out of set_state (found by test_fuzz_checkpoint_states)."""
+    det = Detector()
+    for i in range(20):
+        det.update(T0 + i, 48.1, 11.5 + i * 1e-4)
+    state = json.loads(json.dumps(det.get_state()))
+    if isinstance(state[key], list) and state[key]:
+        state[key][0] = _deep(5000)
+    else:
+        state[key] = _deep(5000)
+    fresh = Detector()
+    with pytest.raises(ConfigError, match="not a detector state"):
+        fresh.set_state(state)
+    assert fresh.get_state() == Detector().get_state()
+
+
+def test_a_multi_track_state_with_a_track_id_nested_thousands_deep_is_refused() -> None:
+    from gradgps._grad.detector import MultiTrackDetector
+
+    key: object = "a"
+    for _ in range(5000):
+        key = (key,)
+    with pytest.raises(ConfigError, match="not a multi-track detector state"):
+        MultiTrackDetector().set_state({"tracks": {key: Detector().get_state()}})

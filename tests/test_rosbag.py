@@ -149,3 +149,25 @@ def test_speed_is_the_nearest_twist_within_the_lag():
     got = _speeds(np.array([0.0, 1.0, 2.0, 5.0]), [3.0, 0.9, 0.1], [3.0, 2.0, 1.0], 0.5)
     np.testing.assert_array_equal(got[:3], [1.0, 2.0, np.nan])
     assert np.isnan(got[3])
+
+
+def test_a_damaged_metadata_yaml_is_one_error_line(tmp_path):
+    """The YAML parser's message spans several lines (the line, a caret under the column);
+    on main it went into the error as is, so `gradgps detect` printed a multi-line error.
+    Found by test_fuzz_ros2_bag_bytes."""
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    path = tmp_path / "drive"
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        _write(writer, store, store.serialize_cdr)
+    metadata = path / "metadata.yaml"
+    text = metadata.read_text()
+    metadata.write_text(
+        text.replace("rosbag2_bagfile_information:", "rosbag2_bagfile_information: -1", 1)
+    )
+    with pytest.raises(InputError, match="cannot read the ROS bag") as caught:
+        read_table(path)
+    assert "\n" not in str(caught.value)
+    result = CliRunner().invoke(main, ["detect", str(path), "-o", str(tmp_path / "out.csv")])
+    assert result.exit_code == 2  # bad input, as click's usage errors
+    assert result.output.strip().startswith("error: ")
+    assert len(result.output.strip().splitlines()) == 1

@@ -22,6 +22,7 @@ non-finite floats in detector state (:func:`encode_floats`,
 from __future__ import annotations
 
 import math
+import reprlib
 from collections.abc import Iterable, Sequence
 from dataclasses import astuple, dataclass
 from typing import Any
@@ -51,6 +52,7 @@ __all__ = [
     "receiver_reason",
     "result_frame",
     "results_frame",
+    "shown",
 ]
 
 #: Result columns and their dtypes, in order.
@@ -349,6 +351,16 @@ def encode_floats(values: Iterable[Any] | None) -> list[float | str] | None:
     return out
 
 
+def shown(value: Any) -> str:
+    """A short ``repr`` of any value, for error messages about data that may be hostile: at
+    most a few levels of nesting and tens of characters (a plain ``repr`` of a list nested
+    thousands deep raises RecursionError; of a 5,000-digit integer, ValueError)."""
+    try:
+        return reprlib.repr(value)
+    except (ValueError, RecursionError):
+        return f"a {type(value).__name__}"
+
+
 def decode_floats(values: Sequence[Any] | None) -> list[float] | None:
     """The inverse of :func:`encode_floats`; ``ValueError``/``TypeError`` on anything else."""
     if values is None:
@@ -359,10 +371,10 @@ def decode_floats(values: Sequence[Any] | None) -> list[float] | None:
     for v in values:
         if isinstance(v, str):
             if v not in _NON_FINITE:
-                raise ValueError(f"{v!r} is not a number")
+                raise ValueError(f"{shown(v)} is not a number")
             out.append(_NON_FINITE[v])
         elif isinstance(v, bool) or not isinstance(v, int | float):
-            raise TypeError(f"{v!r} is not a number")
+            raise TypeError(f"{shown(v)} is not a number")
         else:
             out.append(float(v))
     return out

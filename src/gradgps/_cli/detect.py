@@ -5,9 +5,9 @@ column kept, plus the detector's columns: ``anomaly`` (0/1), ``score``
 (0..1), ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
 ``alert`` (0/1) and ``invalid_reason`` (empty for a usable fix).
 
-CSV input is processed ``--chunk-size`` rows at a time in bounded memory
-(:mod:`gradgps._run.chunked`); ``--chunk-size 0`` and the other formats read
-the whole file. Both read each track in row order with one rule (see
+CSV and Parquet input is processed ``--chunk-size`` rows at a time in bounded
+memory (:mod:`gradgps._run.chunked`; Parquet by record batches of one row group
+at a time); ``--chunk-size 0`` and the other formats read the whole file. Both read each track in row order with one rule (see
 :func:`gradgps._tracks.preprocess.stream_reasons`): a fix whose time is not
 after the previous usable fix of its track is flagged invalid, never merged,
 so every mode, ``--report`` included, gives the same rows flagged and the
@@ -82,7 +82,7 @@ __all__ = ["detect"]
     "--chunk-size",
     minimum=0,
     default=200_000,
-    help="CSV rows per chunk (bounded memory); 0 = read the whole file at once. "
+    help="CSV or Parquet rows per chunk (bounded memory); 0 = read the whole file at once. "
     "Same results either way",
 )
 @column_options
@@ -138,7 +138,7 @@ def detect(
 
     from .._grad.detector import Detector
     from .._grad.events import EventBuilder
-    from .._io.read import load_table, resolve_format, write_table
+    from .._io.read import load_table, write_table
     from .._io.times import output_time_text
     from .._result import ResultCounts
     from .._tracks.input_checks import input_warnings, validated_rates
@@ -151,7 +151,7 @@ def detect(
     time_texts: list[Any] = []
     detector = Detector(model_dir, threshold=threshold)
     time_column: Any = None
-    if chunk_size > 0 and resolve_format(input_path, fmt) == "csv":
+    if chunk_size > 0 and _chunkable(input_path, fmt):
 
         def collect(fixes: pd.DataFrame, result: pd.DataFrame, frame: pd.DataFrame) -> None:
             if events is not None:
@@ -169,6 +169,7 @@ def detect(
             column_map(cols),
             collect,
             reading,
+            fmt,
         )
         counts = ResultCounts(summary.rows, summary.anomalies, summary.invalid, summary.alerts)
         warnings: list[str] = list(summary.warnings)
@@ -215,7 +216,7 @@ def detect(
     if not whole and events is None:
         return
     if time_column is None and chunk_size > 0:
-        time_column = _csv_time_column(input_path, kept, reading.skip_rows)
+        time_column = _chunked_time_column(input_path, fmt, kept, reading.skip_rows)
     fixes_all = pd.concat([f for f, _ in kept], ignore_index=True) if whole else None
     result_all = pd.concat([r for _, r in kept], ignore_index=True) if whole else None
     table_events = events.events() if events is not None else None
@@ -303,9 +304,13 @@ def _time_column(frame: Any, fixes: Any) -> Any:
     return frame[cmap.time]
 
 
-def _csv_time_column(input_path: Path, kept: list[Any], skip_rows: int | None = None) -> Any:
-    """A sample of the CSV's time column (first rows), to give event times in the same form."""
+def _chunked_time_column(
+    input_path: Path, fmt: str | None, kept: list[Any], skip_rows: int | None = None
+) -> Any:
+    """A sample of the input's time column (first rows), to give event times in the same form."""
     import pandas as pd
+
+    from .._io.read import resolve_format
 
     if not kept:
         return None
@@ -313,8 +318,13 @@ def _csv_time_column(input_path: Path, kept: list[Any], skip_rows: int | None = 
     if cmap is None or cmap.time is None:
         return None
     try:
+        if resolve_format(input_path, fmt) == "parquet":
+            import pyarrow.parquet as pq
+
+            batch = next(pq.ParquetFile(input_path).iter_batches(batch_size=5, columns=[cmap.time]))
+            return batch.to_pandas()[cmap.time]
         return pd.read_csv(input_path, usecols=[cmap.time], nrows=5, skiprows=skip_rows)[cmap.time]
-    except (ValueError, OSError):
+    except (ValueError, OSError, KeyError, StopIteration):
         return None
 
 
@@ -343,6 +353,7 @@ def _detect_in_chunks(
     columns: ColumnMap,
     on_result: Any = None,
     reading: ReadOptions | None = None,
+    fmt: str | None = None,
 ) -> Any:
     from rich.console import Console
     from rich.progress import (
@@ -385,6 +396,7 @@ def _detect_in_chunks(
             on_start=lambda total: progress.update(task, total=total),
             on_chunk=advance,
             on_result=on_result,
+            fmt=fmt,
         )
 
 
@@ -442,3 +454,14 @@ def _run_follow(
         err=True,
     )
     sys.stderr.flush()
+
+
+def _chunkable(path: Path, fmt: str | None) -> bool:
+    """Whether ``path`` is read chunk by chunk: CSV, and Parquet that is not GeoParquet
+    (a GeoParquet file is read whole, so its output keeps the geometry column and
+    the ``geo`` metadata)."""
+    from .._io.geoparquet import geo_metadata
+    from .._io.read import resolve_format
+
+    kind = resolve_format(path, fmt)
+    return kind == "csv" or (kind == "parquet" and geo_metadata(path) is None)

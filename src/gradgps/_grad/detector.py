@@ -79,6 +79,7 @@ from .._result import (
     reading,
     result_frame,
     results_frame,
+    shown,
 )
 from .._tracks.geo import LocalFrame, far_apart_scalar
 from .._tracks.preprocess import stream_reasons
@@ -511,7 +512,15 @@ class Detector:
             restored = self._parse_state(state)
         except ConfigError:
             raise
-        except (KeyError, TypeError, ValueError, IndexError, OverflowError, GradGPSError) as exc:
+        except (
+            KeyError,
+            TypeError,
+            ValueError,
+            IndexError,
+            OverflowError,
+            RecursionError,  # junk nested thousands deep
+            GradGPSError,
+        ) as exc:
             raise ConfigError(f"not a detector state: {exc}") from exc
         # Assigned only once everything checked out: a bad state leaves this detector as it was.
         (
@@ -532,7 +541,7 @@ class Detector:
             raise TypeError(f"expected a mapping, got {type(state).__name__}")
         if state["format"] != _STATE_FORMAT:
             raise ConfigError(
-                f"not a detector state of this gradgps: format {state['format']!r} "
+                f"not a detector state of this gradgps: format {shown(state['format'])} "
                 f"(this gradgps writes format {_STATE_FORMAT}); start a fresh detector"
             )
         if state["model_checksum"] != self.model_.checksum:
@@ -550,7 +559,7 @@ class Detector:
         m = self.model_
         seg_count = state["segment_count"]
         if isinstance(seg_count, bool) or not isinstance(seg_count, int) or seg_count < 0:
-            raise ValueError(f"segment_count {seg_count!r} is not a count")
+            raise ValueError(f"segment_count {shown(seg_count)} is not a count")
         if seg_count == 0:
             if any(state[k] not in (None, []) for k in ("frame", "last_t", "warm", "S", "H")):
                 raise ValueError("segment_count 0 (a fresh detector) with a stored segment")
@@ -787,11 +796,11 @@ class MultiTrackDetector:
     def set_state(self, state: Mapping[str, Any]) -> MultiTrackDetector:
         """Restore :meth:`get_state` output (same model and threshold); returns self."""
         try:
-            tracks = dict(state["tracks"])
-        except (KeyError, TypeError, ValueError) as exc:
+            tracks = {str(track): s for track, s in dict(state["tracks"]).items()}
+        except (KeyError, TypeError, ValueError, RecursionError) as exc:
             raise ConfigError(f"not a multi-track detector state: {exc}") from exc
         self.detectors = {
-            str(track): Detector(self.model, threshold=self.threshold).set_state(s)
+            track: Detector(self.model, threshold=self.threshold).set_state(s)
             for track, s in tracks.items()
         }
         return self

@@ -68,6 +68,7 @@ __all__ = [
     "csv_tables",
     "iter_csv_tables",
     "load_table",
+    "parquet_tables",
     "read_fixes",
     "read_table",
     "resolve_format",
@@ -747,6 +748,79 @@ def _read_csv(path: Path, columns: ColumnMap | None, options: ReadOptions) -> Ta
         frame = _pandas_csv(path, layout, columns, source)
     regular = layout.lines_regular and len(frame) == layout.n_rows
     return Table(frame=frame, source=source, first_line=layout.first_line if regular else None)
+
+
+def parquet_tables(
+    path: str | Path,
+    chunksize: int,
+    columns: ColumnMap | None = None,
+    options: ReadOptions | None = None,
+) -> CsvChunks:
+    """A Parquet file as a stream of Tables of at most ``chunksize`` rows (:func:`csv_tables`'s
+    counterpart): record batches of one row group at a time, so memory is bounded by the
+    chunk and the file's largest row group, not by the file. Each chunk is converted to
+    pandas exactly as :func:`pandas.read_parquet` converts the whole file. A file with a
+    stored (non-range) index, which the whole-file reader turns into columns, is read
+    whole, as one chunk."""
+    if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
+        raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")
+    options = (options or ReadOptions()).checked()
+    path = Path(path)
+    source = str(path)
+    check_readable(path)
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError as exc:
+        raise ConfigError(f"reading Parquet needs pyarrow ({exc}); install gradgps[io]") from None
+    try:
+        file = pq.ParquetFile(path)
+        schema = file.schema_arrow
+        stored_index = [
+            c for c in (schema.pandas_metadata or {}).get("index_columns", []) if isinstance(c, str)
+        ]
+        n_rows = int(file.metadata.num_rows)
+    except (ValueError, OSError, TypeError) as exc:
+        raise InputError(
+            f"not a readable Parquet file: {exc}",
+            source=source,
+            hint="check the file, or pass the right format",
+        ) from None
+    if stored_index:
+        whole = replace(_read_parquet(path), columns=columns or ColumnMap(), options=options)
+        return CsvChunks(
+            n_rows=len(whole.frame), header=tuple(whole.frame.columns), chunks=iter([whole])
+        )
+
+    def chunks() -> Iterator[Table]:
+        from pandas.io._util import (  # type: ignore[import-not-found]  # what pd.read_parquet calls
+            arrow_table_to_pandas,
+        )
+
+        offset = 0
+        batches = file.iter_batches(batch_size=chunksize, use_pandas_metadata=True)
+        while True:
+            try:
+                batch = next(batches, None)
+                if batch is None:
+                    return
+                frame = arrow_table_to_pandas(pa.Table.from_batches([batch], schema=schema))
+            except (ValueError, OSError, TypeError) as exc:
+                raise InputError(
+                    f"not a readable Parquet file: {exc}",
+                    source=source,
+                    hint="check the file, or pass the right format",
+                ) from None
+            yield Table(
+                frame=frame.reset_index(drop=True),
+                source=source,
+                columns=columns or ColumnMap(),
+                row_offset=offset,
+                options=options,
+            )
+            offset += len(frame)
+
+    return CsvChunks(n_rows=n_rows, header=tuple(schema.names), chunks=chunks())
 
 
 def _read_parquet(path: Path) -> Table:

@@ -168,7 +168,7 @@ def read_rosbag(
         raise
     except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, SerdeError, OSError, KeyError) as exc:
         raise InputError(
-            f"cannot read the ROS bag: {exc}",
+            f"cannot read the ROS bag: {_one_line(exc)}",
             source=source,
             hint="is this a ROS 1 .bag, or a ROS 2 bag directory / .mcap / .db3?",
         ) from None
@@ -176,7 +176,7 @@ def read_rosbag(
         # rosbags parses with assertions, str.decode and struct.unpack: a damaged bag
         # surfaces as AssertionError, UnicodeDecodeError, struct.error, IndexError, ...
         raise InputError(
-            f"cannot read the ROS bag, it is damaged ({type(exc).__name__}: {str(exc)[:200]})",
+            f"cannot read the ROS bag, it is damaged ({type(exc).__name__}: {_one_line(exc)})",
             source=source,
             hint="re-record or repair it (rosbag reindex for ROS 1)",
         ) from None
@@ -201,6 +201,12 @@ def read_rosbag(
         satellites="",
     )
     return Table(frame=frame, source=source, columns=columns, notes=notes or None)
+
+
+def _one_line(exc: BaseException, limit: int = 300) -> str:
+    """The bag library's message on one line (YAML errors span several), at most ``limit`` chars."""
+    text = " ".join(str(exc).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _listing(types: dict[str, str]) -> str:

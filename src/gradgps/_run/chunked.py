@@ -33,7 +33,7 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._grad.detector import MultiTrackDetector, load_grad_model
-from .._io.read import TableWriter, csv_tables
+from .._io.read import TableWriter, csv_tables, parquet_tables, resolve_format
 from .._result import RESULT_DTYPES
 from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import ColumnMap, ReadOptions, to_fixes
@@ -72,8 +72,10 @@ def detect_csv_in_chunks(
     on_start: Callable[[int], None] | None = None,
     on_chunk: Callable[[int], None] | None = None,
     on_result: Callable[[pd.DataFrame, pd.DataFrame, pd.DataFrame], None] | None = None,
+    fmt: str | None = None,
 ) -> DetectSummary:
-    """Detect faults in every row of a CSV, ``chunk_size`` rows at a time; write ``output``.
+    """Detect faults in every row of a CSV (or Parquet file: ``fmt``, or the file's
+    extension), ``chunk_size`` rows at a time; write ``output``.
 
     The output (``.csv``, ``.csv.gz`` or ``.parquet``) has every input
     column, in order, then the result columns, one row per input row. It is
@@ -86,7 +88,10 @@ def detect_csv_in_chunks(
     """
     started = time.perf_counter()
     streams = MultiTrackDetector(model, threshold=threshold)
-    chunks = csv_tables(Path(input_path), chunk_size, columns, options)
+    if resolve_format(Path(input_path), fmt) == "parquet":
+        chunks = parquet_tables(Path(input_path), chunk_size, columns, options)
+    else:
+        chunks = csv_tables(Path(input_path), chunk_size, columns, options)
     clash = [c for c in RESULT_DTYPES if c in chunks.header]
     if clash:
         raise InputError(

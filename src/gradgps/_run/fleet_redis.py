@@ -477,8 +477,10 @@ class RedisStreamWorker:
 
         return Detector(self.model, threshold=self.threshold)
 
-    def _track(self, vehicle: bytes, stored: str | None) -> _VehicleTrack:
+    def _track(self, vehicle: bytes, stored: bytes | str | None) -> _VehicleTrack:
         """The vehicle's detector as of its stored state (the cached one when that is current).
+
+        ``stored``: the state key's raw bytes (``None`` when the key does not exist).
 
         A stored state that cannot be restored gives a fresh detector (and keeps its last
         message id when that is readable), reported on the dead-letter stream.
@@ -518,6 +520,7 @@ class RedisStreamWorker:
     def _commit(self, messages: list[_Message]) -> tuple[int, int]:
         """Process one page of pending messages in one transaction; returns (processed, skipped)."""
         import redis
+        from redis.client import NEVER_DECODE
 
         vehicles = sorted({m.vehicle for m in messages})
         keys = [self._state_key(v) for v in vehicles]
@@ -527,7 +530,15 @@ class RedisStreamWorker:
                     self._dead = []
                     if keys:
                         pipe.watch(*keys)  # type: ignore[no-untyped-call]
-                    stored: list[Any] = pipe.mget(keys) if keys else []
+                    # Raw bytes: a state key holding non-UTF-8 bytes (hand-written, damaged)
+                    # must not make the client raise for the whole page, on every restart.
+                    stored: list[Any] = (
+                        pipe.execute_command(  # type: ignore[no-untyped-call]
+                            "MGET", *keys, **{NEVER_DECODE: []}
+                        )
+                        if keys
+                        else []
+                    )
                     tracks = {v: self._track(v, s) for v, s in zip(vehicles, stored, strict=True)}
                     outputs, changed = self._run_detectors(messages, tracks)
                     pipe.multi()

@@ -1,0 +1,287 @@
+"""Peak memory of ``gradgps detect`` against input size, in every mode (issue 18).
+
+    python benchmarks/memory_modes.py --json benchmarks/results/memory_modes.json
+        [--sizes-mb 10 50 100] [--only MODE ...]
+
+For each size a fleet log of about that many megabytes of CSV is built from
+simulated drives (``gradgps.simulate_fleet``: 100 drives at 1 Hz, repeated
+under new track ids and shifted in time, as in ``benchmarks/memory_10m.py``)
+in a temporary folder (never the repository), and written again as Parquet
+(one file), GPX (one ``<trk>`` per track) and NMEA (one receiver: the tracks
+one after another, RMC sentences). Then ``gradgps detect`` runs on it in each
+mode:
+
+* ``csv chunked``: the default (``--chunk-size 200000``);
+* ``csv --chunk-size 0``: the whole file at once;
+* ``parquet``, ``gpx``, ``nmea``: those inputs (same fixes; the files'
+  sizes differ, each is recorded);
+* ``csv --report``: chunked detection plus the HTML report.
+
+Each command runs in a child Python process that calls the CLI and reports its
+own peak resident set size (``VmHWM`` in ``/proc/self/status``: the kernel's
+high-water mark of the process's memory, nothing sampled; not ``ru_maxrss``,
+which Linux carries over from the parent across fork and exec, so that the
+parent's size, holding the input it built, would be a floor under every figure). The baseline (interpreter, pandas, numba,
+the compiled kernels) is measured by the same child on a 10-row file. For each
+mode a least-squares line through (input MB, peak MB) gives the growth per MB
+of input, and its extrapolation to a 1 GB input of that format (an
+extrapolation: 2-core shared machine, nothing above a few hundred MB is run
+here). Machine, load and command go into the JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from gradgps import simulate_fleet
+from gradgps._io.nmea import nmea_checksum
+
+# The child's own peak: VmHWM of /proc/self/status, the high-water mark of this process's
+# memory map. Not getrusage's ru_maxrss: Linux carries that over from the parent across
+# fork + exec, so a parent holding a big input would set a floor under every child's figure.
+_CHILD = """
+import sys
+from gradgps._cli import main
+code = 0
+try:
+    main.main(args=sys.argv[1:], standalone_mode=False)
+except SystemExit as exc:
+    code = exc.code or 0
+except Exception as exc:
+    print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
+    code = 1
+with open("/proc/self/status") as status:
+    peak = next(int(line.split()[1]) for line in status if line.startswith("VmHWM:"))
+print("MAXRSS_KB", peak, "EXIT", code)
+"""
+
+_BLOCK = 100  # tracks simulated once and repeated
+_BYTES_PER_ROW = 64.0  # of the CSV below, measured: sizes are approximate
+
+MODES = ("csv chunked", "csv --chunk-size 0", "parquet", "gpx", "nmea", "csv --report")
+
+
+def _fleet(rows: int) -> pd.DataFrame:
+    """About ``rows`` fixes: blocks of 100 simulated 1 Hz drives, interleaved by time."""
+    per_track = max(10, rows // (4 * _BLOCK))  # 4 blocks at least: several hundred tracks
+    base = simulate_fleet(_BLOCK, per_track / 60.0, 1.0, seed=7, imu=False)
+    base = base.groupby("track", sort=False).head(per_track)
+    base = base.sort_values("t", kind="stable").reset_index(drop=True)
+    number = base["track"].astype(int).to_numpy()
+    blocks = []
+    for block in range(max(1, rows // len(base))):
+        copy = base.copy()
+        copy["track"] = (number + block * _BLOCK).astype(str)
+        copy["t"] = copy["t"] + 3600.0 * block
+        copy["lat"] = copy["lat"] + 0.01 * block
+        blocks.append(copy)
+    return pd.concat(blocks, ignore_index=True)
+
+
+def _gpx(fixes: pd.DataFrame, path: Path) -> None:
+    with path.open("w") as out:
+        out.write('<?xml version="1.0"?>\n<gpx version="1.1" creator="bench">\n')
+        for track, rows in fixes.groupby("track", sort=False):
+            stamps = pd.to_datetime(rows["t"].to_numpy(), unit="s", utc=True).strftime(
+                "%Y-%m-%dT%H:%M:%S.%fZ"
+            )
+            out.write(f"<trk><name>{track}</name><trkseg>\n")
+            out.writelines(
+                f'<trkpt lat="{lat:.8f}" lon="{lon:.8f}"><time>{s}</time>'
+                f"<speed>{v:.2f}</speed></trkpt>\n"
+                for lat, lon, s, v in zip(
+                    rows["lat"], rows["lon"], stamps, rows["speed"], strict=True
+                )
+            )
+            out.write("</trkseg></trk>\n")
+        out.write("</gpx>\n")
+
+
+def _nmea(fixes: pd.DataFrame, path: Path) -> None:
+    """One receiver: the tracks one after another (each shifted to start after the last)."""
+    parts, end = [], 0.0
+    for _, rows in fixes.groupby("track", sort=False):
+        t = rows["t"].to_numpy() - rows["t"].iloc[0] + end
+        end = t[-1] + 1.0
+        parts.append(rows.assign(t=t))
+    one = pd.concat(parts, ignore_index=True)
+    stamps = pd.to_datetime(1.7e9 + one["t"].to_numpy(), unit="s", utc=True)
+    hms = stamps.strftime("%H%M%S.%f").str[:-3]
+    dmy = stamps.strftime("%d%m%y")
+
+    def ddmm(values: np.ndarray, width: int) -> list[str]:
+        deg = np.floor(np.abs(values)).astype(int)
+        minutes = (np.abs(values) - deg) * 60
+        return [f"{d:0{width}d}{m:07.4f}" for d, m in zip(deg, minutes, strict=True)]
+
+    lat, lon = ddmm(one["lat"].to_numpy(), 2), ddmm(one["lon"].to_numpy(), 3)
+    ns = np.where(one["lat"].to_numpy() >= 0, "N", "S")
+    ew = np.where(one["lon"].to_numpy() >= 0, "E", "W")
+    knots = one["speed"].to_numpy() / 0.514444
+    with path.open("w") as out:
+        for i in range(len(one)):
+            body = (
+                f"GPRMC,{hms[i]},A,{lat[i]},{ns[i]},{lon[i]},{ew[i]},{knots[i]:.1f},"
+                f"{one['heading'].iat[i]:.1f},{dmy[i]},,,A"
+            )
+            out.write(f"${body}*{nmea_checksum(body):02X}\n")
+
+
+def _inputs(folder: Path, size_mb: float, formats: set[str]) -> dict[str, Path]:
+    """The fixes of a ``size_mb`` CSV, written in each of ``formats`` (Parquet always: the
+    fix count is read from it)."""
+    fixes = _fleet(int(size_mb * 1e6 / _BYTES_PER_ROW))
+    writers = {
+        "csv": lambda path: fixes.to_csv(path, index=False),
+        "parquet": lambda path: fixes.to_parquet(path, index=False),
+        "gpx": lambda path: _gpx(fixes, path),
+        "nmea": lambda path: _nmea(fixes, path),
+    }
+    paths = {}
+    for kind, write in writers.items():
+        if kind in formats or kind == "parquet":
+            paths[kind] = folder / f"fleet_{size_mb:g}.{kind}"
+            write(paths[kind])
+    return paths
+
+
+def _command(mode: str, paths: dict[str, Path], out: Path) -> list[str]:
+    if mode == "csv chunked":
+        return ["detect", str(paths["csv"]), "-o", str(out)]
+    if mode == "csv --chunk-size 0":
+        return ["detect", str(paths["csv"]), "-o", str(out), "--chunk-size", "0"]
+    if mode == "csv --report":
+        report = out.with_name("report.html")
+        return ["detect", str(paths["csv"]), "-o", str(out), "--report", str(report)]
+    return ["detect", str(paths[mode]), "-o", str(out)]
+
+
+def _input_of(mode: str) -> str:
+    return mode.split()[0]
+
+
+def _run(args: list[str]) -> dict[str, object]:
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    start = time.perf_counter()
+    proc = subprocess.run(
+        [sys.executable, "-c", _CHILD, *args], capture_output=True, text=True, env=env, check=False
+    )
+    wall = time.perf_counter() - start
+    last = [ln for ln in proc.stdout.splitlines() if ln.startswith("MAXRSS_KB")]
+    if not last:
+        return {"error": (proc.stderr or proc.stdout)[-500:], "wall_s": round(wall, 1)}
+    _, kb, _, code = last[-1].split()
+    errors = [ln for ln in proc.stderr.splitlines() if ln.strip()][-1:]
+    return {
+        "peak_rss_mb": round(int(kb) / 1024, 1),
+        "exit_code": int(code),
+        "error_line": errors[-1][:200] if errors and int(code) else "",
+        "wall_s": round(wall, 1),
+    }
+
+
+def _fit(rows: list[dict[str, object]]) -> dict[str, float] | None:
+    """Least-squares growth of the peak with input size (MB) and with fixes (millions)."""
+    done = [r for r in rows if "peak_rss_mb" in r]
+    if len(done) < 2:
+        return None
+    mb = np.array([float(str(r["input_mb"])) for r in done])
+    fixes = np.array([float(str(r["fixes"])) for r in done])
+    peak = np.array([float(str(r["peak_rss_mb"])) for r in done])
+    slope, intercept = np.polyfit(mb, peak, 1)
+    per_fix = np.polyfit(fixes / 1e6, peak, 1)[0]
+    return {
+        "mb_per_input_mb": round(float(slope), 3),
+        "mb_per_million_fixes": round(float(per_fix), 1),
+        "intercept_mb": round(float(intercept), 1),
+        "extrapolated_peak_mb_at_1000_mb_input": round(float(intercept + 1000 * slope)),
+    }
+
+
+def _source() -> str:
+    """Which gradgps ran: its package folder and, in a git checkout, the commit."""
+    import gradgps
+
+    folder = Path(gradgps.__file__).resolve().parent
+    try:
+        commit = subprocess.run(
+            ["git", "-C", str(folder), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit = "not a git checkout"
+    return f"{folder} ({commit})"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--json", type=Path)
+    parser.add_argument("--sizes-mb", type=float, nargs="+", default=[10.0, 50.0, 100.0])
+    parser.add_argument("--only", nargs="*", default=[], help="modes to run (default: all)")
+    parser.add_argument("--note", default="", help="stored in the JSON (e.g. which code ran)")
+    opts = parser.parse_args()
+    modes = [m for m in MODES if not opts.only or m in opts.only]
+    rows: list[dict[str, object]] = []
+    load_before = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory(prefix="gradgps-memmodes-") as tmp:
+        folder = Path(tmp)
+        tiny = folder / "tiny.csv"
+        tiny.write_text("t,lat,lon\n" + "".join(f"{i},48.1,{11.5 + i * 1e-4}\n" for i in range(10)))
+        baseline = _run(["detect", str(tiny), "-o", str(folder / "tiny_out.csv")])
+        print(json.dumps({"baseline": baseline}), flush=True)
+        for size in opts.sizes_mb:
+            started = time.perf_counter()
+            paths = _inputs(folder, size, {_input_of(m) for m in modes})
+            sizes = {k: p.stat().st_size for k, p in paths.items()}
+            n_fixes = len(pd.read_parquet(paths["parquet"], columns=["t"]))
+            print(
+                f"built {size:g} MB inputs in {time.perf_counter() - started:.0f} s",
+                file=sys.stderr,
+            )
+            for mode in modes:
+                out = folder / "out.csv"
+                row = {
+                    "mode": mode,
+                    "fixes": n_fixes,
+                    "input_mb": round(sizes[_input_of(mode)] / 1e6, 2),
+                    **_run(_command(mode, paths, out)),
+                }
+                for leftover in (out, folder / "report.html"):
+                    leftover.unlink(missing_ok=True)
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+            for p in paths.values():
+                p.unlink()
+    fits = {mode: _fit([r for r in rows if r["mode"] == mode]) for mode in modes}
+    report = {
+        "command": " ".join(["python", *sys.argv]),
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "machine": f"{platform.machine()} {os.cpu_count()} CPUs, {platform.platform()}",
+        "gradgps": _source(),
+        "note": opts.note,
+        "load_1min_before_after": [round(load_before, 2), round(os.getloadavg()[0], 2)],
+        "baseline_10_rows": baseline,
+        "results": rows,
+        "growth": fits,
+    }
+    print(json.dumps(report["growth"], indent=2))
+    if opts.json:
+        opts.json.write_text(json.dumps(report, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
