@@ -6,6 +6,7 @@ import contextlib
 import json
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -28,6 +29,42 @@ def _step_progress(label: str, total: int | None) -> Iterator[Callable[[str], No
         yield lambda what: progress.update(task, advance=1, description=what)
 
 
+def _real_drive_detector(
+    detector: str, train_dataset: str | None, data_dir: Path | None, model: Path | None
+) -> Any:
+    """The detector a whole-suite run scores: ``grad-default`` with ``--model`` is that model
+    in place of the shipped one (i.e. ``grad``); detectors that need training are trained
+    on ``train_dataset`` (default DrivePlotR)."""
+    from .._eval.bench import make_detector
+
+    return make_detector(
+        "grad" if detector == "grad-default" and model is not None else detector,
+        dataset=train_dataset or "driveplotr",
+        data_dir=data_dir,
+        model=model,
+    )
+
+
+def _report(
+    words: list[str],
+    options: dict[str, Any],
+    markdown: Callable[[dict[str, Any], str], list[str]],
+    report: dict[str, Any],
+    json_path: Path | None,
+) -> None:
+    """Print a suite's Markdown with the command that reproduces it (``words`` then every
+    option that is set, ``--json`` last) and save its JSON."""
+    import shlex
+
+    for flag, value in options.items():
+        words += [flag, str(value)] if value is not None else []
+    words += ["--json", str(json_path)] if json_path is not None else []
+    click.echo("\n".join(markdown(report, shlex.join(words))))
+    if json_path is not None:
+        json_path.write_text(json.dumps(report, indent=1) + "\n")
+        click.echo(f"wrote {json_path}")
+
+
 def _robustness(
     detector: str,
     train_dataset: str | None,
@@ -36,38 +73,19 @@ def _robustness(
     json_path: Path | None,
 ) -> None:
     """``--suite robustness``: run the suite, print its matrix (Markdown), save the JSON."""
-    import shlex
-
-    from .._eval.bench import make_detector
-    from .._eval.robustness import ROBUSTNESS_DATASETS, robustness_markdown, run_robustness
+    from .._eval.robustness import robustness_markdown, run_robustness
 
     with click_errors():
-        # grad-default with --model: that model in place of the shipped one, i.e. 'grad'.
-        det = make_detector(
-            "grad" if detector == "grad-default" and model is not None else detector,
-            dataset=train_dataset or "driveplotr",
-            data_dir=data_dir,
-            model=model,
-        )
+        det = _real_drive_detector(detector, train_dataset, data_dir, model)
         with _step_progress("robustness", None) as advance:
-            report = run_robustness(
-                det,
-                detector,
-                model=model,
-                datasets=ROBUSTNESS_DATASETS,
-                data_dir=data_dir,
-                advance=advance,
-            )
-    words = ["gradgps", "bench", "--suite", "robustness", "--detector", detector]
-    words += ["--model", str(model)] if model is not None else []
-    words += ["--dataset", train_dataset] if train_dataset is not None else []
-    words += ["--data-dir", str(data_dir)] if data_dir is not None else []
-    words += ["--json", str(json_path)] if json_path is not None else []
-    command = shlex.join(words)
-    click.echo("\n".join(robustness_markdown(report, command)))
-    if json_path is not None:
-        json_path.write_text(json.dumps(report, indent=1) + "\n")
-        click.echo(f"wrote {json_path}")
+            report = run_robustness(det, detector, model=model, data_dir=data_dir, advance=advance)
+    _report(
+        ["gradgps", "bench", "--suite", "robustness", "--detector", detector],
+        {"--model": model, "--dataset": train_dataset, "--data-dir": data_dir},
+        robustness_markdown,
+        report,
+        json_path,
+    )
 
 
 def _gnss(
@@ -80,19 +98,11 @@ def _gnss(
     json_path: Path | None,
 ) -> None:
     """``--protocol gnss``: every real test split, positions only and with its columns."""
-    import shlex
-
-    from .._eval.bench import make_detector
     from .._eval.gnss import gnss_markdown, run_gnss_bench
     from .._eval.robustness import ROBUSTNESS_DATASETS
 
     with click_errors():
-        det = make_detector(
-            "grad" if detector == "grad-default" and model is not None else detector,
-            dataset=train_dataset or "driveplotr",
-            data_dir=data_dir,
-            model=model,
-        )
+        det = _real_drive_detector(detector, train_dataset, data_dir, model)
         with _step_progress("gnss", 2 * len(ROBUSTNESS_DATASETS)) as advance:
             report = run_gnss_bench(
                 det,
@@ -103,17 +113,19 @@ def _gnss(
                 scale=scale,
                 advance=advance,
             )
-    words = ["gradgps", "bench", "--protocol", "gnss", "--detector", detector]
-    words += ["--model", str(model)] if model is not None else []
-    words += ["--dataset", train_dataset] if train_dataset is not None else []
-    words += ["--seed", str(seed)] if seed else []
-    words += ["--scale", f"{scale:g}"] if scale != 1.0 else []
-    words += ["--data-dir", str(data_dir)] if data_dir is not None else []
-    words += ["--json", str(json_path)] if json_path is not None else []
-    click.echo("\n".join(gnss_markdown(report, shlex.join(words))))
-    if json_path is not None:
-        json_path.write_text(json.dumps(report, indent=1) + "\n")
-        click.echo(f"wrote {json_path}")
+    _report(
+        ["gradgps", "bench", "--protocol", "gnss", "--detector", detector],
+        {
+            "--model": model,
+            "--dataset": train_dataset,
+            "--seed": seed or None,
+            "--scale": f"{scale:g}" if scale != 1.0 else None,
+            "--data-dir": data_dir,
+        },
+        gnss_markdown,
+        report,
+        json_path,
+    )
 
 
 def _fmt(value: object) -> str:

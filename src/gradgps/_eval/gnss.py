@@ -37,7 +37,6 @@ detected faults (same typing).
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -48,11 +47,16 @@ import pandas as pd
 
 from .._data.datasets import load_dataset
 from .._data.inject import BIAS_TYPES, GNSS_TYPES, inject_gnss
-from .._exceptions import ConfigError
 from .._result import NO_FIX, NO_SATELLITES
 from .._tracks.track import ColumnMap, to_fixes
 from .metrics import class_scores, type_accuracy
-from .robustness import ROBUSTNESS_DATASETS, Detector, machine
+from .robustness import (
+    ROBUSTNESS_DATASETS,
+    Detector,
+    check_real_datasets,
+    machine,
+    plain_json,
+)
 
 __all__ = ["GNSS_BIAS", "GNSS_VARIANTS", "gnss_cell", "gnss_markdown", "run_gnss_bench"]
 
@@ -193,12 +197,7 @@ def run_gnss_bench(
     advance: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Run ``det`` on every data set's test split under protocol ``gnss``; JSON-ready report."""
-    for name in datasets:
-        if name not in ROBUSTNESS_DATASETS:
-            raise ConfigError(
-                f"data set {name!r} has no real test split for protocol gnss; choose from "
-                f"{', '.join(ROBUSTNESS_DATASETS)}"
-            )
+    check_real_datasets(datasets, "has no real test split for protocol gnss")
     began = time.perf_counter()
     cells: list[dict[str, Any]] = []
     for name in datasets:
@@ -224,9 +223,7 @@ def run_gnss_bench(
         "seconds": time.perf_counter() - began,
         "cells": cells,
     }
-    text = json.dumps(report, default=lambda v: v.item())
-    jsonable: dict[str, Any] = json.loads(text, parse_constant=lambda _: None)
-    return jsonable
+    return plain_json(report)
 
 
 def _num(v: float | None, digits: int = 3) -> str:

@@ -65,9 +65,11 @@ __all__ = [
     "ROBUSTNESS_DATASETS",
     "TARGETS",
     "VARIANTS",
+    "check_real_datasets",
     "decimate",
     "judge",
     "machine",
+    "plain_json",
     "robustness_markdown",
     "run_robustness",
 ]
@@ -290,12 +292,7 @@ def run_robustness(
     ``model`` its model directory, for the report. ``advance`` is called
     after each cell.
     """
-    for name in datasets:
-        if name not in ROBUSTNESS_DATASETS:
-            raise ConfigError(
-                f"data set {name!r} is not in the robustness suite; choose from "
-                f"{', '.join(ROBUSTNESS_DATASETS)}"
-            )
+    check_real_datasets(datasets, "is not in the robustness suite")
     load_before = _load()
     began = time.perf_counter()
     cells: list[dict[str, Any]] = []
@@ -342,7 +339,20 @@ def run_robustness(
         "passed": sum(c["passed"] for c in cells),
         "n_cells": len(cells),
     }
-    # Plain JSON: numpy scalars to numbers, nan/inf to null.
+    return plain_json(report)
+
+
+def check_real_datasets(datasets: Sequence[str], problem: str) -> None:
+    """Refuse, naming the choices, a data set that has no real test split in the suites."""
+    for name in datasets:
+        if name not in ROBUSTNESS_DATASETS:
+            raise ConfigError(
+                f"data set {name!r} {problem}; choose from {', '.join(ROBUSTNESS_DATASETS)}"
+            )
+
+
+def plain_json(report: dict[str, Any]) -> dict[str, Any]:
+    """A suite's report as plain JSON data: numpy scalars to numbers, nan/inf to null."""
     text = json.dumps(report, default=lambda v: v.item())
     jsonable: dict[str, Any] = json.loads(text, parse_constant=lambda _: None)
     return jsonable

@@ -500,10 +500,7 @@ def csv_tables(
     options: ReadOptions | None = None,
 ) -> CsvChunks:
     """:func:`iter_csv_tables` with the reader options as one object (see :func:`load_table`)."""
-    if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
-        raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")
-    options = (options or ReadOptions()).checked()
-    path = Path(path)
+    path, options = _chunked_read(path, chunksize, options)
     layout = _scan_csv(path, options)
     return CsvChunks(
         n_rows=layout.n_rows,
@@ -762,17 +759,14 @@ def parquet_tables(
     pandas exactly as :func:`pandas.read_parquet` converts the whole file. A file with a
     stored (non-range) index, which the whole-file reader turns into columns, is read
     whole, as one chunk."""
-    if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
-        raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")
-    options = (options or ReadOptions()).checked()
-    path = Path(path)
+    path, options = _chunked_read(path, chunksize, options)
     source = str(path)
     check_readable(path)
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError as exc:
-        raise ConfigError(f"reading Parquet needs pyarrow ({exc}); install gradgps[io]") from None
+        raise _no_pyarrow(exc) from None
     try:
         file = pq.ParquetFile(path)
         schema = file.schema_arrow
@@ -781,11 +775,7 @@ def parquet_tables(
         ]
         n_rows = int(file.metadata.num_rows)
     except (ValueError, OSError, TypeError) as exc:
-        raise InputError(
-            f"not a readable Parquet file: {exc}",
-            source=source,
-            hint="check the file, or pass the right format",
-        ) from None
+        raise _unreadable_parquet(exc, source) from None
     if stored_index:
         whole = replace(_read_parquet(path), columns=columns or ColumnMap(), options=options)
         return CsvChunks(
@@ -806,11 +796,7 @@ def parquet_tables(
                     return
                 frame = arrow_table_to_pandas(pa.Table.from_batches([batch], schema=schema))
             except (ValueError, OSError, TypeError) as exc:
-                raise InputError(
-                    f"not a readable Parquet file: {exc}",
-                    source=source,
-                    hint="check the file, or pass the right format",
-                ) from None
+                raise _unreadable_parquet(exc, source) from None
             yield Table(
                 frame=frame.reset_index(drop=True),
                 source=source,
@@ -823,19 +809,37 @@ def parquet_tables(
     return CsvChunks(n_rows=n_rows, header=tuple(schema.names), chunks=chunks())
 
 
+def _chunked_read(
+    path: str | Path, chunksize: int, options: ReadOptions | None
+) -> tuple[Path, ReadOptions]:
+    """Check a chunked reader's arguments once (csv_tables and parquet_tables alike)."""
+    if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
+        raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")
+    return Path(path), (options or ReadOptions()).checked()
+
+
+def _unreadable_parquet(exc: Exception, source: str) -> InputError:
+    """The one error for a file pyarrow cannot read (pyarrow's ArrowInvalid is a
+    ValueError: not Parquet, truncated, damaged), whole or chunk by chunk."""
+    return InputError(
+        f"not a readable Parquet file: {exc}",
+        source=source,
+        hint="check the file, or pass the right format",
+    )
+
+
+def _no_pyarrow(exc: ImportError) -> ConfigError:
+    return ConfigError(f"reading Parquet needs pyarrow ({exc}); install gradgps[io]")
+
+
 def _read_parquet(path: Path) -> Table:
     source = str(path)
     try:
         frame = pd.read_parquet(path)
     except ImportError as exc:
-        raise ConfigError(f"reading Parquet needs pyarrow ({exc}); install gradgps[io]") from None
+        raise _no_pyarrow(exc) from None
     except (ValueError, OSError, TypeError) as exc:
-        # pyarrow's ArrowInvalid is a ValueError: not Parquet, truncated, damaged.
-        raise InputError(
-            f"not a readable Parquet file: {exc}",
-            source=source,
-            hint="check the file, or pass the right format",
-        ) from None
+        raise _unreadable_parquet(exc, source) from None
     if not isinstance(frame.index, pd.RangeIndex):
         # A stored index is data (often the time); make it a column like the rest.
         frame = frame.reset_index()
