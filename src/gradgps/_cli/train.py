@@ -112,7 +112,7 @@ def train(
         # fixes are not counted in the loss (no causal detector can tell them from
         # a parked car; counted as faults they taught the model to flag every long
         # stop), the fixes after the jump are: a jump off a standstill into full
-        # motion ends a fault (Austin validation: 92 clean fixes flagged after one).
+        # motion ends a fault (the Austin validation drive has a real one).
         spec = GradTrainingSet(seeds=RECIPE_SEEDS, freeze_share=0.02, stale_start=0.1)
         source = "recipe (gradgps._train.recipe.DefaultRecipe)"
         validated = recipe_validated()
