@@ -508,20 +508,7 @@ class Detector:
         range, inconsistent fields) raises :class:`ConfigError` and leaves
         the detector as it was.
         """
-        try:
-            restored = self._parse_state(state)
-        except ConfigError:
-            raise
-        except (
-            KeyError,
-            TypeError,
-            ValueError,
-            IndexError,
-            OverflowError,
-            RecursionError,  # junk nested thousands deep
-            GradGPSError,
-        ) as exc:
-            raise ConfigError(f"not a detector state: {exc}") from exc
+        restored = self._checked_state(state)
         # Assigned only once everything checked out: a bad state leaves this detector as it was.
         (
             self._frame,
@@ -535,6 +522,24 @@ class Detector:
         ) = restored
         self._work = None  # made for the restored P on the first step
         return self
+
+    def _checked_state(self, state: Mapping[str, Any]) -> tuple[Any, ...]:
+        """:meth:`_parse_state`, every refusal a :class:`ConfigError` (also used by
+        :class:`gradgps.FleetDetector`, so both refuse the same states alike)."""
+        try:
+            return self._parse_state(state)
+        except ConfigError:
+            raise
+        except (
+            KeyError,
+            TypeError,
+            ValueError,
+            IndexError,
+            OverflowError,
+            RecursionError,  # junk nested thousands deep
+            GradGPSError,
+        ) as exc:
+            raise ConfigError(f"not a detector state: {exc}") from exc
 
     def _parse_state(self, state: Mapping[str, Any]) -> tuple[Any, ...]:
         if not isinstance(state, Mapping):
