@@ -208,6 +208,7 @@ def test_a_refused_state_leaves_the_vehicle_as_it_was() -> None:
         fleet.set_state("b", {"format": 1})
     assert fleet.get_state("a") == before
     assert "b" not in fleet
+    assert fleet.get_state("b") == Detector().get_state()
 
 
 def test_drop_and_many_vehicles_reuse_and_compact_the_state_buffer() -> None:

@@ -692,9 +692,11 @@ class FleetDetector:
 
     def get_state(self, vehicle: Hashable) -> dict[str, Any]:
         """``vehicle``'s state, exactly as :meth:`Detector.get_state` of a Detector that saw its
-        fixes (restore it in either class). ``KeyError`` for a vehicle not held."""
-        s = self._index[vehicle]
-        det = self._template
+        fixes (restore it in either class). A vehicle not held is a fresh detector."""
+        det = self._template  # never fed: its state is a fresh detector's
+        s = self._index.get(vehicle)
+        if s is None:
+            return det.get_state()
         seg = int(self._seg[s])
         state: dict[str, Any] = {
             "format": _STATE_FORMAT,
