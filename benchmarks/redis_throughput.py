@@ -57,8 +57,10 @@ def redis_server() -> Iterator[str]:
         port = s.getsockname()[1]
         s.close()
         proc = subprocess.Popen(
-            [binary, "--bind", "127.0.0.1", "--port", str(port), "--dir", workdir]
-            + ["--save", "", "--appendonly", "no"],
+            [
+                *(binary, "--bind", "127.0.0.1", "--port", str(port), "--dir", workdir),
+                *("--save", "", "--appendonly", "no"),
+            ],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
         )
