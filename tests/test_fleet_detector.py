@@ -22,8 +22,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gradgps import ConfigError, Detector, FleetDetector
-from gradgps._grad import fleet_step
-from gradgps._grad.fleet_step import REASONS, FleetResult, ReferenceFleet
+from gradgps._grad import detector
+from gradgps._grad.detector import REASONS, FleetResult, ReferenceFleet
 from gradgps._result import fix_reason
 
 NAN, INF = math.nan, math.inf
@@ -178,7 +178,7 @@ def test_reason_codes_are_the_detectors_reasons() -> None:
         sats = 0 if rx == 2 else None
         expected = fix_reason(t, lat, lon, last, 0.001, fix_quality=quality, satellites=sats)
         fresh = last is None
-        code = fleet_step._reason_code(t, lat, lon, fresh, NAN if fresh else last, rx)
+        code = detector._reason_code(t, lat, lon, fresh, NAN if fresh else last, rx)
         assert REASONS[code] == expected
 
 

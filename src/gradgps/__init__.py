@@ -23,9 +23,8 @@ from ._baselines.rema_detector import RemaDetector
 from ._baselines.speed_gate import SpeedGate
 from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
 from ._grad.api import clean, detect
-from ._grad.detector import Detector, MultiTrackDetector
+from ._grad.detector import Detector, FleetDetector, MultiTrackDetector
 from ._grad.detector import TrackStreams as TrackStreams  # deprecated name of MultiTrackDetector
-from ._grad.fleet_step import FleetDetector
 from ._grad.rema import RemaParams
 from ._io.read import iter_csv_tables, read_fixes, read_table, write_table
 from ._public import claim

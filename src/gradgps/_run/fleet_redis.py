@@ -78,7 +78,7 @@ from .._result import RESULT_COLUMNS, PointResult
 if TYPE_CHECKING:
     import redis
 
-    from .._grad.fleet_step import FleetResult
+    from .._grad.detector import FleetResult
 
 __all__ = ["OUTPUT_FIELDS", "READ_SCRIPT", "ROUTE_SCRIPT", "RedisStreamWorker", "StepReport"]
 
@@ -370,7 +370,7 @@ class RedisStreamWorker:
         self.cache_size = cache_size
         self.key_prefix = f"gradgps:{input_stream}:{group}:" if key_prefix is None else key_prefix
         self._check()
-        from .._grad.fleet_step import FleetDetector
+        from .._grad.detector import FleetDetector
 
         self._fleet = FleetDetector(model, threshold=threshold)
         # Vehicles whose state in self._fleet is current, with the id of the last message
