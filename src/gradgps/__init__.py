@@ -3,8 +3,12 @@
 An implementation of GRAD (REMA + multi-stage sliding-window features + a
 small GRU) built for real-time use. The product is exactly ``__all__``: the
 :class:`Detector` for one vehicle's stream or whole tables, the
-:class:`MultiTrackDetector` for many vehicles' streams, readers and the
-track model, the per-fix :class:`PointResult`, the errors, and the
+:class:`MultiTrackDetector` for many vehicles' streams, one Detector per
+vehicle, the :class:`FleetDetector` for the same with every vehicle's state
+in shared arrays, so a batch of fixes of any mix of vehicles is scored in one
+compiled call (fleets: a Redis worker's page, a thousand vehicles at 1 Hz;
+same verdicts and states as a Detector per vehicle), readers and the track
+model, the per-fix :class:`PointResult`, the errors, and the
 ``speed-gate`` and ``rema`` baselines. The evaluation kit lives in public
 submodules: :mod:`gradgps.simulate` (simulated drives), :mod:`gradgps.inject`
 (fault injection), :mod:`gradgps.datasets` (the shared data sets) and
@@ -19,7 +23,7 @@ from ._baselines.rema_detector import RemaDetector
 from ._baselines.speed_gate import SpeedGate
 from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
 from ._grad.api import clean, detect
-from ._grad.detector import Detector, MultiTrackDetector
+from ._grad.detector import Detector, FleetDetector, MultiTrackDetector
 from ._grad.detector import TrackStreams as TrackStreams  # deprecated name of MultiTrackDetector
 from ._grad.rema import RemaParams
 from ._io.read import iter_csv_tables, read_fixes, read_table, write_table
@@ -43,6 +47,7 @@ __all__ = [
     "ConfigError",
     "DataNotFoundError",
     "Detector",
+    "FleetDetector",
     "GradGPSError",
     "InputError",
     "LocalFrame",

@@ -51,8 +51,8 @@ _STATUS_EVERY_S = 10.0
 @option(
     "--batch-size",
     minimum=1,
-    default=100,
-    help="messages per read and per transaction",
+    default=1000,
+    help="messages per read, per transaction and per compiled detector call",
 )
 @option(
     "--lease-ms",

@@ -78,7 +78,7 @@ from .._result import RESULT_COLUMNS, PointResult
 if TYPE_CHECKING:
     import redis
 
-    from .._grad.detector import Detector
+    from .._grad.detector import FleetResult
 
 __all__ = ["OUTPUT_FIELDS", "READ_SCRIPT", "ROUTE_SCRIPT", "RedisStreamWorker", "StepReport"]
 
@@ -201,6 +201,11 @@ local last = redis.call('XREVRANGE', stream, '+', '-', 'COUNT', 1)
 return {kept, passed, taken, last[1] and last[1][1] or ''}
 """
 
+
+class _BatchFailed(Exception):
+    """Scoring a page in one batch raised; it is redone message by message."""
+
+
 # A page whose states keep changing under it is redone at most this often
 # (each conflict means another worker made progress on those vehicles).
 _MAX_CONFLICTS = 100
@@ -216,12 +221,6 @@ class StepReport:
     processed: int
     skipped: int
     last_entry_id: str
-
-
-@dataclass
-class _VehicleTrack:
-    last_id: str
-    detector: Detector
 
 
 @dataclass(frozen=True)
@@ -294,6 +293,39 @@ def _output(message: _Message, result: PointResult) -> dict[str, str]:
     }
 
 
+def _outputs(messages: list[_Message], result: FleetResult) -> list[dict[str, str]]:
+    """:func:`_output` for a whole :meth:`FleetDetector.update_many` result at once."""
+    columns = zip(
+        result.anomaly.tolist(),
+        result.score.tolist(),
+        result.bias_type.tolist(),
+        result.time_type.tolist(),
+        result.lat_clean.tolist(),
+        result.lon_clean.tolist(),
+        result.alert.tolist(),
+        result.invalid_reason.tolist(),
+        strict=True,
+    )
+    return [
+        {
+            "source_id": m.id,
+            "vehicle_id": m.vehicle.decode("utf-8", "backslashreplace"),
+            "t": m.fields.get("t", ""),
+            "anomaly": str(anomaly),
+            "score": repr(score),
+            "bias_type": bias or "",
+            "time_type": kind or "",
+            "lat_clean": repr(lat),
+            "lon_clean": repr(lon),
+            "alert": str(alert),
+            "invalid_reason": reason,
+        }
+        for m, (anomaly, score, bias, kind, lat, lon, alert, reason) in zip(
+            messages, columns, strict=True
+        )
+    ]
+
+
 class RedisStreamWorker:
     """One consumer of a Redis Streams consumer group running GRAD per vehicle.
 
@@ -302,8 +334,10 @@ class RedisStreamWorker:
     under the same name to continue its work at once). ``batch_size``:
     messages read and committed per transaction. ``lease_ms``: how long
     after its last sign of life a worker is taken for dead and its pending
-    messages are taken over. ``cache_size``: vehicles whose detectors stay
-    in memory (others are restored from their Redis state when needed).
+    messages are taken over. ``cache_size``: vehicles whose detector states
+    stay in memory (others are restored from their Redis state when needed).
+    All vehicles' detectors live in one :class:`~gradgps.FleetDetector`, and
+    each page's fixes are scored in one :meth:`~gradgps.FleetDetector.update_many`.
     Redis keys used: ``<key_prefix>owner``, ``<key_prefix>state:<vehicle>``,
     ``<key_prefix>alive:<consumer>``; the default prefix is
     ``gradgps:<input_stream>:<group>:``.
@@ -319,7 +353,7 @@ class RedisStreamWorker:
         *,
         model: str | os.PathLike[str] | None = None,
         threshold: float | None = None,
-        batch_size: int = 100,
+        batch_size: int = 1000,
         lease_ms: int = 10_000,
         cache_size: int = 10_000,
         key_prefix: str | None = None,
@@ -336,10 +370,16 @@ class RedisStreamWorker:
         self.cache_size = cache_size
         self.key_prefix = f"gradgps:{input_stream}:{group}:" if key_prefix is None else key_prefix
         self._check()
-        self._tracks: OrderedDict[bytes, _VehicleTrack] = OrderedDict()
+        from .._grad.detector import FleetDetector
+
+        self._fleet = FleetDetector(model, threshold=threshold)
+        # Vehicles whose state in self._fleet is current, with the id of the last message
+        # it has seen (least recently used first).
+        self._tracks: OrderedDict[bytes, str] = OrderedDict()
         self._route = client.register_script(ROUTE_SCRIPT)
         self._read = client.register_script(READ_SCRIPT)
         self._dead: list[dict[str, str]] = []
+        self._per_message = False  # score the current page message by message (see _commit)
 
     def _check(self) -> None:
         kwargs = self.client.connection_pool.connection_kwargs
@@ -472,13 +512,9 @@ class RedisStreamWorker:
 
     # -- one page --------------------------------------------------------------
 
-    def _new_detector(self) -> Detector:
-        from .._grad.detector import Detector
-
-        return Detector(self.model, threshold=self.threshold)
-
-    def _track(self, vehicle: bytes, stored: bytes | str | None) -> _VehicleTrack:
-        """The vehicle's detector as of its stored state (the cached one when that is current).
+    def _restore(self, vehicle: bytes, stored: bytes | str | None) -> str:
+        """Make the vehicle's detector in the fleet the one of its stored state (the cached one
+        when that is current); returns the id of the last message that state has seen.
 
         ``stored``: the state key's raw bytes (``None`` when the key does not exist).
 
@@ -497,17 +533,17 @@ class RedisStreamWorker:
             except (ValueError, KeyError, TypeError, RecursionError) as exc:
                 problem = f"stored state is not readable ({type(exc).__name__}: {exc})"
                 saved = None
-        cached = self._tracks.get(vehicle)
-        if not problem and cached is not None and cached.last_id == last_id:
+        if not problem and self._tracks.get(vehicle) == last_id:
             self._tracks.move_to_end(vehicle)
-            return cached
-        detector = self._new_detector()
+            return last_id
+        self._tracks.pop(vehicle, None)
+        self._fleet.drop(vehicle)
         if saved is not None:
             try:
-                detector.set_state(saved)
+                self._fleet.set_state(vehicle, saved)
             except GradGPSError as exc:
                 problem = f"stored detector state refused ({exc})"
-                detector = self._new_detector()
+                self._fleet.drop(vehicle)
         if problem:
             self._dead.append(
                 {
@@ -515,7 +551,13 @@ class RedisStreamWorker:
                     "problem": problem[:2000] + ": the vehicle restarts with a fresh detector",
                 }
             )
-        return _VehicleTrack(last_id, detector)
+        return last_id
+
+    def _forget(self, vehicles: Any) -> None:
+        """Drop these vehicles' in-memory states: the stored ones are read again when needed."""
+        for vehicle in vehicles:
+            self._tracks.pop(vehicle, None)
+            self._fleet.drop(vehicle)
 
     def _commit(self, messages: list[_Message]) -> tuple[int, int]:
         """Process one page of pending messages in one transaction; returns (processed, skipped)."""
@@ -524,6 +566,7 @@ class RedisStreamWorker:
 
         vehicles = sorted({m.vehicle for m in messages})
         keys = [self._state_key(v) for v in vehicles]
+        self._per_message = False
         for _ in range(_MAX_CONFLICTS):
             with self.client.pipeline(transaction=True) as pipe:
                 try:
@@ -539,7 +582,7 @@ class RedisStreamWorker:
                         if keys
                         else []
                     )
-                    tracks = {v: self._track(v, s) for v, s in zip(vehicles, stored, strict=True)}
+                    tracks = {v: self._restore(v, s) for v, s in zip(vehicles, stored, strict=True)}
                     outputs, changed = self._run_detectors(messages, tracks)
                     pipe.multi()
                     for fields in outputs:
@@ -547,26 +590,35 @@ class RedisStreamWorker:
                     for entry in self._dead:
                         pipe.xadd(self.dead_letter_stream, entry)  # type: ignore[arg-type]
                     for vehicle in changed:
-                        track = tracks[vehicle]
-                        pipe.set(
-                            self._state_key(vehicle),
-                            json.dumps(
-                                {"last_id": track.last_id, "detector": track.detector.get_state()}
-                            ),
-                        )
+                        record = {
+                            "last_id": tracks[vehicle],
+                            "detector": self._fleet.get_state(vehicle),
+                        }
+                        pipe.set(self._state_key(vehicle), json.dumps(record))
                     pipe.xack(self.input_stream, self.group, *[m.id for m in messages])
                     pipe.execute()
                 except redis.WatchError:
                     # Someone else moved these vehicles on: our in-memory detectors may have
                     # run ahead of the stored states, so forget them and redo the page.
-                    for vehicle in vehicles:
-                        self._tracks.pop(vehicle, None)
+                    self._forget(vehicles)
                     continue
-            for vehicle, track in tracks.items():
-                self._tracks[vehicle] = track
+                except _BatchFailed:
+                    # Scoring the page at once raised (a bug): redo it message by message
+                    # from the stored states, so only the failing message is lost.
+                    self._forget(vehicles)
+                    self._per_message = True
+                    continue
+                except BaseException:
+                    # Dying mid-page (or a Redis error): the in-memory states may have run
+                    # ahead of the stored ones, which are what the page is redone from.
+                    self._forget(vehicles)
+                    raise
+            for vehicle, last_id in tracks.items():
+                self._tracks[vehicle] = last_id
                 self._tracks.move_to_end(vehicle)
             while len(self._tracks) > self.cache_size:
-                self._tracks.popitem(last=False)
+                vehicle, _ = self._tracks.popitem(last=False)
+                self._fleet.drop(vehicle)
             return len(outputs), len(messages) - len(outputs)
         raise RuntimeError(
             f"{len(messages)} messages starting at {messages[0].id}: their vehicles' "
@@ -576,44 +628,77 @@ class RedisStreamWorker:
     def _run_detectors(
         self,
         messages: list[_Message],
-        tracks: Mapping[bytes, _VehicleTrack],
+        tracks: dict[bytes, str],
     ) -> tuple[list[dict[str, str]], set[bytes]]:
-        outputs: list[dict[str, str]] = []
+        """The page's outputs in message order, and the vehicles whose state changed.
+
+        ``tracks``: each vehicle's last processed message id, moved on here. The page's
+        usable messages are scored in one :meth:`FleetDetector.update_many`.
+        """
+        outputs: list[dict[str, str] | None] = []
         changed: set[bytes] = set()
+        fixes: list[_Message] = []
+        at: list[int] = []  # where each of ``fixes`` goes in ``outputs``
         for message in messages:
-            track = tracks[message.vehicle]
-            if _id_key(message.id) <= _id_key(track.last_id):
+            if _id_key(message.id) <= _id_key(tracks[message.vehicle]):
                 continue  # already in the output stream: processed before a takeover
-            f = message.fields
             if message.problem:
-                result = PointResult.invalid(message.problem)
-            elif not f:
+                result: PointResult | None = PointResult.invalid(message.problem)
+            elif not message.fields:
                 result = PointResult.invalid(
                     "message deleted from the stream before it was processed"
                 )
             elif not message.vehicle:
                 result = PointResult.invalid("message has no vehicle_id")
             else:
-                # Other fields (sensor channels) are not used by the position model.
-                try:
-                    result = track.detector.update(
-                        _number(f.get("t")),
-                        _number(f.get("lat")),
-                        _number(f.get("lon")),
-                        _number(f.get("speed")),
-                        _number(f.get("heading")),
-                        fix_quality=f.get("fix_quality"),
-                        satellites=_number(f.get("satellites")),
-                    )
-                except Exception as exc:  # a bug must not stop the fleet: report it, go on
-                    text = f"{type(exc).__name__}: {exc}"[:2000]
-                    result = PointResult.invalid(f"could not be processed ({text})")
-                    track.detector = self._new_detector()
-                    self._dead.append({"source_id": message.id, "problem": text})
-            outputs.append(_output(message, result))
-            track.last_id = message.id
+                result = None
+                fixes.append(message)
+                at.append(len(outputs))
+            outputs.append(None if result is None else _output(message, result))
+            tracks[message.vehicle] = message.id
             changed.add(message.vehicle)
-        return outputs, changed
+        if fixes:
+            for k, fields in zip(at, self._score(fixes), strict=True):
+                outputs[k] = fields
+        return [o for o in outputs if o is not None], changed
+
+    def _score(self, fixes: list[_Message]) -> list[dict[str, str]]:
+        """The outputs of these messages (in order), scored in one batch; if that raises (a
+        bug must not stop the fleet), message by message, a failing one reported and its
+        vehicle restarted with a fresh detector."""
+
+        def batch(messages: list[_Message]) -> FleetResult:
+            # Other fields (sensor channels) are not used by the position model.
+            fields = [m.fields for m in messages]
+            return self._fleet.update_many(
+                [m.vehicle for m in messages],
+                [_number(f.get("t")) for f in fields],
+                [_number(f.get("lat")) for f in fields],
+                [_number(f.get("lon")) for f in fields],
+                [_number(f.get("speed")) for f in fields],
+                [_number(f.get("heading")) for f in fields],
+                fix_quality=[f.get("fix_quality") for f in fields],
+                satellites=[_number(f.get("satellites")) for f in fields],
+            )
+
+        if not self._per_message:
+            try:
+                return _outputs(fixes, batch(fixes))
+            except Exception as exc:
+                # The states may be part way through the page: redo it from the stored
+                # states, message by message (see _commit).
+                raise _BatchFailed from exc
+        outputs = []
+        for message in fixes:
+            try:
+                outputs.extend(_outputs([message], batch([message])))
+            except Exception as exc:  # report it, go on
+                text = f"{type(exc).__name__}: {exc}"[:2000]
+                result = PointResult.invalid(f"could not be processed ({text})")
+                self._fleet.drop(message.vehicle)
+                self._dead.append({"source_id": message.id, "problem": text})
+                outputs.append(_output(message, result))
+        return outputs
 
 
 def parse_output(fields: Mapping[str, str]) -> dict[str, Any]:
