@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import re
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -16,8 +18,20 @@ from gradgps._data.simulator import simulate_drive, simulate_fleet
 from gradgps._grad.detector import Detector
 from gradgps._run.report import rema_bounds
 from gradgps._tracks.preprocess import preprocess
+from test_export import validate_geojson
 
 pytest.importorskip("matplotlib")
+
+_GEOJSON_BLOCK = re.compile(
+    r"<script type='application/geo\+json' id='geojson'( data-thinned='1')?>([^<]*)</script>"
+)
+
+
+def _embedded(page: str) -> str:
+    """The text of the report's embedded GeoJSON block (its JSON escapes as written)."""
+    found = _GEOJSON_BLOCK.search(page)
+    assert found is not None, "the report embeds no GeoJSON"
+    return found.group(2)
 
 
 def test_demo_report_for_10000_points_is_offline_and_small(tmp_path):
@@ -48,8 +62,11 @@ def test_demo_report_for_10000_points_is_offline_and_small(tmp_path):
     assert text.count("src='data:image/png;base64,") >= 2
     # Nothing fetched from the network: no external src/href, no script from anywhere.
     assert not re.search(r"""(src|href)\s*=\s*['"]?(https?:)?//""", text)
-    # One small inline script (zoom, track selector, local times): nothing loaded from anywhere.
-    assert text.count("<script") == 1
+    # One small inline script (zoom, track selector, local times) and the run's GeoJSON as a
+    # data block: nothing loaded from anywhere.
+    assert text.count("<script>") == 1
+    assert text.count("<script") == 2
+    assert text.count("<script type='application/geo+json' id='geojson'>") == 1
     assert not re.search(r"<script[^>]*\ssrc", text)
     assert not re.search(r"fetch\(|XMLHttpRequest|import\(", text)
 
@@ -106,7 +123,13 @@ def test_report_with_hostile_track_ids_and_fixes_a_nanosecond_apart(tmp_path):
     assert "&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt;" in text
     assert "Track $\\foo$, segment" in text  # a figure of that track was drawn
     assert "quo&quot;te&#x27;s &amp; ünï 北京 😀" in text
-    assert text.count("<script") == 1
+    # The ids are in the embedded GeoJSON too, as JSON escapes that cannot end its element.
+    assert text.count("<script>") == 1
+    assert text.count("</script>") == 2
+    doc = json.loads(_embedded(text))
+    validate_geojson(doc)
+    drawn = {f["properties"]["track"] for f in doc["features"] if f["geometry"] is not None}
+    assert drawn == set(ids)
     assert text.count("src='data:image/png;base64,") >= 2
 
 
@@ -153,3 +176,126 @@ def test_report_rema_on_positions_only_follows_the_track_at_half_hz():
         ):
             miss = np.abs(obs - 0.5 * (lo + hi))[warm:]
             assert np.nanmax(miss) < 100.0  # a clean track: never far from REMA's prediction
+
+
+def test_report_embeds_the_very_geojson_that_geojson_writes(tmp_path: Path) -> None:
+    """`detect --report --geojson`: the report's embedded document is the file, byte for byte
+    (once its JSON escapes of <, > and & are read back), and strict RFC 7946."""
+    drives = inject_grad(simulate_fleet(2, 3.0, 1.0, 5), seed=1)
+    source = tmp_path / "in.csv"
+    drives[["track", "t", "lat", "lon", "speed"]].to_csv(source, index=False)
+    report, geojson = tmp_path / "r.html", tmp_path / "out.geojson"
+    run = CliRunner().invoke(
+        main,
+        [
+            "detect",
+            str(source),
+            "--threshold",
+            "0.2",
+            "--report",
+            str(report),
+            "--geojson",
+            str(geojson),
+        ],
+    )
+    assert run.exit_code == 0, run.output
+    page = report.read_text(encoding="utf-8")
+    written = geojson.read_text(encoding="utf-8")
+    block = _embedded(page)
+    assert "data-thinned" not in page  # a small file is embedded whole
+    assert json.loads(block) == json.loads(written)
+    unescaped = block.replace("\\u003c", "<").replace("\\u003e", ">").replace("\\u0026", "&")
+    assert unescaped == written
+    doc = json.loads(block)
+    validate_geojson(doc)
+    kinds = [f["properties"]["kind"] for f in doc["features"]]
+    assert kinds.count("repaired track") >= 2  # both drives
+    assert kinds.count("flagged fix") >= 1
+    assert kinds.count("event") >= 1
+    # The view is drawn from it by the page's script, not drawn a second time in the HTML.
+    assert "class='clean'" not in page
+    assert "<circle" not in page
+    assert page.count("data-origin=") == 2
+
+
+def _big_run(n_tracks: int, n: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A synthetic run: ``n`` fixes per track, every third one flagged, a gap in the middle."""
+    rows = np.arange(n)
+    fixes = pd.concat(
+        [
+            pd.DataFrame(
+                {
+                    "track": f"car {k}",
+                    "t": 1.7e9 + rows + np.where(rows >= n // 2, 600.0, 0.0),
+                    "lat": 48.1 + 1e-5 * rows + 1e-3 * k,
+                    "lon": 11.5 + 2e-5 * rows,
+                }
+            )
+            for k in range(n_tracks)
+        ],
+        ignore_index=True,
+    )
+    m = len(fixes)
+    flagged = (np.arange(m) % 3 == 0).astype(int)
+    result = pd.DataFrame(
+        {
+            "anomaly": flagged,
+            "score": np.where(flagged == 1, 0.9, 0.1),
+            "bias_type": np.where(flagged == 1, "jump", "none"),
+            "time_type": np.where(flagged == 1, "transient", "none"),
+            "alert": np.zeros(m, int),
+            "lat_clean": fixes["lat"] - 1e-6,
+            "lon_clean": fixes["lon"],
+            "invalid_reason": "",
+        }
+    )
+    return fixes, result
+
+
+def test_embedded_geojson_is_whole_when_small_and_thinned_when_big(monkeypatch):
+    from gradgps._io.export import geojson_document, geojson_text
+    from gradgps._run import explore
+
+    fixes, result = _big_run(2, 3_000)
+    doc = geojson_document(fixes, result)
+    block, note = explore.embedded_geojson(doc)
+    assert "data-thinned" not in block
+    assert json.loads(_embedded(block)) == doc
+    assert "the same document gradgps detect --geojson writes" in note
+
+    monkeypatch.setattr(explore, "MAX_EMBEDDED_CHARS", len(geojson_text(doc)) - 1)
+    monkeypatch.setattr(explore, "MAX_LINE_VERTICES", 500)
+    monkeypatch.setattr(explore, "MAX_DOTS", 200)
+    block, note = explore.embedded_geojson(doc)
+    assert "data-thinned='1'" in block
+    assert "thinned copy" in note
+    assert "--geojson writes every fix" in note
+    small = json.loads(_embedded(block))
+    validate_geojson(small)
+    assert len(block) < len(geojson_text(doc)) / 4
+    for track in ("car 0", "car 1"):
+        lines = [
+            f["geometry"]["coordinates"]
+            for f in small["features"]
+            if f["properties"]["kind"] == "repaired track" and f["properties"]["track"] == track
+        ]
+        assert len(lines) == 2  # the 600 s gap still splits the track
+        assert 250 <= sum(map(len, lines)) <= 502
+        full = [
+            f["geometry"]["coordinates"]
+            for f in doc["features"]
+            if f["properties"]["kind"] == "repaired track" and f["properties"]["track"] == track
+        ]
+        for thin, whole in zip(lines, full, strict=True):  # ends kept
+            assert thin[0] == pytest.approx(whole[0], abs=1e-7)
+            assert thin[-1] == pytest.approx(whole[-1], abs=1e-7)
+        dots = [
+            f
+            for f in small["features"]
+            if f["properties"]["kind"] == "flagged fix" and f["properties"]["track"] == track
+        ]
+        assert len(dots) == 200
+        rows = [f["properties"]["row"] for f in dots]
+        assert rows == sorted(rows)
+        span = max(rows) - min(rows)
+        assert span > 0.95 * 3_000  # spread over the whole track, not its first fixes

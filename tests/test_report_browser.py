@@ -1,7 +1,7 @@
 """The report in a real browser: headless Chromium opens it, zooms, shows a track, localises the
-events table's times, and draws it (screenshot); the ``--geojson`` export, loaded as written by a
-small self-contained page, is drawn too (every line and flagged fix counted, their colours found
-in the screenshot).
+events table's times, and draws it (screenshot); the report draws the ``--geojson`` document it
+embeds (every repaired line and flagged fix counted against the document, in its track's view with
+its verdict as tooltip, their colours found in the screenshot of the track view).
 
 Chromium comes from Debian's package (`apt-get install -y chromium`; .ci/run installs it).
 Where it is missing and cannot be installed here, the test is skipped saying so.
@@ -14,6 +14,7 @@ import re
 import shutil
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import pytest
 from click.testing import CliRunner
@@ -116,108 +117,106 @@ def test_report_opens_zooms_and_shows_local_event_times(tmp_path: Path) -> None:
     assert shot.stat().st_size > 20_000  # a drawn page, not a blank one
 
 
-#: Colours the GeoJSON page draws with: the repaired track's lines, the flagged fixes.
-LINE_RGB = (214, 39, 40)
-POINT_RGB = (31, 119, 180)
+def _colour_pixels(image: Any, rgb: str) -> int:
+    import numpy as np
 
-#: A self-contained page (no network, no file fetch) that draws a GeoJSON document as SVG:
-#: LineStrings as polylines, Points as dots, in an equirectangular view of their bounds, and
-#: says on <body> how many of each it drew.
-_GEOJSON_PAGE = """<!doctype html><html><head><meta charset="utf-8"><style>
-body {{ margin: 0; background: #fff; }} svg {{ width: 1000px; height: 1000px; }}
-</style></head><body><svg id="map" xmlns="http://www.w3.org/2000/svg"></svg>
-<script type="application/geo+json" id="doc">{doc}</script>
-<script>
-var doc = JSON.parse(document.getElementById("doc").textContent);
-var svg = document.getElementById("map"), ns = "http://www.w3.org/2000/svg";
-var xs = [], ys = [];
-function each(g, f) {{
-  if (g.type === "Point") f(g.coordinates);
-  else if (g.type === "LineString" || g.type === "MultiPoint") g.coordinates.forEach(f);
-  else if (g.type === "MultiLineString") g.coordinates.forEach(function (l) {{ l.forEach(f); }});
-}}
-doc.features.forEach(function (ft) {{
-  if (ft.geometry) each(ft.geometry, function (c) {{ xs.push(c[0]); ys.push(c[1]); }});
-}});
-var x0 = Math.min.apply(null, xs), x1 = Math.max.apply(null, xs);
-var y0 = Math.min.apply(null, ys), y1 = Math.max.apply(null, ys);
-var k = Math.cos((y0 + y1) / 2 * Math.PI / 180), span = Math.max((x1 - x0) * k, y1 - y0) || 1;
-function px(c) {{ return [20 + 960 * (c[0] - x0) * k / span, 980 - 960 * (c[1] - y0) / span]; }}
-var lines = 0, points = 0;
-function line(coords) {{
-  var el = document.createElementNS(ns, "polyline");
-  el.setAttribute("points", coords.map(function (c) {{ return px(c).join(","); }}).join(" "));
-  el.setAttribute("fill", "none"); el.setAttribute("stroke", "rgb({line})");
-  el.setAttribute("stroke-width", "6"); svg.appendChild(el); lines++;
-}}
-doc.features.forEach(function (ft) {{
-  var g = ft.geometry;
-  if (!g) return;
-  if (g.type === "LineString") line(g.coordinates);
-  else if (g.type === "MultiLineString") g.coordinates.forEach(line);
-  else if (g.type === "Point") {{
-    var p = px(g.coordinates), el = document.createElementNS(ns, "circle");
-    el.setAttribute("cx", p[0]); el.setAttribute("cy", p[1]); el.setAttribute("r", "7");
-    el.setAttribute("fill", "rgb({point})"); svg.appendChild(el); points++;
-  }}
-}});
-document.body.setAttribute("data-drawn", lines + "," + points);
-</script></body></html>
-"""
+    target = np.asarray([int(rgb[k : k + 2], 16) for k in (1, 3, 5)], dtype=float) / 255.0
+    return int((np.abs(image - target).max(axis=-1) < 0.03).sum())
 
 
-def _colour_pixels(png: Path, rgb: tuple[int, int, int]) -> int:
+def _track_view(png: Path) -> Any:
+    """The screenshot cropped to the shown track's SVG: the region of its #fcfcfc background
+    (the static figures below, drawn in the same colours, are left out)."""
     import matplotlib.image as mpimg
     import numpy as np
 
     image = mpimg.imread(png)[..., :3]
-    target = np.asarray(rgb, dtype=float) / 255.0
-    return int((np.abs(image - target).max(axis=-1) < 0.03).sum())
+    background = np.abs(image - 252 / 255).max(axis=-1) < 0.002
+    rows = np.flatnonzero(background.sum(axis=1) > 0.5 * background.shape[1])
+    assert rows.size > 200, "no track view in the screenshot"
+    cols = np.flatnonzero(background[rows.min() : rows.max() + 1].sum(axis=0) > 0.5 * rows.size)
+    return image[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
 
 
 @pytest.mark.slow
-def test_geojson_export_is_drawn_in_a_browser(tmp_path: Path) -> None:
-    """The ``--geojson`` output, as written, renders: every line and flagged fix, in colour."""
+def test_report_draws_its_embedded_geojson(tmp_path: Path) -> None:
+    """The report draws the ``--geojson`` document it embeds: every repaired line and flagged
+    fix, in the track view of its track, in colour (screenshot), with a verdict to hover."""
     import json
 
     chromium = _chromium()
     drives = inject_grad(simulate_fleet(2, 3.0, 1.0, 5), seed=1)
     source = tmp_path / "in.csv"
     drives[["track", "t", "lat", "lon", "speed"]].to_csv(source, index=False)
-    geojson = tmp_path / "out.geojson"
+    report, geojson = tmp_path / "report.html", tmp_path / "out.geojson"
     run = CliRunner().invoke(
-        main, ["detect", str(source), "--threshold", "0.2", "--geojson", str(geojson)]
+        main,
+        [
+            "detect",
+            str(source),
+            "--threshold",
+            "0.2",
+            "--report",
+            str(report),
+            "--geojson",
+            str(geojson),
+        ],
     )
     assert run.exit_code == 0, run.output
-    text = geojson.read_text(encoding="utf-8")
-    doc = json.loads(text)
-    kinds = [f["geometry"]["type"] for f in doc["features"] if f.get("geometry")]
-    n_lines = sum(
-        1 if k == "LineString" else len(f["geometry"]["coordinates"])
-        for f, k in zip(doc["features"], kinds, strict=True)
-        if k in ("LineString", "MultiLineString")
-    )
-    n_points = kinds.count("Point")
-    assert n_lines >= 2  # one repaired track per drive at least
+    page = report.read_text(encoding="utf-8")
+    block = re.search(r"<script type='application/geo\+json' id='geojson'>([^<]*)</script>", page)
+    assert block is not None, "the report embeds no GeoJSON"
+    doc = json.loads(block.group(1))
+    assert doc == json.loads(geojson.read_text(encoding="utf-8"))
+
+    def geometry_parts(kind: str, track: str | None = None) -> list[Any]:
+        parts: list[Any] = []
+        for f in doc["features"]:
+            g, p = f["geometry"], f["properties"]
+            if g is None or p["kind"] != kind or (track is not None and p["track"] != track):
+                continue
+            if g["type"] == "MultiLineString":
+                parts.extend(g["coordinates"])
+            elif g["type"] in ("LineString", "Point"):
+                parts.append(f)
+        return parts
+
+    n_lines = len(geometry_parts("repaired track"))
+    n_points = len(geometry_parts("flagged fix"))
+    assert n_lines >= 2  # one repaired line per drive at least
     assert n_points >= 1  # the injected faults are flagged
-    page = tmp_path / "geojson.html"
-    page.write_text(
-        _GEOJSON_PAGE.format(
-            doc=text.replace("</", "<\\/"),
-            line=",".join(map(str, LINE_RGB)),
-            point=",".join(map(str, POINT_RGB)),
-        ),
-        encoding="utf-8",
-    )
-    dom = _run_chromium(chromium, ["--dump-dom", page.as_uri()], tz="UTC")
+
+    url = report.as_uri() + "#track=1"
+    dom = _run_chromium(chromium, ["--dump-dom", url], tz="UTC")
     assert dom.returncode == 0, dom.stderr[-2000:]
-    drawn = re.search(r'data-drawn="(\d+),(\d+)"', dom.stdout)
-    assert drawn is not None, "the page's script did not finish drawing the GeoJSON"
+    html = dom.stdout
+    assert 'data-ready="1"' in html
+    drawn = re.search(r'data-geojson-drawn="(\d+),(\d+)"', html)
+    assert drawn is not None, "the report's script did not draw the GeoJSON"
     assert (int(drawn.group(1)), int(drawn.group(2))) == (n_lines, n_points)
-    shot = tmp_path / "geojson.png"
+    # Each in its own track's view: the selector, zoom and hover apply to them.
+    for track in ("0", "1"):
+        view = re.search(
+            rf'<div class="track-view" data-track="{track}"[^>]*>(.*?)</div>', html, re.S
+        )
+        assert view is not None
+        assert view.group(1).count('class="clean"') == len(geometry_parts("repaired track", track))
+        dots = geometry_parts("flagged fix", track)
+        assert view.group(1).count("<circle") == len(dots)
+        first = dots[0]["properties"]
+        assert f"<title>row {first['row']}, " in view.group(1)  # the verdict, on hover
+        assert f"{first['score']:.3f}, {first['bias_type']} / {first['time_type']}" in view.group(1)
+
+    from gradgps._run.explore import CLEAN_COLOUR, COLOURS
+
+    shot = tmp_path / "shot.png"
     taken = _run_chromium(
-        chromium, [f"--screenshot={shot}", "--window-size=1000,1000", page.as_uri()], tz="UTC"
+        chromium, [f"--screenshot={shot}", "--window-size=1300,2400", url], tz="UTC"
     )
     assert taken.returncode == 0, taken.stderr[-2000:]
-    assert _colour_pixels(shot, LINE_RGB) > 500  # the repaired tracks are drawn
-    assert _colour_pixels(shot, POINT_RGB) > 50  # and the flagged fixes on them
+    view_png = _track_view(shot)
+    assert _colour_pixels(view_png, CLEAN_COLOUR) > 300  # the repaired line of track 1
+    shown = [f["properties"]["bias_type"] for f in geometry_parts("flagged fix", "1")]
+    for bias in {b for b in shown if b in COLOURS and shown.count(b) >= 3}:
+        assert _colour_pixels(view_png, COLOURS[bias]) > 40, bias  # its flagged fixes
+    assert any(shown.count(b) >= 3 for b in COLOURS)

@@ -223,13 +223,15 @@ def detect(
     if events_path is not None and table_events is not None:
         write_table(_events_in_input_form(table_events, time_column), events_path)
         click.echo(f"events: {events_path} ({len(table_events):,} fault events)")
-    if geojson_path is not None:
-        from .._io.export import write_geojson
+    geojson = None
+    if fixes_all is not None and result_all is not None and (geojson_path or report_path):
+        from .._io.export import geojson_document, write_geojson_document
 
-        assert fixes_all is not None
-        assert result_all is not None
-        write_geojson(geojson_path, fixes_all, result_all, table_events)
-        click.echo(f"geojson: {geojson_path}")
+        # Built once: the --geojson file and the report's embedded copy are the same document.
+        geojson = geojson_document(fixes_all, result_all, table_events)
+        if geojson_path is not None:
+            write_geojson_document(geojson_path, geojson)
+            click.echo(f"geojson: {geojson_path}")
     if gpx_path is not None:
         from .._io.export import write_gpx
 
@@ -253,6 +255,7 @@ def detect(
                 events=table_events,
                 warnings=warnings,
                 time_text=_joined(time_texts),
+                geojson=geojson,
             )
 
 

@@ -23,6 +23,7 @@ def write_report_outputs(
     events: Any = None,
     warnings: Sequence[str] = (),
     time_text: Any = None,
+    geojson: Any = None,
 ) -> None:
     """Write the HTML report and/or the PNG figures and say where they went."""
     if report_path is None and plots_dir is None:
@@ -46,6 +47,7 @@ def write_report_outputs(
         events=events,
         warnings=list(warnings),
         time_text=time_text,
+        geojson=geojson,
     )
     if report_path is not None:
         path = write_report(inputs, report_path)

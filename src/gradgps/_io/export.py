@@ -18,6 +18,11 @@ line that crosses the antimeridian cut there into a MultiLineString (3.1.9),
 or geojson.io and QGIS draw it the long way round the globe. Unusable fixes
 have no trustworthy position and are left out (they are in the CSV with
 their reason). Both files are written atomically.
+
+The HTML report (``--report``) embeds the same document, built by
+:func:`geojson_document` and serialised by :func:`geojson_text`, and draws
+its repaired lines and flagged fixes; ``detect`` builds it once for both, so
+the file and the report cannot disagree.
 """
 
 from __future__ import annotations
@@ -33,7 +38,13 @@ from xml.sax.saxutils import escape
 import numpy as np
 import pandas as pd
 
-__all__ = ["geojson_document", "write_geojson", "write_gpx"]
+__all__ = [
+    "geojson_document",
+    "geojson_text",
+    "write_geojson",
+    "write_geojson_document",
+    "write_gpx",
+]
 
 #: A repaired track is split where two usable fixes are further apart in time than this.
 LINE_GAP_S = 60.0
@@ -218,8 +229,17 @@ def write_geojson(
     events: pd.DataFrame | None = None,
 ) -> Path:
     """Write :func:`geojson_document` to ``path`` (strict JSON, atomically)."""
-    doc = geojson_document(fixes, result, events)
-    return _atomic_write(path, json.dumps(doc, allow_nan=False, separators=(",", ":")))
+    return write_geojson_document(path, geojson_document(fixes, result, events))
+
+
+def geojson_text(doc: dict[str, Any]) -> str:
+    """The document as strict, compact JSON: the exact text of the ``--geojson`` file."""
+    return json.dumps(doc, allow_nan=False, separators=(",", ":"))
+
+
+def write_geojson_document(path: str | os.PathLike[str], doc: dict[str, Any]) -> Path:
+    """Write a built :func:`geojson_document` to ``path`` as :func:`geojson_text` (atomically)."""
+    return _atomic_write(path, geojson_text(doc))
 
 
 def write_gpx(path: str | os.PathLike[str], fixes: pd.DataFrame, result: pd.DataFrame) -> Path:

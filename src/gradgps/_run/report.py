@@ -26,6 +26,11 @@ What it shows:
   anomaly verdict is the network's, so a flagged fix can sit inside the band
   and vice versa.
 * **Anomalies**: the first rows of the anomalous fixes, as a table.
+
+The run's GeoJSON (the document ``--geojson`` writes) is embedded as a
+``<script type="application/geo+json" id="geojson">`` data block, and the
+explorable per-track view draws its repaired lines and flagged fixes
+(:mod:`gradgps._run.explore`); the one executable script is the view's.
 """
 
 from __future__ import annotations
@@ -46,10 +51,11 @@ from numpy.typing import NDArray
 
 from .._grad.defaults import grad_points
 from .._grad.pipeline import PipelineParams, grad_features
+from .._io.export import geojson_document
 from .._result import ResultCounts
 from .._tracks.geo import LocalFrame
 from .._tracks.preprocess import Prepared
-from .explore import SCRIPT, track_explorer
+from .explore import SCRIPT, embedded_geojson, track_explorer
 
 __all__ = ["ChannelBounds", "ReportInputs", "figures", "rema_bounds", "write_plots", "write_report"]
 
@@ -101,6 +107,9 @@ class ReportInputs:
     #: :mod:`gradgps._io.times`); ``None`` where the input's times are numbers,
     #: which the tables show as readable UTC instead.
     time_text: Sequence[str] | None = None
+    #: The run's GeoJSON (:func:`gradgps._io.export.geojson_document`), when the caller built
+    #: it already (``detect --geojson`` writes the same one); built from the above when None.
+    geojson: dict[str, Any] | None = None
 
 
 def rema_bounds(
@@ -538,7 +547,12 @@ def render_html(inputs: ReportInputs) -> str:
         parts.append(f"<p class='muted'>input: {html.escape(inputs.source)}</p>")
     parts.append("<h2 id='summary'>Summary</h2>")
     parts.append(_table(None, summary_rows(inputs)))
-    explorer = track_explorer(inputs.fixes, inputs.result)
+    doc = inputs.geojson
+    if doc is None:
+        doc = geojson_document(inputs.fixes, inputs.result, inputs.events)
+    block, note = embedded_geojson(doc)
+    parts.append(block)
+    explorer = track_explorer(inputs.fixes, inputs.result, note)
     if explorer:
         parts.append("<h2 id='explore'>Tracks, one at a time</h2>")
         parts.append(explorer)
