@@ -965,9 +965,10 @@ def redis_worker() -> object:
 
 def _process_page(
     worker: object, page: list[tuple[str, list[bytes]]], stored: dict[bytes, bytes | None]
-) -> tuple[list[dict[str, str]], set[bytes], dict[bytes, object]]:
+) -> tuple[list[dict[str, str]], set[bytes], dict[bytes, str]]:
     """What the worker's transaction would write for ``page`` (outputs, changed vehicles,
-    tracks), decoding the page as :data:`READ_SCRIPT` hands it over (hex)."""
+    each vehicle's last message id; the states are in ``worker._fleet``), decoding the
+    page as :data:`READ_SCRIPT` hands it over (hex)."""
     from gradgps._run.fleet_redis import RedisStreamWorker, _decode_message
 
     assert isinstance(worker, RedisStreamWorker)
@@ -975,7 +976,7 @@ def _process_page(
     worker._dead = []
     messages = [_decode_message(i, [f.hex() for f in fields]) for i, fields in page]
     vehicles = sorted({m.vehicle for m in messages})
-    tracks = {v: worker._track(v, stored.get(v)) for v in vehicles}
+    tracks = {v: worker._restore(v, stored.get(v)) for v in vehicles}
     outputs, changed = worker._run_detectors(messages, tracks)
     return outputs, changed, dict(tracks)
 
@@ -1024,14 +1025,12 @@ def test_fuzz_redis_message_fields(
             assert out["invalid_reason"].startswith("bad message")  # repeated or odd
     # the states the transaction would store are strict JSON, and restore as they were
     for vehicle in changed:
-        track = tracks[vehicle]
-        record = json.dumps(
-            {"last_id": track.last_id, "detector": track.detector.get_state()},  # type: ignore[attr-defined]
-            allow_nan=False,
-        )
-        again = redis_worker._track(vehicle, record.encode())
+        state = redis_worker._fleet.get_state(vehicle)
+        record = json.dumps({"last_id": tracks[vehicle], "detector": state}, allow_nan=False)
+        redis_worker._tracks.clear()  # not cached: restored from the record
+        assert redis_worker._restore(vehicle, record.encode()) == tracks[vehicle]
         assert redis_worker._dead == []
-        assert again.detector.get_state() == track.detector.get_state()  # type: ignore[attr-defined]
+        assert redis_worker._fleet.get_state(vehicle) == state
 
 
 def _lon(i: int) -> bytes:
@@ -1050,11 +1049,12 @@ def stored_record(redis_worker: object) -> bytes:
         )
         for i in range(30)
     ]
+    from gradgps._run.fleet_redis import RedisStreamWorker
+
     _, _, tracks = _process_page(redis_worker, page, {})
-    track = tracks[b"a"]
-    return json.dumps(
-        {"last_id": track.last_id, "detector": track.detector.get_state()}  # type: ignore[attr-defined]
-    ).encode()
+    assert isinstance(redis_worker, RedisStreamWorker)
+    state = redis_worker._fleet.get_state(b"a")
+    return json.dumps({"last_id": tracks[b"a"], "detector": state}).encode()
 
 
 @fuzz
@@ -1112,13 +1112,13 @@ def test_fuzz_redis_state_keys(
         want_last = "0-0"
     redis_worker._tracks.clear()
     redis_worker._dead = []
-    track = redis_worker._track(b"a", stored)
+    last_id = redis_worker._restore(b"a", stored)
     dead = list(redis_worker._dead)
-    assert track.last_id == want_last
+    assert last_id == want_last
     assert len(dead) <= 1
     if dead:
         assert "fresh detector" in dead[0]["problem"]
-        assert track.detector.get_state() == Detector().get_state()
+        assert redis_worker._fleet.get_state(b"a") == Detector().get_state()
     page = [
         (
             f"{1025 + k}-0",
@@ -1127,7 +1127,7 @@ def test_fuzz_redis_state_keys(
         for k in range(10)
     ]
     messages = [_decode_message(i, [f.hex() for f in fields]) for i, fields in page]
-    outputs, _ = redis_worker._run_detectors(messages, {b"a": track})
+    outputs, _ = redis_worker._run_detectors(messages, {b"a": last_id})
     assert redis_worker._dead == dead  # no message's processing failed
     # resent messages (not after the stored last id) get no second result; the rest one each
     _check_outputs(outputs, [i for i, _ in page if _id_key(i) > _id_key(want_last)])
