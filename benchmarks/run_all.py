@@ -494,8 +494,8 @@ def write_markdown(
         "",
         "Methods (all trained ones on the data set's train split with GRAD's recipe: ten "
         "injection seeds, validation split for early stopping and the threshold, 3-minute "
-        "budget): `grad` = GRAD trained on the data set; `grad-default` = the shipped model (simulated "
-        "drives only); `rema`, `speed-gate`: statistical, no training; `kf`: "
+        "budget): `grad` = GRAD trained on the data set; `grad-default` = the shipped model (the "
+        "recipe of docs/model-card.md, not trained on this data set's test split); `rema`, `speed-gate`: statistical, no training; `kf`: "
         "constant-velocity Kalman filter + χ² test (`_baselines/kalman.py`); `cnn`: 1-D CNN "
         "(`_baselines/cnn.py`); `cnn-kf`: CNN then KF + χ² (van Wyk et al., `_baselines/cnn_kf.py`); "
         "`lstm-cnn`: convolutions + LSTM + attention (Javed et al.'s ML-C, `_baselines/lstm_cnn.py`); "
