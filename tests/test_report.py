@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
+from _report_support import report_and_geojson
 from gradgps._cli import main
 from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import simulate_drive, simulate_fleet
@@ -181,24 +182,7 @@ def test_report_rema_on_positions_only_follows_the_track_at_half_hz():
 def test_report_embeds_the_very_geojson_that_geojson_writes(tmp_path: Path) -> None:
     """`detect --report --geojson`: the report's embedded document is the file, byte for byte
     (once its JSON escapes of <, > and & are read back), and strict RFC 7946."""
-    drives = inject_grad(simulate_fleet(2, 3.0, 1.0, 5), seed=1)
-    source = tmp_path / "in.csv"
-    drives[["track", "t", "lat", "lon", "speed"]].to_csv(source, index=False)
-    report, geojson = tmp_path / "r.html", tmp_path / "out.geojson"
-    run = CliRunner().invoke(
-        main,
-        [
-            "detect",
-            str(source),
-            "--threshold",
-            "0.2",
-            "--report",
-            str(report),
-            "--geojson",
-            str(geojson),
-        ],
-    )
-    assert run.exit_code == 0, run.output
+    report, geojson = report_and_geojson(tmp_path)
     page = report.read_text(encoding="utf-8")
     written = geojson.read_text(encoding="utf-8")
     block = _embedded(page)

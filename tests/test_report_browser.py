@@ -19,6 +19,7 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 
+from _report_support import report_and_geojson
 from gradgps._cli import main
 from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import simulate_fleet
@@ -145,24 +146,7 @@ def test_report_draws_its_embedded_geojson(tmp_path: Path) -> None:
     import json
 
     chromium = _chromium()
-    drives = inject_grad(simulate_fleet(2, 3.0, 1.0, 5), seed=1)
-    source = tmp_path / "in.csv"
-    drives[["track", "t", "lat", "lon", "speed"]].to_csv(source, index=False)
-    report, geojson = tmp_path / "report.html", tmp_path / "out.geojson"
-    run = CliRunner().invoke(
-        main,
-        [
-            "detect",
-            str(source),
-            "--threshold",
-            "0.2",
-            "--report",
-            str(report),
-            "--geojson",
-            str(geojson),
-        ],
-    )
-    assert run.exit_code == 0, run.output
+    report, geojson = report_and_geojson(tmp_path)
     page = report.read_text(encoding="utf-8")
     block = re.search(r"<script type='application/geo\+json' id='geojson'>([^<]*)</script>", page)
     assert block is not None, "the report embeds no GeoJSON"
