@@ -164,11 +164,14 @@ def _cases(folder: Path, scale: float) -> list[tuple[str, list[str]]]:
     ]
 
 
-def _run(args: list[str]) -> dict[str, object]:
+def run_child(args: list[str], child: str = _CHILD) -> dict[str, object]:
+    """Run ``gradgps`` with ``args`` in a child process that prints its peak memory
+    (``child``: the script measuring it; this file's reads ``ru_maxrss``); its peak,
+    exit code, last error line and wall time. One thread for numba and BLAS."""
     env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     start = time.perf_counter()
     proc = subprocess.run(
-        [sys.executable, "-c", _CHILD, *args], capture_output=True, text=True, env=env, check=False
+        [sys.executable, "-c", child, *args], capture_output=True, text=True, env=env, check=False
     )
     wall = time.perf_counter() - start
     last = [ln for ln in proc.stdout.splitlines() if ln.startswith("MAXRSS_KB")]
@@ -198,7 +201,7 @@ def main() -> None:
                 continue
             for leftover in ("out.csv", "r.html"):
                 (Path(tmp) / leftover).unlink(missing_ok=True)
-            row = {"case": name, **_run(args)}
+            row = {"case": name, **run_child(args)}
             if name.endswith("detect-fleet"):
                 import shutil
 

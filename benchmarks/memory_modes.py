@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from memory_hostile import run_child
 
 from gradgps import simulate_fleet
 from gradgps._io.nmea import nmea_checksum
@@ -173,23 +174,8 @@ def _input_of(mode: str) -> str:
 
 
 def _run(args: list[str]) -> dict[str, object]:
-    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
-    start = time.perf_counter()
-    proc = subprocess.run(
-        [sys.executable, "-c", _CHILD, *args], capture_output=True, text=True, env=env, check=False
-    )
-    wall = time.perf_counter() - start
-    last = [ln for ln in proc.stdout.splitlines() if ln.startswith("MAXRSS_KB")]
-    if not last:
-        return {"error": (proc.stderr or proc.stdout)[-500:], "wall_s": round(wall, 1)}
-    _, kb, _, code = last[-1].split()
-    errors = [ln for ln in proc.stderr.splitlines() if ln.strip()][-1:]
-    return {
-        "peak_rss_mb": round(int(kb) / 1024, 1),
-        "exit_code": int(code),
-        "error_line": errors[-1][:200] if errors and int(code) else "",
-        "wall_s": round(wall, 1),
-    }
+    # The child's own peak (VmHWM), not ru_maxrss, which carries the parent's size.
+    return run_child(args, _CHILD)
 
 
 def _fit(rows: list[dict[str, object]]) -> dict[str, float] | None:
