@@ -157,18 +157,24 @@ def test_cli_follow_with_stdin(drive_csv):
     assert f"followed {len(out) - 1} lines" in result.stderr
 
 
-def test_each_result_is_written_before_the_next_line_arrives(drive_csv):
-    """A real pipe: the answer to line k arrives while line k+1 has not been sent."""
+def _follow_stdin(stderr: int) -> subprocess.Popen[str]:
+    """``gradgps detect --follow -`` in its own process, line-buffered text pipes: a real
+    stream, for the tests that check what arrives before the next line is sent."""
     env = {**os.environ, "PYTHONPATH": str(REPO / "src"), "OMP_NUM_THREADS": "1"}
-    with subprocess.Popen(
+    return subprocess.Popen(
         [sys.executable, "-m", "gradgps", "detect", "--follow", "-"],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
+        stderr=stderr,
         text=True,
         env=env,
         bufsize=1,
-    ) as proc:
+    )
+
+
+def test_each_result_is_written_before_the_next_line_arrives(drive_csv):
+    """A real pipe: the answer to line k arrives while line k+1 has not been sent."""
+    with _follow_stdin(subprocess.DEVNULL) as proc:
         assert proc.stdin is not None
         assert proc.stdout is not None
         lines = drive_csv.splitlines()
@@ -276,16 +282,7 @@ def test_cli_follow_file_with_a_banner(tmp_path):
 
 def test_banner_on_a_live_pipe_does_not_hold_back_results():
     """A growing stream: the banner is skipped and the first sentence answered at once."""
-    env = {**os.environ, "PYTHONPATH": str(REPO / "src"), "OMP_NUM_THREADS": "1"}
-    with subprocess.Popen(
-        [sys.executable, "-m", "gradgps", "detect", "--follow", "-"],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=env,
-        bufsize=1,
-    ) as proc:
+    with _follow_stdin(subprocess.PIPE) as proc:
         assert proc.stdin is not None
         assert proc.stdout is not None
         assert proc.stderr is not None
