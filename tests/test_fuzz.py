@@ -675,46 +675,18 @@ def test_fuzz_redis_messages(messages: list[list[bytes]], workers: int) -> None:
 
 @pytest.fixture(scope="module")
 def ros1_bag(tmp_path_factory: pytest.TempPathFactory) -> bytes:
-    """A small ROS 1 bag: 20 NavSatFix at 1 Hz, one without a fix, and a TwistStamped topic."""
+    """A small ROS 1 bag (``tests/_rosbag_support.py``: 30 NavSatFix at 1 Hz, one without a
+    fix, and a TwistStamped topic at 10 Hz)."""
     pytest.importorskip("rosbags")
-    import numpy as np
     from rosbags.rosbag1 import Writer
     from rosbags.typesys import Stores, get_typestore
 
-    from gradgps._io.rosbag import NAVSATFIX, TWIST_STAMPED
+    from _rosbag_support import write_drive
 
     store = get_typestore(Stores.ROS1_NOETIC)
-    types = store.types
     path = tmp_path_factory.mktemp("bag") / "drive.bag"
-
-    def header(sec: int) -> object:
-        return types["std_msgs/msg/Header"](
-            seq=0, stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=0), frame_id="gps"
-        )
-
     with Writer(path) as writer:
-        fix = writer.add_connection("/gps/fix", NAVSATFIX, typestore=store)
-        vel = writer.add_connection("/gps/vel", TWIST_STAMPED, typestore=store)
-        v3 = types["geometry_msgs/msg/Vector3"]
-        for i in range(20):
-            ns = (1_700_000_000 + i) * 10**9
-            msg = types[NAVSATFIX](
-                header=header(1_700_000_000 + i),
-                status=types["sensor_msgs/msg/NavSatStatus"](status=-1 if i == 7 else 0, service=1),
-                latitude=48.0 + i * 9e-5,
-                longitude=11.0,
-                altitude=500.0,
-                position_covariance=np.zeros(9),
-                position_covariance_type=0,
-            )
-            writer.write(fix, ns, store.serialize_ros1(msg, NAVSATFIX))
-            twist = types[TWIST_STAMPED](
-                header=header(1_700_000_000 + i),
-                twist=types["geometry_msgs/msg/Twist"](
-                    linear=v3(x=6.0, y=8.0, z=0.0), angular=v3(x=0.0, y=0.0, z=0.0)
-                ),
-            )
-            writer.write(vel, ns, store.serialize_ros1(twist, TWIST_STAMPED))
+        write_drive(writer, store, store.serialize_ros1)
     return path.read_bytes()
 
 
@@ -796,48 +768,19 @@ def test_fuzz_ros_bag_bytes(tmp_path: Path, ros1_bag: bytes, data: st.DataObject
 @pytest.fixture(scope="module")
 def ros2_bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, bytes]]:
     """Small ROS 2 bags (MCAP and SQLite storage) as their files' bytes: ``metadata.yaml``
-    and the storage file, 20 NavSatFix at 1 Hz (one without a fix) and a TwistStamped topic."""
+    and the storage file, the drive of ``tests/_rosbag_support.py``."""
     pytest.importorskip("rosbags")
-    import numpy as np
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
-    from gradgps._io.rosbag import NAVSATFIX, TWIST_STAMPED
+    from _rosbag_support import write_drive
 
     store = get_typestore(Stores.ROS2_HUMBLE)
-    types = store.types
     bags: dict[str, dict[str, bytes]] = {}
     for name, plugin in (("mcap", StoragePlugin.MCAP), ("db3", StoragePlugin.SQLITE3)):
         path = tmp_path_factory.mktemp("bag2") / "drive"
         with Writer(path, version=9, storage_plugin=plugin) as writer:
-            fix = writer.add_connection("/gps/fix", NAVSATFIX, typestore=store)
-            vel = writer.add_connection("/gps/vel", TWIST_STAMPED, typestore=store)
-            v3 = types["geometry_msgs/msg/Vector3"]
-            for i in range(20):
-                ns = (1_700_000_000 + i) * 10**9
-                header = types["std_msgs/msg/Header"](
-                    stamp=types["builtin_interfaces/msg/Time"](sec=1_700_000_000 + i, nanosec=0),
-                    frame_id="gps",
-                )
-                msg = types[NAVSATFIX](
-                    header=header,
-                    status=types["sensor_msgs/msg/NavSatStatus"](
-                        status=-1 if i == 7 else 0, service=1
-                    ),
-                    latitude=48.0 + i * 9e-5,
-                    longitude=11.0,
-                    altitude=500.0,
-                    position_covariance=np.zeros(9),
-                    position_covariance_type=0,
-                )
-                writer.write(fix, ns, store.serialize_cdr(msg, NAVSATFIX))
-                twist = types[TWIST_STAMPED](
-                    header=header,
-                    twist=types["geometry_msgs/msg/Twist"](
-                        linear=v3(x=6.0, y=8.0, z=0.0), angular=v3(x=0.0, y=0.0, z=0.0)
-                    ),
-                )
-                writer.write(vel, ns, store.serialize_cdr(twist, TWIST_STAMPED))
+            write_drive(writer, store, store.serialize_cdr)
         bags[name] = {f.name: f.read_bytes() for f in path.iterdir()}
     return bags
 

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from gradgps._cli import main
 from gradgps._exceptions import InputError
 from gradgps._io.read import read_table
-from gradgps._io.rosbag import NAVSATFIX, TWIST_STAMPED, read_rosbag
+from gradgps._io.rosbag import TWIST_STAMPED, read_rosbag
 from gradgps._tracks.track import to_fixes
 
 pytest.importorskip("rosbags")
@@ -20,63 +20,7 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
 
-T0 = 1_700_000_000
-N = 30
-
-
-def _messages(store, *, status_at: int = 7):
-    """NavSatFix every second moving north at 10 m/s, TwistStamped at 10 Hz; fix 7 has no fix."""
-    Time = store.types["builtin_interfaces/msg/Time"]
-    Header = store.types["std_msgs/msg/Header"]
-    Status = store.types["sensor_msgs/msg/NavSatStatus"]
-    Fix = store.types[NAVSATFIX]
-    Vector3 = store.types["geometry_msgs/msg/Vector3"]
-    Twist = store.types["geometry_msgs/msg/Twist"]
-    TwistStamped = store.types[TWIST_STAMPED]
-    fixes, twists = [], []
-    ros1 = {"seq": 0} if "seq" in Header.__dataclass_fields__ else {}
-
-    def header(sec, nanosec=0):
-        return Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id="gps", **ros1)
-
-    for i in range(N):
-        status = Status(status=-1 if i == status_at else 0, service=1)
-        fixes.append(
-            (
-                T0 + i,
-                Fix(
-                    header=header(T0 + i),
-                    status=status,
-                    latitude=48.0 + i * 9e-5,
-                    longitude=11.0,
-                    altitude=500.0,
-                    position_covariance=np.zeros(9),
-                    position_covariance_type=0,
-                ),
-            )
-        )
-    for k in range(10 * N):
-        twist = Twist(linear=Vector3(x=6.0, y=8.0, z=0.5), angular=Vector3(x=0.0, y=0.0, z=0.0))
-        twists.append(
-            (
-                T0 + k / 10,
-                TwistStamped(header=header(T0 + k // 10, (k % 10) * 100_000_000), twist=twist),
-            )
-        )
-    return fixes, twists
-
-
-def _write(writer, store, serialize, extra_topic=False):
-    fixes, twists = _messages(store)
-    fix_conn = writer.add_connection("/gps/fix", NAVSATFIX, typestore=store)
-    twist_conn = writer.add_connection("/gps/vel", TWIST_STAMPED, typestore=store)
-    records = [(int(t * 1e9), fix_conn, NAVSATFIX, m) for t, m in fixes]
-    records += [(int(t * 1e9), twist_conn, TWIST_STAMPED, m) for t, m in twists]
-    if extra_topic:
-        other = writer.add_connection("/rtk/fix", NAVSATFIX, typestore=store)
-        records += [(int(t * 1e9), other, NAVSATFIX, m) for t, m in fixes[:5]]
-    for ns, conn, kind, msg in sorted(records, key=lambda r: r[0]):
-        writer.write(conn, ns, serialize(msg, kind))
+from _rosbag_support import T0, N, write_drive
 
 
 def _check(table):
@@ -95,7 +39,7 @@ def test_ros1_bag(tmp_path):
     store = get_typestore(Stores.ROS1_NOETIC)
     path = tmp_path / "drive.bag"
     with Writer1(path) as writer:
-        _write(writer, store, store.serialize_ros1)
+        write_drive(writer, store, store.serialize_ros1)
     _check(read_table(path))
 
 
@@ -104,7 +48,7 @@ def test_ros2_bag_directory_and_storage_file(tmp_path, plugin):
     store = get_typestore(Stores.ROS2_HUMBLE)
     path = tmp_path / "drive"
     with Writer2(path, version=9, storage_plugin=plugin) as writer:
-        _write(writer, store, store.serialize_cdr)
+        write_drive(writer, store, store.serialize_cdr)
     _check(read_table(path))
     storage = next(path.glob("*.mcap" if plugin == StoragePlugin.MCAP else "*.db3"))
     _check(read_table(storage))
@@ -114,7 +58,7 @@ def test_several_receivers_are_tracks_and_topics_can_be_named(tmp_path):
     store = get_typestore(Stores.ROS2_HUMBLE)
     path = tmp_path / "two"
     with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        _write(writer, store, store.serialize_cdr, extra_topic=True)
+        write_drive(writer, store, store.serialize_cdr, extra_topic=True)
     fixes = to_fixes(read_table(path))
     assert sorted(set(fixes["track"])) == ["/gps/fix", "/rtk/fix"]
     assert len(read_rosbag(path, fix_topic="/rtk/fix").frame) == 5
@@ -126,7 +70,7 @@ def test_detect_cli_reads_a_bag(tmp_path):
     store = get_typestore(Stores.ROS2_HUMBLE)
     path = tmp_path / "drive"
     with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        _write(writer, store, store.serialize_cdr)
+        write_drive(writer, store, store.serialize_cdr)
     out = tmp_path / "out.csv"
     result = CliRunner().invoke(main, ["detect", str(path), "-o", str(out)])
     assert result.exit_code == 0, result.output
@@ -158,7 +102,7 @@ def test_a_damaged_metadata_yaml_is_one_error_line(tmp_path):
     store = get_typestore(Stores.ROS2_HUMBLE)
     path = tmp_path / "drive"
     with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        _write(writer, store, store.serialize_cdr)
+        write_drive(writer, store, store.serialize_cdr)
     metadata = path / "metadata.yaml"
     text = metadata.read_text()
     metadata.write_text(
