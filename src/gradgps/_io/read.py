@@ -500,7 +500,7 @@ def csv_tables(
     options: ReadOptions | None = None,
 ) -> CsvChunks:
     """:func:`iter_csv_tables` with the reader options as one object (see :func:`load_table`)."""
-    path, options = _chunked_read(path, chunksize, options)
+    path, options = _chunked_read(path, chunksize, options, "csv")
     layout = _scan_csv(path, options)
     return CsvChunks(
         n_rows=layout.n_rows,
@@ -759,7 +759,7 @@ def parquet_tables(
     pandas exactly as :func:`pandas.read_parquet` converts the whole file. A file with a
     stored (non-range) index, which the whole-file reader turns into columns, is read
     whole, as one chunk."""
-    path, options = _chunked_read(path, chunksize, options)
+    path, options = _chunked_read(path, chunksize, options, "parquet")
     source = str(path)
     check_readable(path)
     try:
@@ -810,12 +810,15 @@ def parquet_tables(
 
 
 def _chunked_read(
-    path: str | Path, chunksize: int, options: ReadOptions | None
+    path: str | Path, chunksize: int, options: ReadOptions | None, kind: str
 ) -> tuple[Path, ReadOptions]:
-    """Check a chunked reader's arguments once (csv_tables and parquet_tables alike)."""
+    """Check a chunked reader's arguments once (csv_tables and parquet_tables alike),
+    including, as :func:`load_table` does, that every option given applies to ``kind``."""
     if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
         raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")
-    return Path(path), (options or ReadOptions()).checked()
+    checked = (options or ReadOptions()).checked()
+    _check_options_apply(kind, checked, str(path))
+    return Path(path), checked
 
 
 def _unreadable_parquet(exc: Exception, source: str) -> InputError:
