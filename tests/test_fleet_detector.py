@@ -17,6 +17,7 @@ import math
 from typing import Any
 
 import numpy as np
+import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -246,3 +247,19 @@ def test_times_as_datetimes_and_text_are_read_as_the_detector_reads_them() -> No
     )
     frame = fast.update_many(["x"], [times[-1] + np.timedelta64(1, "s")], [45.0], [7.0]).to_frame()
     assert list(frame.columns)[:2] == ["anomaly", "score"]
+
+
+def test_receiver_fields_are_read_by_position_whatever_the_index() -> None:
+    """A pandas Series with its own index is one value per fix in order, as every other
+    argument: the per-fix path once looked values up by label (KeyError on index 10-12)."""
+    fleet, reference = FleetDetector(), Detector()
+    quality = pd.Series(["V", "A", "V", "A"], index=[10, 11, 12, 13])
+    t = [1.7e9, 1.7e9 + 1, 1.7e9 + 2, 1.7e9 + 3]
+    got = fleet.update_many(
+        ["a"] * 4, t, [48.1] * 4, [11.5, 11.5001, 11.5002, 11.5003], fix_quality=quality
+    ).to_frame()
+    want = [
+        reference.update(t[i], 48.1, 11.5 + 1e-4 * i, fix_quality=quality.iloc[i]) for i in range(4)
+    ]
+    assert list(got["invalid_reason"]) == [w.invalid_reason for w in want]
+    assert list(got["anomaly"]) == [w.anomaly for w in want]

@@ -905,8 +905,6 @@ REASONS: tuple[str, ...] = (
     fix_reason(1.0, 1.0, 1.0, 1.0, MIN_STEP_S),
     fix_reason(1.0 + MIN_STEP_S / 2, 1.0, 1.0, 1.0, MIN_STEP_S),
 )
-_CODES = {text: k for k, text in enumerate(REASONS)}
-_SHORTEST_STEP = MIN_STEP_S - STEP_TOLERANCE_S
 # Kernel rounds per batch before the rest of it goes through the per-fix path (a vehicle
 # that starts a new segment every few fixes would otherwise cost a round per segment).
 _MAX_ROUNDS = 8
@@ -935,7 +933,7 @@ def _reason_code(
     if not fresh:
         if t <= last_t:
             return 9
-        if t - last_t < _SHORTEST_STEP:
+        if t - last_t < _MIN_STEP:
             return 10
     return 0
 
@@ -1085,8 +1083,7 @@ def _times(values: Any, n: int) -> FloatArray:
 
 
 def _reading_column(values: Any, n: int) -> FloatArray:
-    x = _numbers(values, n)
-    return np.where(np.isfinite(x), x, np.nan)
+    return _readings(_numbers(values, n))
 
 
 def _receiver_codes(fix_quality: Any, satellites: Any, n: int) -> NDArray[np.int64]:
@@ -1306,19 +1303,17 @@ class FleetDetector:
         lon: float,
         speed: float,
         heading: float,
-        fix_quality: Any,
-        satellites: Any,
+        receiver: int,
         out: FloatArray,
-    ) -> str:
+    ) -> int:
         """:meth:`Detector.update` on slot ``s``: writes the outputs into ``out``, returns
-        the invalid reason (``""`` for a usable fix)."""
+        the invalid reason's code in :data:`REASONS` (0 for a usable fix; ``receiver``: the
+        receiver's verdict as :func:`_receiver_codes` gives it)."""
         seg = int(self._seg[s])
         last = None if seg == 0 else float(self._last[s])
-        reason = fix_reason(
-            t, lat, lon, last, MIN_STEP_S, fix_quality=fix_quality, satellites=satellites
-        )
-        if reason:
-            return reason
+        code = _reason_code(t, lat, lon, seg == 0, math.nan if last is None else last, receiver)
+        if code:
+            return code
         fix = (t, lat, lon, speed, heading)
         warm = self._warm[s]
         dt = 0.0 if last is None else t - last
@@ -1347,7 +1342,7 @@ class FleetDetector:
             self._step(s, dt, lat, lon, speed, heading, out)
         self._seg[s] = seg + 1
         self._last[s] = t
-        return ""
+        return 0
 
     # -- batches -------------------------------------------------------------------
 
@@ -1407,7 +1402,6 @@ class FleetDetector:
         receiver = _receiver_codes(fix_quality, satellites, n)
         out = np.full((n, N_POINT_OUT), np.nan)
         code = np.zeros(n, np.int64)
-        other: dict[int, str] = {}  # reasons not in REASONS (none today)
         todo = np.arange(n, dtype=np.int64)
         deferred = np.empty(n, np.int64)
         for round_ in range(_MAX_ROUNDS + 1):
@@ -1449,40 +1443,26 @@ class FleetDetector:
                 if s in final:
                     back.append(i)  # its period is final again: back to the kernel
                     continue
-                reason = self._update_one(
+                code[i] = self._update_one(
                     s,
                     float(t_f[i]),
                     float(lat_f[i]),
                     float(lon_f[i]),
                     float(speed_f[i]),
                     float(heading_f[i]),
-                    None if fix_quality is None else fix_quality[i],
-                    None if satellites is None else satellites[i],
+                    int(receiver[i]),
                     out[i],
                 )
-                if reason:
-                    k = _CODES.get(reason)
-                    if k is None:
-                        other[i] = reason
-                    else:
-                        code[i] = k
                 if round_ < _MAX_ROUNDS and self._seg[s] > PERIOD_STEPS:
                     final.add(s)
             if not back:
                 break
             todo = np.array(back, np.int64)
-        return self._result(out, code, other)
+        return self._result(out, code)
 
-    def _result(
-        self, out: FloatArray, code: NDArray[np.int64], other: dict[int, str]
-    ) -> FleetResult:
-        invalid = code != 0
-        if other:
-            invalid[list(other)] = True
+    def _result(self, out: FloatArray, code: NDArray[np.int64]) -> FleetResult:
         reasons = self._reasons[code]
-        for i, text in other.items():
-            reasons[i] = text
-        ok = ~invalid
+        ok = code == 0
         bias = np.full(code.size, len(self._bias_names) - 1, np.int64)
         bias[ok] = out[ok, O_BIAS].astype(np.int64)
         kind = np.full(code.size, len(self._time_names) - 1, np.int64)
