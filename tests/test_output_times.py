@@ -222,3 +222,32 @@ def test_parquet_timestamps_are_written_to_csv_as_iso_8601(tmp_path: Path) -> No
     # Parquet to Parquet keeps the column's own type.
     kept = pd.read_parquet(tmp_path / "out.parquet")["time"]
     assert pd.api.types.is_datetime64_any_dtype(kept.dtype)
+
+
+@pytest.mark.parametrize("count_line", [False, True])
+def test_event_times_are_iso_in_every_mode_for_an_iso_input(
+    tmp_path: Path, count_line: bool
+) -> None:
+    """`--events` gives start/end in the input's form whatever the chunking: the chunked
+    run used to re-read the file for a sample of its times, which failed without
+    `--report` (nothing kept to look at) and on a leading row-count line (GPSLogger)."""
+    from gradgps._data.inject import inject_grad
+    from gradgps._data.simulator import simulate_fleet
+
+    drive = inject_grad(simulate_fleet(1, 5.0, 1.0, 3, imu=False)[["t", "lat", "lon"]], seed=2)
+    drive = drive[["t", "lat", "lon"]]
+    drive["t"] = pd.to_datetime(drive["t"], unit="s", utc=True).dt.strftime("%Y-%m-%dT%H:%M:%SZ")
+    source = tmp_path / "in.csv"
+    text = drive.to_csv(index=False)
+    source.write_text((f"{len(drive)}\n" if count_line else "") + text)
+    starts = []
+    for chunk in ("1000", "0"):
+        events = tmp_path / f"events{chunk}.csv"
+        run = CliRunner().invoke(
+            main, ["detect", str(source), "--events", str(events), "--chunk-size", chunk]
+        )
+        assert run.exit_code == 0, run.output
+        starts.append(pd.read_csv(events)["start"].astype(str).tolist())
+    assert starts[0], "the injected faults make events"
+    assert starts[0] == starts[1]
+    assert all(re.fullmatch(r"\d{4}-\d\d-\d\dT[\d:.]+Z", s) for s in starts[0])

@@ -154,6 +154,9 @@ def detect(
     if chunk_size > 0 and _chunkable(input_path, fmt):
 
         def collect(fixes: pd.DataFrame, result: pd.DataFrame, frame: pd.DataFrame) -> None:
+            nonlocal time_column
+            if time_column is None:  # the first chunk's rows say how the input writes time
+                time_column = _time_column(frame, fixes)
             if events is not None:
                 events.add(fixes, result)
             if whole:
@@ -215,8 +218,6 @@ def detect(
         click.echo(f"warning: {warning}", err=True)
     if not whole and events is None:
         return
-    if time_column is None and chunk_size > 0:
-        time_column = _chunked_time_column(input_path, fmt, kept, reading.skip_rows)
     fixes_all = pd.concat([f for f, _ in kept], ignore_index=True) if whole else None
     result_all = pd.concat([r for _, r in kept], ignore_index=True) if whole else None
     table_events = events.events() if events is not None else None
@@ -305,30 +306,6 @@ def _time_column(frame: Any, fixes: Any) -> Any:
     if cmap is None or cmap.time is None or cmap.time not in frame.columns:
         return None
     return frame[cmap.time]
-
-
-def _chunked_time_column(
-    input_path: Path, fmt: str | None, kept: list[Any], skip_rows: int | None = None
-) -> Any:
-    """A sample of the input's time column (first rows), to give event times in the same form."""
-    import pandas as pd
-
-    from .._io.read import resolve_format
-
-    if not kept:
-        return None
-    cmap = kept[0][0].attrs.get("columns")
-    if cmap is None or cmap.time is None:
-        return None
-    try:
-        if resolve_format(input_path, fmt) == "parquet":
-            import pyarrow.parquet as pq
-
-            batch = next(pq.ParquetFile(input_path).iter_batches(batch_size=5, columns=[cmap.time]))
-            return batch.to_pandas()[cmap.time]
-        return pd.read_csv(input_path, usecols=[cmap.time], nrows=5, skiprows=skip_rows)[cmap.time]
-    except (ValueError, OSError, KeyError, StopIteration):
-        return None
 
 
 def _events_in_input_form(events: Any, time_column: Any) -> Any:
