@@ -238,3 +238,34 @@ def test_parquet_is_read_in_chunks_with_the_same_results(tmp_path: Path) -> None
     assert outputs[97] == outputs[0]
     assert outputs[1000] == outputs[0]
     assert pd.read_csv(tmp_path / "out_0.csv")["invalid_reason"].notna().sum() == 2
+
+
+def test_parquet_chunks_read_without_pandas_3s_converter(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """pyproject allows pandas 2.2, whose ``pandas.io._util`` has no
+    ``arrow_table_to_pandas`` (pandas 3 added it): the chunked Parquet reader must
+    still read, through ``to_pandas``, the same numbers a whole read gives."""
+    import numpy as np
+    import pandas as pd
+    import pandas.io._util as pandas_util
+
+    from gradgps._io.read import parquet_tables
+
+    frame = pd.DataFrame(
+        {
+            "t": 1.7e9 + np.arange(50.0),
+            "lat": 48.1 + np.arange(50) * 1e-5,
+            "lon": 11.5,
+            "id": ["a"] * 50,
+        }
+    )
+    source = tmp_path / "d.parquet"
+    frame.to_parquet(source, index=False, row_group_size=20)
+    monkeypatch.delattr(pandas_util, "arrow_table_to_pandas", raising=False)
+    chunks = list(parquet_tables(source, 20))
+    read = pd.concat([c.frame for c in chunks], ignore_index=True)
+    assert [len(c.frame) for c in chunks] == [20, 20, 10]
+    for column in ("t", "lat", "lon"):
+        np.testing.assert_array_equal(read[column].to_numpy(), frame[column].to_numpy())
+    assert read["id"].astype(str).tolist() == frame["id"].tolist()

@@ -33,6 +33,7 @@ from __future__ import annotations
 import csv
 import gzip
 import itertools
+import warnings
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
@@ -783,10 +784,6 @@ def parquet_tables(
         )
 
     def chunks() -> Iterator[Table]:
-        from pandas.io._util import (  # type: ignore[import-not-found]  # what pd.read_parquet calls
-            arrow_table_to_pandas,
-        )
-
         offset = 0
         batches = file.iter_batches(batch_size=chunksize, use_pandas_metadata=True)
         while True:
@@ -794,7 +791,7 @@ def parquet_tables(
                 batch = next(batches, None)
                 if batch is None:
                     return
-                frame = arrow_table_to_pandas(pa.Table.from_batches([batch], schema=schema))
+                frame = _arrow_to_pandas(pa.Table.from_batches([batch], schema=schema))
             except (ValueError, OSError, TypeError) as exc:
                 raise _unreadable_parquet(exc, source) from None
             yield Table(
@@ -807,6 +804,33 @@ def parquet_tables(
             offset += len(frame)
 
     return CsvChunks(n_rows=n_rows, header=tuple(schema.names), chunks=chunks())
+
+
+def _arrow_to_pandas(table: Any) -> pd.DataFrame:
+    """A pyarrow table as :func:`pandas.read_parquet` converts one, so a file read chunk by
+    chunk gives the frame it gives read whole: pandas 3 names its converter
+    (``pandas.io._util.arrow_table_to_pandas``); pandas 2.2, which ``pyproject.toml``
+    allows, has none and calls ``to_pandas`` itself (Arrow strings only under
+    ``future.infer_string``)."""
+    try:
+        from pandas.io._util import (  # type: ignore[import-not-found]
+            arrow_table_to_pandas,
+        )
+    except ImportError:
+        mapper = None
+        with warnings.catch_warnings():  # deprecated (and always on) from pandas 3
+            warnings.simplefilter("ignore")
+            infer_string = pd.get_option("future.infer_string")
+        try:
+            from pandas.io._util import arrow_string_types_mapper
+        except ImportError:  # no string mapper in this pandas: plain to_pandas
+            infer_string = False
+        if infer_string:
+            mapper = arrow_string_types_mapper()
+        frame: pd.DataFrame = table.to_pandas(types_mapper=mapper)
+        return frame
+    converted: pd.DataFrame = arrow_table_to_pandas(table)
+    return converted
 
 
 def _chunked_read(
