@@ -306,3 +306,37 @@ def test_validator_rejects_what_rfc_7946_forbids() -> None:
             validate_geojson(doc)
     with pytest.raises(AssertionError):
         load_strict('{"type": "FeatureCollection", "features": [], "x": NaN}')
+
+
+def test_geojson_and_gpx_times_are_written_as_every_other_output_writes_them(
+    tmp_path: Path,
+) -> None:
+    """One formatter for output times (``gradgps._io.times.iso_utc``): a fix 0.2 s past a
+    second is ``...05.200Z`` in the GeoJSON and the GPX as in the event table, not the
+    float's nanosecond tail (``...05.200000048Z``)."""
+    import json
+
+    from gradgps._io.export import geojson_document
+    from gradgps._io.times import iso_utc_one
+
+    t = 1790157605.2
+    fixes = pd.DataFrame(
+        {"track": ["a", "a"], "t": [t, t + 1.0], "lat": [48.1, 48.1001], "lon": [11.5, 11.5]}
+    )
+    result = pd.DataFrame(
+        {
+            "anomaly": [1, 0],
+            "score": [0.99, 0.01],
+            "bias_type": ["jump", "none"],
+            "time_type": ["transient", "none"],
+            "lat_clean": [48.1, 48.1001],
+            "lon_clean": [11.5, 11.5],
+            "alert": [0, 0],
+            "invalid_reason": ["", ""],
+        }
+    )
+    document = json.loads(json.dumps(geojson_document(fixes, result)))
+    times = [
+        f["properties"]["time"] for f in document["features"] if f["geometry"]["type"] == "Point"
+    ]
+    assert times == [iso_utc_one(t)] == ["2026-09-23T10:00:05.200Z"]

@@ -38,6 +38,8 @@ from xml.sax.saxutils import escape
 import numpy as np
 import pandas as pd
 
+from .times import iso_utc_one
+
 __all__ = [
     "geojson_document",
     "geojson_text",
@@ -109,9 +111,11 @@ def _geometry(coords: list[list[float]]) -> dict[str, Any] | None:
 
 
 def _iso(t: float) -> str | None:
+    """One time as every other output writes it (:func:`gradgps._io.times.iso_utc`);
+    ``None`` for a missing or absurd one."""
     if not math.isfinite(t) or abs(t) > 1e11:
         return None
-    return pd.Timestamp(t, unit="s", tz="UTC").isoformat().replace("+00:00", "Z")
+    return iso_utc_one(t)
 
 
 def _lines(fixes: pd.DataFrame, result: pd.DataFrame) -> list[tuple[str, np.ndarray]]:
