@@ -29,6 +29,8 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike
 
+from .._tracks.track import datetime_seconds
+
 __all__ = [
     "csv_ready",
     "datetimes_as_text",
@@ -88,32 +90,22 @@ def datetimes_as_text(series: pd.Series) -> pd.Series:
     tz = getattr(series.dt, "tz", None)
     missing = series.isna()
     if tz is not None and str(tz) in ("UTC", "utc"):
-        seconds = _seconds(series.dt.tz_convert("UTC").dt.tz_localize(None))
+        seconds = datetime_seconds(series)
         text = pd.Series(iso_utc(seconds), index=series.index, dtype=object)
     elif tz is not None:
-        text = series.map(lambda s: _iso(s, offset=True))
+        text = series.map(_iso_with_offset)
     else:
-        seconds = _seconds(series)
+        seconds = datetime_seconds(series.dt.tz_localize("UTC"))
         text = pd.Series(
             [s[:-1] if s else s for s in iso_utc(seconds)], index=series.index, dtype=object
         )
     return text.where(~missing, "")
 
 
-def _seconds(naive: pd.Series) -> np.ndarray:
-    values = naive.to_numpy()
-    unit, _ = np.datetime_data(values.dtype)
-    per_second = {"s": 1, "ms": 10**3, "us": 10**6, "ns": 10**9}.get(unit, 10**9)
-    out = values.astype("int64").astype(np.float64) / per_second
-    out[np.isnat(values)] = np.nan
-    return np.asarray(out, dtype=np.float64)
-
-
-def _iso(stamp: object, *, offset: bool) -> str:
+def _iso_with_offset(stamp: object) -> str:
     if not isinstance(stamp, pd.Timestamp):
         return ""
-    text = stamp.isoformat(timespec="milliseconds")
-    return text.replace(".000", "", 1) if offset else text
+    return stamp.isoformat(timespec="milliseconds").replace(".000", "", 1)
 
 
 def csv_ready(frame: pd.DataFrame) -> pd.DataFrame:
