@@ -182,3 +182,22 @@ def test_trains_with_nan_features_and_segments_of_one_point():
         model = train_model(sequences, VAL, _config(mode=mode, max_epochs=1))
         assert np.isfinite(model.history[0].val_loss)
         assert all(np.isfinite(w).all() for w in model.weights().values())
+
+
+@pytest.mark.parametrize("mode", ["window", "stream"])
+def test_ignored_points_are_left_out_of_validation_scores(mode: str):
+    """A point labelled _IGNORE (a stale start's held fix) teaches nothing and is not scored:
+    the threshold and validation F1 see only labelled points, in stream mode as in window
+    mode (the stream branch once returned them, counted as normal)."""
+    from gradgps._train.torch_gru import GRADNet, _predict_packed
+
+    config = _config(mode=mode)
+    sequences = [(f, a.copy(), b.copy()) for f, a, b in VAL]
+    for _, anomaly, bias in sequences:
+        anomaly[:5] = _IGNORE
+        bias[:5] = _IGNORE
+    packed = _pack(sequences, config.window, 1)
+    net = GRADNet(VAL[0][0].shape[1], 3, config.hidden1, config.hidden2)
+    _, _, labels, _ = _predict_packed(net, packed, config)
+    assert not (labels == _IGNORE).any()
+    assert labels.size == sum(len(f) - 5 for f, _, _ in sequences)

@@ -442,7 +442,11 @@ def _predict_packed(
             idx = np.minimum(
                 packed.starts[group, None] + np.arange(longest), len(packed.features) - 1
             )
-            valid = np.arange(longest) < packed.lengths[group, None]
+            # Real points with a label to score: not padding, not an ignored (unknowable)
+            # point, which the window branch above drops the same way.
+            valid = (np.arange(longest) < packed.lengths[group, None]) & (
+                packed.anomaly[idx] != _IGNORE
+            )
             la, lb, _ = net(torch.from_numpy(packed.features[idx]))
             keep = torch.from_numpy(valid)
             parts.append((la[keep], lb[keep], packed.anomaly[idx][valid], packed.bias[idx][valid]))
