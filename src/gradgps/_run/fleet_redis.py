@@ -536,8 +536,7 @@ class RedisStreamWorker:
         if not problem and self._tracks.get(vehicle) == last_id:
             self._tracks.move_to_end(vehicle)
             return last_id
-        self._tracks.pop(vehicle, None)
-        self._fleet.drop(vehicle)
+        self._forget([vehicle])
         if saved is not None:
             try:
                 self._fleet.set_state(vehicle, saved)

@@ -467,14 +467,15 @@ def _decimal_commas(as_str: pd.Series, blank: pd.Series) -> pd.Series | None:
     return as_str.str.replace(",", ".", regex=False)
 
 
-#: Speed column names that say their unit, and the factor to m/s.
+#: Speed column names that say their unit, and the factor to m/s (the factors of SPEED_UNITS).
 _SPEED_UNITS = {
-    "kmh": 1 / 3.6,
-    "kph": 1 / 3.6,
-    "mph": 0.44704,
-    "knots": 0.514444,
-    "kn": 0.514444,
-    "kt": 0.514444,
+    suffix: SPEED_UNITS[unit]
+    for unit, suffixes in (
+        ("km/h", ("kmh", "kph")),
+        ("mph", ("mph",)),
+        ("knots", ("knots", "kn", "kt")),
+    )
+    for suffix in suffixes
 }
 
 
