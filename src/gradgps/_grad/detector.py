@@ -1143,7 +1143,6 @@ class FleetDetector:
         self._time_names = np.array([*TIME_TYPES, "none"], dtype=object)
         self._reasons = np.array(REASONS, dtype=object)
         self._index: dict[Hashable, int] = {}
-        self._names: list[Hashable | None] = []
         self._free: list[int] = []
         cap = max(int(capacity), 1)
         self._seg = np.zeros(cap, np.int64)
@@ -1203,11 +1202,9 @@ class FleetDetector:
             return s
         if self._free:
             s = self._free.pop()
-            self._names[s] = vehicle
         else:
-            s = len(self._names)
+            s = len(self._warm)  # one warm-up list per slot ever made
             self._grow(s + 1)
-            self._names.append(vehicle)
             self._warm.append([])
         self._index[vehicle] = s
         self._clear(s)
@@ -1226,7 +1223,6 @@ class FleetDetector:
         s = self._index.pop(vehicle, None)
         if s is not None:
             self._clear(s)
-            self._names[s] = None
             self._free.append(s)
 
     def _slots(self, vehicle_ids: Iterable[Hashable]) -> NDArray[np.int64]:
@@ -1256,7 +1252,7 @@ class FleetDetector:
     def _compact(self, extra: int) -> None:
         """Lay the live S regions end to end in a buffer with room for ``extra`` more."""
         free = set(self._free)
-        live = [s for s in range(len(self._names)) if s not in free and self._s_cap[s] > 0]
+        live = [s for s in range(len(self._warm)) if s not in free and self._s_cap[s] > 0]
         used = int(sum(int(self._s_cap[s]) for s in live))
         buf = np.zeros(max(2 * (used + extra), 1024))
         at = 0
