@@ -201,3 +201,22 @@ def test_a_growing_offset_is_no_track_to_follow() -> None:
     # The model's speed never leaves what a car could do from 4.6 m/s.
     assert feats[:, MOTION_FEATURES.index("motion_speed")].max() < speed + 6.0 * 3 * period + 1
     assert np.all(feats[34:, NIS] < 1.0)  # and it is on the track again at once
+
+
+def test_a_noise_run_whose_steps_agree_by_chance_is_no_track() -> None:
+    """Found on the NL motorway validation drive (phone, 1 Hz, positions only):
+    four noise fixes 32, 36, 18 and 11 m off north of a car at 24 m/s east. Two
+    of their steps agreed with each other within the gate, the model re-acquired
+    on them, its speed read 37 m/s, and it rejected the real track for seven
+    seconds after the noise had ended. Two steps agreeing by chance is no track;
+    three fixes moving consistently are."""
+    period, speed, n = 1.0, 24.0, 90
+    t = np.arange(n) * period
+    rng = np.random.default_rng(3)
+    east = speed * t + rng.normal(0, 0.3, n)
+    north = rng.normal(0, 0.3, n)
+    north[60:64] += [-32.4, 35.6, 17.9, -11.3]
+    for feats in (motion_batch(t, east, north, period), motion_reference(t, east, north, period)):
+        motion_speed = feats[:, MOTION_FEATURES.index("motion_speed")]
+        assert np.all(np.abs(motion_speed[64:] - speed) < 3.0)
+        assert np.all(feats[66:, RUN_S] == 0.0)  # following the fixes again at once

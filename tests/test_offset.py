@@ -122,3 +122,64 @@ def test_a_step_that_undoes_the_offset_ends_the_fault_whatever_dead_reckoning_sa
     ):
         assert (out[100:103, 2] > 20.0).all()
         assert (out[103:, 2] < 8.0).all()  # the return ends it at once
+
+
+def test_a_wrong_predicted_velocity_is_learnt_not_accumulated() -> None:
+    """The velocity the tracker predicts with is wrong for a few fixes (a motion
+    model pulled off by a fault, a reported course 60 degrees off): every step
+    then misses the prediction by the same 23 m. That is one velocity error, not
+    a new jump each second: before, the tracker added it to the offset five times
+    and held the 114 m on clean fixes for 100 s. Now the third miss in a row
+    reads as a velocity error: the velocity is corrected and the offset goes
+    back to what it was before the run."""
+    n = 60
+    t = np.arange(n, dtype=float)
+    dt = np.r_[np.nan, np.diff(t)]
+    east, north = 24.0 * t, np.zeros(n)
+    speed, heading = np.full(n, 24.0), np.full(n, 90.0)
+    heading[10:16] = 150.0
+    for out in (
+        offset_features(dt, east, north, speed, heading),
+        offset_features_reference(dt, east, north, speed, heading),
+    ):
+        assert out[:, 2].max() < 50.0  # two steps' miss at most, then unlearnt
+        assert (out[19:, 2] < 1.0).all()  # and the velocity's return too
+        assert (out[19:, 7] == 0.0).all()
+
+
+def test_a_noise_run_a_car_cannot_drive_teaches_no_velocity() -> None:
+    """A stationary receiver at 5 Hz: noise fixes at +23 and +47 m step away by the
+    same 24 m twice, at 120 m/s. Read as a velocity error, that became a 121 m/s
+    velocity and a phantom 71 m offset; no car drives it, so it is a fault."""
+    n = 80
+    t = np.arange(n) * 0.2
+    dt = np.r_[np.nan, np.diff(t)]
+    east, north = np.zeros(n), np.zeros(n)
+    east[40:42] = [22.9, 47.0]
+    nan = np.full(n, np.nan)
+    for out in (
+        offset_features(dt, east, north),
+        offset_features_reference(dt, east, north, nan, nan),
+    ):
+        assert (out[40:42, 2] > 20.0).all()
+        assert (out[43:, 2] < 8.0).all()
+
+
+def test_the_velocity_estimate_changes_no_faster_than_a_car() -> None:
+    """Found on the TUC validation drive (5 Hz, parked, positions only): noise fixes
+    25, 20, -22, -27 and -48 m east. The 5.5 m step between the first two was
+    within threshold_m, so the constant-velocity estimate learnt from it: -14 m/s
+    for a parked car, then -19 m/s, and the return to the truth read as a new
+    35 m offset held for 100 s. A car's velocity changes by accel_allowance * dt
+    a step at most; so does the estimate."""
+    n = 120
+    t = np.arange(n) * 0.2
+    dt = np.r_[np.nan, np.diff(t)]
+    east, north = np.zeros(n), np.zeros(n)
+    east[40:45] = [25.2, 19.7, -21.7, -26.7, -48.4]
+    nan = np.full(n, np.nan)
+    for out in (
+        offset_features(dt, east, north),
+        offset_features_reference(dt, east, north, nan, nan),
+    ):
+        assert (out[46:, 2] < 8.0).all()

@@ -111,3 +111,35 @@ def test_any_jump_is_let_go_after_it_ends(
     assert _last_true(f["offset_norm"][end:] > OffsetParams().threshold_m) <= settle
     rema = (f["east_rema_flag"] > 0) | (f["north_rema_flag"] > 0)
     assert _last_true(rema[end : end + 60]) <= PARAMS.rema.max_run + 1
+
+
+def test_a_noise_burst_leaves_no_offset_behind() -> None:
+    """The same burst as tests/test_motion.py's noise run, through the whole
+    pipeline: before, the motion model's wrong velocity fed the offset tracker,
+    which added the same 30-50 m miss to the offset every second and held 330 m
+    on clean fixes for 100 s."""
+    t, east, north = _drive(120, 1.0, 24.0, np.inf, 3)
+    north = north.copy()
+    north[60:64] += [-32.4, 35.6, 17.9, -11.3]
+    f = _features(t, east, north)
+    assert _last_true(f["offset_norm"][64:] > OffsetParams().threshold_m) == 0
+    assert np.all(np.abs(f["motion_speed"][64:] - 24.0) < 3.0)
+
+
+@pytest.mark.parametrize("period", [0.1, 1.0])
+def test_a_wrong_velocity_from_the_start_is_unlearnt(period: float) -> None:
+    """A segment whose first fix is 30 m off: the first step sets both velocity
+    estimates 30 m/s wrong at 1 Hz (300 m/s at 10 Hz), and every clean step after
+    it misses by the same amount. Before, the tracker added that to the offset
+    each step and held 100-170 m on clean fixes for max_fault_s; now the
+    consistent miss is read as a wrong velocity and unlearnt within a few fixes.
+    What stays (until max_fault_s) is the step that carried the glitch's return
+    with its own miss: from the fixes alone, the first fix being the fault and all
+    the later ones being shifted read the same."""
+    n = int(60 / period)
+    t, east, north = _drive(n, period, 24.0, np.inf, 3)
+    north = north.copy()
+    north[0] += 30.0
+    f = _features(t, east, north)
+    assert f["offset_norm"][int(10 / period) :].max() < 80.0
+    assert np.all(f["offset_norm"][3:] < 100.0)

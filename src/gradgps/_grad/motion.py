@@ -25,9 +25,11 @@ for never staying lost:
   update; the filter dead-reckons through it (``run_s`` counts the seconds).
 * **No state stays diverged.** A gated fix is re-acquired when its own step
   from the previous *observed* fix agrees with the motion, or with the
-  previous observed step (within the gate plus what ``max_accel`` explains,
-  and at a speed a car could have reached from the model's since it last
-  followed the fixes: a fault whose offset grows step by step is no track):
+  previous observed step while that one agreed with the step before it
+  (three fixes moving consistently: each pair within the gate plus what
+  ``max_accel`` explains; two steps of a noise run agree by chance), at a
+  speed a car could have reached from the model's since it last followed
+  the fixes (a fault whose offset grows step by step is no track):
   the track goes on from a new place (the end of a jump, or a jump that was
   the truth), or the vehicle braked or turned harder than the model
   followed. It is re-acquired unconditionally once ``max_run_s`` seconds
@@ -119,7 +121,8 @@ N_MOTION_PARAMS = 11
 # previous observed east/north, and the velocity predicted for the newest fix
 # (before it was seen; NaN until two fixes have set a velocity), and the
 # velocity of the previous observed step (previous fix minus the one before),
-# the seconds the fixes have stood still and the deceleration their stop implied.
+# the seconds the fixes have stood still and the deceleration their stop implied,
+# and whether the previous observed step agreed with the one before it (1.0).
 (
     S_COUNT,
     S_PE,
@@ -137,8 +140,9 @@ N_MOTION_PARAMS = 11
     S_OVN,
     S_STILL,
     S_STOP_DECEL,
-) = range(16)
-N_MOTION_STATE = 16
+    S_AGREED,
+) = range(17)
+N_MOTION_STATE = 17
 #: m/s: fixes moving slower than this stand still (a stopped car's receiver
 #: noise, or one fix repeated) ...
 STILL_SPEED = 0.5
@@ -338,10 +342,19 @@ def motion_step(
     # car could have reached their speed from the model's since it last
     # followed the fixes: a fault whose offset grows by the same amount twice
     # (0, -24, -47 m) has steps that agree with each other at 120 m/s.
-    steps_agree = math.hypot(step_e - ove * step_dt, step_n - ovn * step_dt) <= (
+    # And it takes three fixes moving consistently, two steps in a row that
+    # agree with the step before them: the steps of a noise run agree with
+    # each other by chance one time in a few, and a model that re-acquired on
+    # two of them took a velocity 13 m/s wrong and rejected the real track
+    # for seconds after the noise had ended.
+    pair_agrees = math.hypot(step_e - ove * step_dt, step_n - ovn * step_dt) <= (
         limit + p[P_MAX_ACCEL] * step_dt * step_dt
-    ) and math.hypot(step_e / step_dt - pve, step_n / step_dt - pvn) <= (
-        p[P_MAX_ACCEL] * (run + step_dt) + limit / step_dt
+    )
+    steps_agree = (
+        pair_agrees
+        and state[S_AGREED] != 0.0
+        and math.hypot(step_e / step_dt - pve, step_n / step_dt - pvn)
+        <= (p[P_MAX_ACCEL] * (run + step_dt) + limit / step_dt)
     )
     follows_motion = math.hypot(step_e - pve * step_dt, step_n - pvn * step_dt) <= limit
     consistent = steps_agree or follows_motion
@@ -405,6 +418,7 @@ def motion_step(
         state[S_STOP_DECEL] = 0.0
     state[S_OVE] = step_e / step_dt
     state[S_OVN] = step_n / step_dt
+    state[S_AGREED] = 1.0 if pair_agrees else 0.0
     state[S_ZE] = east
     state[S_ZN] = north
     state[S_COUNT] = count + 1.0
@@ -468,6 +482,7 @@ def motion_reference(
     m2 = prm.initial_scale**2
     run = 0.0
     still = stop_decel = 0.0
+    agreed = False  # the previous observed step agreed with the one before it
     for i in range(len(t)):
         z = np.array([east[i], north[i]], dtype=np.float64)
         dt = t[i] - t[i - 1] if i > 0 else math.nan
@@ -506,11 +521,18 @@ def motion_reference(
         scale = math.sqrt(max(m2, prm.noise_floor**2) + (0.5 * prm.maneuver_accel * dt * dt) ** 2)
         nis = innov / scale
         step = z - last_obs
-        # ... and a car could have reached their speed since the model last followed.
-        steps_agree = bool(
+        # ... three fixes in a row move consistently, and a car could have reached
+        # their speed since the model last followed.
+        pair_agrees = bool(
             np.hypot(*(step - last_step_vel * dt)) <= prm.gate * scale + prm.max_accel * dt * dt
-        ) and bool(
-            np.hypot(*(step / dt - v_pred)) <= prm.max_accel * (run + dt) + prm.gate * scale / dt
+        )
+        steps_agree = (
+            pair_agrees
+            and agreed
+            and bool(
+                np.hypot(*(step / dt - v_pred))
+                <= prm.max_accel * (run + dt) + prm.gate * scale / dt
+            )
         )
         follows_motion = bool(np.hypot(*(step - v_pred * dt)) <= prm.gate * scale)
         consistent = steps_agree or follows_motion
@@ -549,7 +571,7 @@ def motion_reference(
             still += dt
         else:
             still = stop_decel = 0.0
-        last_obs, last_step_vel = z.copy(), step / dt
+        last_obs, last_step_vel, agreed = z.copy(), step / dt, pair_agrees
         row[:7] = [innov, along, cross, nis, run, speed, abs(turn_before) * speed]
         row[8:10] = [still, stop_decel]
         rows.append(row)

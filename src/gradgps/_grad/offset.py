@@ -35,6 +35,16 @@ other) and per point:
   (``fast_leak_per_s``) otherwise; the constant-velocity estimate learns
   from the step (a jump's points move like the real track), the velocity
   bias only outside a suspected fault;
+* three unexplained steps in a row that miss the prediction by the same
+  amount (within ``threshold_m``), at a speed a car can drive, are a
+  *velocity error*, not a fault: a jump is one step off, after which its points move
+  like the real track, while a wrong predicted velocity (a motion model
+  pulled off by a noise run, a segment whose first fix was off, a reported
+  course that is wrong for a while) misses every step by the same amount.
+  The third step undoes what the run did to the offset and corrects the
+  velocity (the bias when a velocity is reported, else the constant-velocity
+  estimate) by the miss; without this, the tracker added the same miss to
+  the offset every step and held the sum on clean fixes for ``max_fault_s``;
 * the *clean-track estimate* is dead-reckoned with the predicted steps and
   re-anchored on the fix after every explained step outside a suspected
   fault (not on the unexplained step that seems to end one: that fix may be
@@ -115,7 +125,10 @@ N_OFFSET_PARAMS = 9
 # State: count, last east, last north, last ve, last vn (reported, NaN if none),
 # cv ve, cv vn, offset east, offset north, clean-track east, north, fault age (s),
 # velocity bias east, north (m/s), the offset released by ``max_fault_s`` east,
-# north (m) and the seconds since that release.
+# north (m) and the seconds since that release; then, per channel (east, north),
+# the previous step's residual (m), the offset before the current run of
+# unexplained steps that miss the prediction by the same amount (m), and that
+# run's length (see :func:`_channel`: three such steps are a velocity error).
 (
     S_COUNT,
     S_E,
@@ -134,8 +147,24 @@ N_OFFSET_PARAMS = 9
     S_RE,
     S_RN,
     S_RAGE,
-) = range(17)
-N_OFFSET_STATE = 17
+    S_QRE,
+    S_QRN,
+    S_QOE,
+    S_QON,
+    S_QUE,
+    S_QUN,
+) = range(23)
+N_OFFSET_STATE = 23
+# m/s: the fastest a car drives. Unexplained steps off the prediction by the
+# same amount are read as a wrong predicted velocity only when the fixes' own
+# step is a speed a car can have: a stationary receiver's noise run of 0, +23,
+# +47 m at 5 Hz agrees with itself step to step at 120 m/s, and that is no
+# velocity to learn.
+_CAR_MAX_SPEED = 70.0
+# Unexplained steps in a row, each missing the prediction by the same amount, that
+# make a velocity error: three fixes after the last explained one moving
+# consistently among themselves (two steps of a noise run agree by chance).
+_VELOCITY_ERROR_STEPS = 3
 # How far (a fraction of the released offset) a step may miss undoing it and still
 # count as the released fault's end: the held offset has leaked by up to
 # 1 - (1 - leak_per_s) ** max_fault_s (18 % with the defaults) before release.
@@ -232,6 +261,11 @@ def offset_features_reference(
     age = 0.0
     released = [0.0, 0.0]
     release_age = 0.0
+    # Per channel: the previous step's residual, how many unexplained steps in a row
+    # have missed the prediction by the same amount, and the offset before them.
+    last_residual = [0.0, 0.0]
+    run = [0, 0]
+    before_run = [0.0, 0.0]
     for i in range(len(fix)):
         if i == 0:
             clean = [fix[0, 0], fix[0, 1]]
@@ -259,9 +293,32 @@ def offset_features_reference(
             in_fault = abs(before) > prm.threshold_m
             clean[c] += predicted[c]
             explained = abs(residual[c]) <= prm.threshold_m + 0.5 * prm.accel_allowance * d[i] ** 2
-            undone = abs(before + residual[c]) <= prm.threshold_m + _RETURN_SLACK * abs(before)
-            if not explained and in_fault and undone:
+            undone = (
+                not explained
+                and in_fault
+                and abs(before + residual[c]) <= prm.threshold_m + _RETURN_SLACK * abs(before)
+            )
+            if explained or undone:
+                run[c] = 0
+            elif (
+                run[c] > 0
+                and abs(residual[c] - last_residual[c]) <= prm.threshold_m
+                and math.hypot(*step) <= _CAR_MAX_SPEED * d[i]
+            ):
+                run[c] += 1  # the fixes move consistently; the prediction misses them
+            else:
+                run[c], before_run[c] = 1, before
+            if undone:
                 offset[c] = 0.0  # the step undid the offset: back on the track
+            elif run[c] >= _VELOCITY_ERROR_STEPS:  # a wrong velocity, not a fault: undo
+                # what those steps did to the offset, correct the velocity
+                offset[c] = before_run[c]
+                if reported:
+                    bias[c] += residual[c] / d[i]
+                else:
+                    cv[c] += residual[c] / d[i]
+                clean[c] = fix[i, c] - offset[c]
+                run[c] = 0
             elif not explained:  # a fault starts, changes or ends: two estimates of the
                 # offset; the smaller one is right when either is
                 offset[c] = min(before + residual[c], fix[i, c] - clean[c], key=abs)
@@ -270,7 +327,10 @@ def offset_features_reference(
             else:  # explained: a jump's points move like the real track
                 rate = prm.leak_per_s if in_fault else prm.fast_leak_per_s
                 offset[c] = before * max(0.0, 1.0 - rate * d[i])
-                cv[c] = prm.cv_alpha * step[c] / d[i] + (1 - prm.cv_alpha) * cv[c]
+                # ... no faster than a car changes its velocity (accel_allowance)
+                change = prm.cv_alpha * (step[c] / d[i] - cv[c])
+                limit = prm.accel_allowance * d[i]
+                cv[c] += min(max(change, -limit), limit)
                 if reported and not in_fault:  # bias + residual / dt: the step's disagreement
                     bias[c] += prm.bias_alpha * residual[c] / d[i]
             gate = min(
@@ -280,6 +340,7 @@ def offset_features_reference(
                 offset[c] = 0.0  # it ended: what is left is prediction error
             if explained and abs(offset[c]) <= prm.threshold_m:
                 clean[c] = fix[i, c]  # a clean step from a clean fix: re-anchor
+            last_residual[c] = residual[c]
         suspected = max(abs(offset[0]), abs(offset[1])) > prm.threshold_m
         age = age + d[i] if suspected else 0.0
         slack = prm.threshold_m + _RETURN_SLACK * math.hypot(*offset_before)
@@ -327,26 +388,62 @@ def _channel(
     step: float,
     dt: float,
     reported: bool,
+    drivable: bool,
 ) -> None:
-    """One channel's offset, velocity estimates and clean track (c = 0 east, 1 north)."""
+    """One channel's offset, velocity estimates and clean track (c = 0 east, 1 north);
+    ``drivable``: the observed step's speed is one a car can have."""
     o, cv, ce, b = S_OE + c, S_CVE + c, S_CE + c, S_BE + c
+    qr, qo, qu = S_QRE + c, S_QOE + c, S_QUE + c
     before = state[o]
     in_fault = abs(before) > p[P_THRESHOLD]
     state[ce] += predicted
     explained = abs(residual) <= p[P_THRESHOLD] + 0.5 * p[P_ACCEL] * dt * dt
     summed = before + residual
-    if not explained and in_fault and abs(summed) <= p[P_THRESHOLD] + _RETURN_SLACK * abs(before):
+    undone = (
+        not explained and in_fault and abs(summed) <= p[P_THRESHOLD] + _RETURN_SLACK * abs(before)
+    )
+    # Unexplained steps in a row that miss the prediction by the same amount
+    # (the fixes move consistently among themselves) count up; the offset
+    # before the first of them is kept.
+    run = 0.0
+    if not explained and not undone:
+        if drivable and state[qu] > 0.0 and abs(residual - state[qr]) <= p[P_THRESHOLD]:
+            run = state[qu] + 1.0
+        else:
+            run = 1.0
+            state[qo] = before
+    velocity_error = run >= _VELOCITY_ERROR_STEPS
+    if undone:
         # The step undid the offset: the fault's end, whatever dead reckoning says
         # (the clean-track estimate drifts metres a second in curves and took
         # the end of a noise run for a new 20 m offset, held for 100 s).
         state[o] = 0.0
+    elif velocity_error:
+        # The third unexplained step in a row off the prediction by the same
+        # amount: the predicted velocity is wrong, not the fixes (a jump is one
+        # step off, then its points move like the track). What those steps did
+        # to the offset is undone and the velocity corrected, instead of adding
+        # the same miss to the offset every step and holding it for max_fault_s.
+        state[o] = state[qo]
+        if reported:
+            state[b] += residual / dt
+        else:
+            state[cv] += residual / dt
+        state[ce] = fix - state[o]
+        run = 0.0
     elif not explained:
         state[o] = summed if abs(summed) <= abs(fix - state[ce]) else fix - state[ce]
         if in_fault and state[S_AGE] < p[P_TRUST]:
             state[o] = fix - state[ce]
     else:
         state[o] = before * max(0.0, 1.0 - (p[P_LEAK] if in_fault else p[P_FAST_LEAK]) * dt)
-        state[cv] = p[P_ALPHA] * step / dt + (1.0 - p[P_ALPHA]) * state[cv]
+        # The velocity follows the step, but no faster than a car can change its
+        # own: a residual within threshold_m is a few metres, which at 5 Hz is
+        # 25 m/s (a noise fix's step taught a parked car -14 m/s, and the next
+        # noise step read as a fault's end held a phantom 35 m for 100 s).
+        change = p[P_ALPHA] * (step / dt - state[cv])
+        limit = p[P_ACCEL] * dt
+        state[cv] += min(max(change, -limit), limit)
         if reported and not in_fault:
             state[b] += p[P_BIAS_ALPHA] * residual / dt
     gate = min(p[P_THRESHOLD] + p[P_DRIFT] * state[S_AGE], 0.5 * max(abs(state[o]), abs(before)))
@@ -354,6 +451,8 @@ def _channel(
         state[o] = 0.0
     if explained and abs(state[o]) <= p[P_THRESHOLD]:
         state[ce] = fix
+    state[qr] = residual
+    state[qu] = run
 
 
 @numba.njit(cache=True)
@@ -400,8 +499,9 @@ def offset_step(
             norm_before = np.hypot(state[S_OE], state[S_ON])
             before_e = state[S_OE]
             before_n = state[S_ON]
-            _channel(p, state, 0, east, pred_e, out[4], step_e, dt, reported)
-            _channel(p, state, 1, north, pred_n, out[5], step_n, dt, reported)
+            drivable = np.hypot(step_e, step_n) <= _CAR_MAX_SPEED * dt
+            _channel(p, state, 0, east, pred_e, out[4], step_e, dt, reported, drivable)
+            _channel(p, state, 1, north, pred_n, out[5], step_n, dt, reported, drivable)
             if max(abs(state[S_OE]), abs(state[S_ON])) > p[P_THRESHOLD]:
                 state[S_AGE] += dt
             else:

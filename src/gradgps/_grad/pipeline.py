@@ -122,6 +122,8 @@ N_REST_PARAMS = _MOTION + N_MOTION_PARAMS
 # heading the pipeline used for the point (reported, or the motion model's).
 _SH = N_OFFSET_FEATURES + N_MOTION_FEATURES
 _N_OFF_OUT = _SH + 2
+# Where the motion model's seconds of dead reckoning sit in its outputs.
+_RUN_S = MOTION_FEATURES.index("motion_run_s")
 # State blocks after the core's: offset, time, recovery, motion.
 _N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_MOTION_STATE
 # Per-point outputs.
@@ -233,6 +235,11 @@ def _features_point(
     expected step, the offset tracker and the recovery: without it those fall
     back to per-channel constant-velocity guesses that lag in every curve and
     never re-acquire after a long jump on a positions-only file (issue 13).
+    The offset tracker takes it only while the model follows the fixes: a fix
+    the model rejected says its velocity has not been confirmed (after a noise
+    run it may be 10-30 m/s wrong for seconds), and dead reckoning with it made
+    the tracker add the same miss to the offset every step; it then predicts
+    with its own estimate from the steps it explained.
     The speed and heading used are left in ``off_out[_SH : _SH + 2]`` for the
     recovery in :func:`_decide_point`.
     """
@@ -240,6 +247,8 @@ def _features_point(
     rest = P[N_CORE_PARAMS:]
     core_size = S.size - _N_TAIL_STATE
     east, north = to_local_scalar(rest[_FRAME : _FRAME + N_FRAME_CONSTANTS], lat, lon)
+    off_speed = speed
+    off_heading = heading
     if rest[_MOTION_ON] != 0.0:
         ms = S.size - N_MOTION_STATE
         m_out = off_out[N_OFFSET_FEATURES:_SH]
@@ -250,6 +259,9 @@ def _features_point(
                 speed = m_speed
             if not np.isfinite(heading):
                 heading = m_heading
+            if m_out[_RUN_S] == 0.0:
+                off_speed = speed
+                off_heading = heading
     off_out[_SH] = speed
     off_out[_SH + 1] = heading
     core_step(Pc, S[:core_size], east, north, speed, heading, core_out)
@@ -259,8 +271,8 @@ def _features_point(
         dt,
         east,
         north,
-        speed,
-        heading,
+        off_speed,
+        off_heading,
         off_out,
     )
     f0 = N_RESULT + 2 * N_OUT
