@@ -138,7 +138,7 @@ def detect(
 
     from .._grad.detector import Detector
     from .._grad.events import EventBuilder
-    from .._io.read import load_table, write_table
+    from .._io.read import chunkable, load_table, write_table
     from .._io.times import output_time_text
     from .._result import ResultCounts
     from .._tracks.input_checks import input_warnings, validated_rates
@@ -151,7 +151,7 @@ def detect(
     time_texts: list[Any] = []
     detector = Detector(model_dir, threshold=threshold)
     time_column: Any = None
-    if chunk_size > 0 and _chunkable(input_path, fmt):
+    if chunk_size > 0 and chunkable(input_path, fmt):
 
         def collect(fixes: pd.DataFrame, result: pd.DataFrame, frame: pd.DataFrame) -> None:
             nonlocal time_column
@@ -434,14 +434,3 @@ def _run_follow(
         err=True,
     )
     sys.stderr.flush()
-
-
-def _chunkable(path: Path, fmt: str | None) -> bool:
-    """Whether ``path`` is read chunk by chunk: CSV, and Parquet that is not GeoParquet
-    (a GeoParquet file is read whole, so its output keeps the geometry column and
-    the ``geo`` metadata)."""
-    from .._io.geoparquet import geo_metadata
-    from .._io.read import resolve_format
-
-    kind = resolve_format(path, fmt)
-    return kind == "csv" or (kind == "parquet" and geo_metadata(path) is None)

@@ -66,6 +66,7 @@ __all__ = [
     "FORMATS",
     "CsvChunks",
     "TableWriter",
+    "chunkable",
     "csv_tables",
     "iter_csv_tables",
     "load_table",
@@ -73,6 +74,7 @@ __all__ = [
     "read_fixes",
     "read_table",
     "resolve_format",
+    "table_chunks",
     "write_table",
 ]
 
@@ -804,6 +806,28 @@ def parquet_tables(
             offset += len(frame)
 
     return CsvChunks(n_rows=n_rows, header=tuple(schema.names), chunks=chunks())
+
+
+def chunkable(path: str | Path, fmt: str | None = None) -> bool:
+    """Whether ``path`` is read chunk by chunk (:func:`table_chunks`): CSV, and Parquet that
+    is not GeoParquet (a GeoParquet file is read whole, by :func:`load_table`, so its
+    output keeps the geometry column and the ``geo`` metadata)."""
+    kind = resolve_format(path, fmt)
+    return kind == "csv" or (kind == "parquet" and geo_metadata(Path(path)) is None)
+
+
+def table_chunks(
+    path: str | Path,
+    chunksize: int,
+    columns: ColumnMap | None = None,
+    options: ReadOptions | None = None,
+    fmt: str | None = None,
+) -> CsvChunks:
+    """A CSV or Parquet file (``fmt``, or as :func:`resolve_format` finds it) as a stream of
+    Tables: :func:`parquet_tables` for Parquet, else :func:`csv_tables`."""
+    if resolve_format(path, fmt) == "parquet":
+        return parquet_tables(path, chunksize, columns, options)
+    return csv_tables(path, chunksize, columns, options)
 
 
 def _arrow_to_pandas(table: Any) -> pd.DataFrame:

@@ -33,7 +33,7 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._grad.detector import MultiTrackDetector, load_grad_model
-from .._io.read import TableWriter, csv_tables, parquet_tables, resolve_format
+from .._io.read import TableWriter, table_chunks
 from .._result import RESULT_DTYPES
 from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import ColumnMap, ReadOptions, to_fixes
@@ -88,10 +88,7 @@ def detect_csv_in_chunks(
     """
     started = time.perf_counter()
     streams = MultiTrackDetector(model, threshold=threshold)
-    if resolve_format(Path(input_path), fmt) == "parquet":
-        chunks = parquet_tables(Path(input_path), chunk_size, columns, options)
-    else:
-        chunks = csv_tables(Path(input_path), chunk_size, columns, options)
+    chunks = table_chunks(Path(input_path), chunk_size, columns, options, fmt)
     clash = [c for c in RESULT_DTYPES if c in chunks.header]
     if clash:
         raise InputError(
