@@ -61,7 +61,7 @@ from .._grad.detector import Detector, MultiTrackDetector
 from .._io.nmea import STALE_DATE_S, Malformed, parse_gga, parse_rmc, split_sentence
 from .._io.times import iso_utc_one, time_of_day_utc
 from .._result import RESULT_COLUMNS, PointResult
-from .._tracks.track import ColumnMap, resolve_columns
+from .._tracks.track import ColumnMap, resolve_columns, rolled_over
 
 __all__ = [
     "MAX_BANNER_LINES",
@@ -276,10 +276,7 @@ class _NmeaFollower:
             _, epoch_line, verdict = self.last_epoch
             scored = None
         else:
-            if (
-                not (math.isnan(tod) or math.isnan(self.last_tod))
-                and tod < self.last_tod - _DAY / 2
-            ):
+            if rolled_over(self.last_tod, tod):
                 self.day_offset += _DAY  # midnight
             if not math.isnan(tod):
                 self.last_tod = tod
