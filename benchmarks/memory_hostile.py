@@ -62,6 +62,27 @@ print("MAXRSS_KB", peak, "EXIT", code)
 """
 
 
+# A child reporting its own peak: VmHWM of /proc/self/status, the high-water mark of this
+# process's memory map. Not getrusage's ru_maxrss: Linux carries that over from the parent
+# across fork + exec, so a parent holding a big input would set a floor under the figure
+# (_CHILD above keeps ru_maxrss for detect-fleet's workers, which VmHWM does not see).
+VMHWM_CHILD = """
+import sys
+from gradgps._cli import main
+code = 0
+try:
+    main.main(args=sys.argv[1:], standalone_mode=False)
+except SystemExit as exc:
+    code = exc.code or 0
+except Exception as exc:
+    print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
+    code = 1
+with open("/proc/self/status") as status:
+    peak = next(int(line.split()[1]) for line in status if line.startswith("VmHWM:"))
+print("MAXRSS_KB", peak, "EXIT", code)
+"""
+
+
 def _tiny_step_fixes(n: int) -> pd.DataFrame:
     t = 1.7e9 + 10.0 * np.arange(n, dtype=float)
     t[1] = t[0] + 0.0011
