@@ -608,7 +608,7 @@ class RedisStreamWorker:
         self,
         messages: list[_Message],
         tracks: dict[bytes, str],
-        per_message: bool,
+        per_message: bool = False,
     ) -> tuple[list[dict[str, str]], set[bytes]]:
         """The page's outputs in message order, and the vehicles whose state changed.
 
