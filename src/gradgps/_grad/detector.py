@@ -1347,27 +1347,20 @@ class FleetDetector:
             out,
         )
 
-    def _update_one(
-        self,
-        s: int,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float,
-        heading: float,
-        receiver: int,
-        out: FloatArray,
-    ) -> int:
-        """:meth:`Detector.update` on slot ``s``: writes the outputs into ``out``, returns
-        the invalid reason's code in :data:`REASONS` (0 for a usable fix; ``receiver``: the
-        receiver's verdict as :func:`_receiver_codes` gives it)."""
+    def _update_one(self, s: int, fix: Fix, receiver: int, out: FloatArray) -> int:
+        """:meth:`Detector.update` of ``fix`` on slot ``s``: writes the outputs into ``out``,
+        returns the invalid reason's code in :data:`REASONS` (0 for a usable fix;
+        ``receiver``: the receiver's verdict as :func:`_receiver_codes` gives it)."""
+        t = fix[0]
         seg = int(self._seg[s])
         last = None if seg == 0 else float(self._last[s])
-        code = _reason_code(t, lat, lon, seg == 0, math.nan if last is None else last, receiver)
+        code = _reason_code(
+            t, fix[1], fix[2], seg == 0, math.nan if last is None else last, receiver
+        )
         if code:
             return code
         self._warm[s], restarted = _follow_segment(
-            (t, lat, lon, speed, heading),
+            fix,
             last,
             (float(self._lat0[s]), float(self._lon0[s])),
             float(self._period[s]),
@@ -1440,6 +1433,7 @@ class FleetDetector:
         code = np.zeros(n, np.int64)
         todo = np.arange(n, dtype=np.int64)
         deferred = np.empty(n, np.int64)
+        columns = (t_f, lat_f, lon_f, speed_f, heading_f)
         for round_ in range(_MAX_ROUNDS + 1):
             if round_ < _MAX_ROUNDS:
                 n_def = _fleet_kernel(
@@ -1479,16 +1473,9 @@ class FleetDetector:
                 if s in final:
                     back.append(i)  # its period is final again: back to the kernel
                     continue
-                code[i] = self._update_one(
-                    s,
-                    float(t_f[i]),
-                    float(lat_f[i]),
-                    float(lon_f[i]),
-                    float(speed_f[i]),
-                    float(heading_f[i]),
-                    int(receiver[i]),
-                    out[i],
-                )
+                t_i, lat_i, lon_i, speed_i, heading_i = (float(c[i]) for c in columns)
+                fix = (t_i, lat_i, lon_i, speed_i, heading_i)
+                code[i] = self._update_one(s, fix, int(receiver[i]), out[i])
                 if round_ < _MAX_ROUNDS and self._seg[s] > PERIOD_STEPS:
                     final.add(s)
             if not back:
