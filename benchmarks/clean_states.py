@@ -19,14 +19,14 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-import pandas as pd
 
 from gradgps._data.datasets import load_dataset
 from gradgps._data.inject import inject_grad
 from gradgps._eval.robustness import _variant_columns, decimate
+from gradgps._grad.defaults import MIN_STEP_S, grad_points
 from gradgps._grad.offset import OffsetParams
 from gradgps._grad.pipeline import PipelineParams, grad_features, pipeline_feature_names
-from gradgps._tracks.geo import LocalFrame
+from gradgps._tracks.preprocess import stream_reasons
 from gradgps._tracks.track import to_fixes
 
 DATASETS = ("driveplotr", "tuc", "nl_motorway", "nl_motorway_gopro", "austin2006", "nevada")
@@ -59,18 +59,21 @@ def main() -> None:
                 data = inject_grad(data, seed=0, columns=cmap)
                 normal = data["label_anomaly"].to_numpy() == 0
             fixes = to_fixes(data[cols], cmap)  # one row per input row, in order
-            tracks = fixes["track"].to_numpy(object)
+            # The fixes and segments the Detector uses: usable rows, then GRAD's preprocessing.
+            usable = np.flatnonzero(stream_reasons(fixes, min_step_s=MIN_STEP_S) == "")
+            prepared = grad_points(fixes.iloc[usable], params.max_gap_s)
+            pts = prepared.points
+            # A point is normal when every row it stands for is.
+            normal_pts = np.ones(len(pts), bool)
+            rows = prepared.row_point >= 0
+            np.logical_and.at(normal_pts, prepared.row_point[rows], normal[usable][rows])
+            t, lat, lon = (pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon"))
+            nan = np.full(len(pts), np.nan)
             n = run = phantom = 0
-            for track in pd.unique(tracks):
-                rows = tracks == track
-                t = fixes["t"].to_numpy(np.float64)[rows]
-                lat = fixes["lat"].to_numpy(np.float64)[rows]
-                lon = fixes["lon"].to_numpy(np.float64)[rows]
-                nan = np.full(t.size, np.nan)
-                f = grad_features(
-                    params, LocalFrame(lat[0], lon[0]), t, lat, lon, nan, nan
-                ).features
-                use = normal[rows]
+            for k, sl in prepared.segment_slices():
+                frame = prepared.segment_frames[k]
+                f = grad_features(params, frame, t[sl], lat[sl], lon[sl], nan[sl], nan[sl]).features
+                use = normal_pts[sl]
                 # Features are compressed with a signed log1p; both are >= 0.
                 run += int((np.expm1(f[use, run_k]) > 0).sum())
                 phantom += int((np.expm1(f[use, offset_k]) > threshold).sum())

@@ -10,10 +10,13 @@ interleaved by time as in a fleet log. It goes to a temporary folder (never
 the repository) and is deleted afterwards unless ``--keep`` names a folder.
 
 ``gradgps detect INPUT -o OUT.csv --chunk-size N`` then runs in a child
-process with one thread for BLAS and numba. Peak memory is the child's
-maximum resident set size (``getrusage(RUSAGE_CHILDREN).ru_maxrss``: the
-kernel's own high-water mark, nothing sampled), wall time is measured around
-the child, and throughput is rows / wall time, start-up, the file structure
+process with one thread for BLAS and numba. Peak memory is the child's own
+peak resident set size (``VmHWM`` in ``/proc/self/status``, read by the
+child as ``benchmarks/memory_modes.py`` reads it: the kernel's high-water
+mark, nothing sampled; not ``ru_maxrss``, which Linux carries over from this
+parent, holding the simulated drives, across fork and exec), wall time is
+measured around the child, and throughput is rows / wall time, start-up, the
+file structure
 pass, reading and writing included; rows per CPU second (the child's user +
 system time) says the same without the effect of other load on a shared
 machine, whose 1-minute load average before and after is recorded too.
@@ -29,7 +32,6 @@ import os
 import platform
 import resource
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -37,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from memory_hostile import VMHWM_CHILD, run_child
 
 from gradgps import simulate_fleet
 
@@ -84,35 +87,15 @@ def main() -> None:
             f"{time.perf_counter() - started:.0f} s",
             file=sys.stderr,
         )
-        command = [
-            sys.executable,
-            "-m",
-            "gradgps",
-            "detect",
-            str(source),
-            "-o",
-            str(output),
-            "--chunk-size",
-            str(args.chunk_size),
-        ]
-        env = {
-            **os.environ,
-            **{
-                v: "1"
-                for v in (
-                    "OMP_NUM_THREADS",
-                    "OPENBLAS_NUM_THREADS",
-                    "MKL_NUM_THREADS",
-                    "NUMBA_NUM_THREADS",
-                )
-            },
-        }
+        command = ["detect", str(source), "-o", str(output), "--chunk-size", str(args.chunk_size)]
+        # One thread for BLAS too (run_child sets numba's and OpenMP's).
+        os.environ.update(OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
         load_before = os.getloadavg()[0]
-        started = time.perf_counter()
-        subprocess.run(command, check=True, env=env)
-        wall = time.perf_counter() - started
-        usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-        peak_kib = usage.ru_maxrss  # KiB on Linux
+        child = run_child(command, VMHWM_CHILD)
+        if child.get("exit_code") != 0:
+            raise SystemExit(f"gradgps detect failed: {child}")
+        wall = float(str(child["wall_s"]))
+        usage = resource.getrusage(resource.RUSAGE_CHILDREN)  # the child's CPU time
         cpu = usage.ru_utime + usage.ru_stime
         out_rows = sum(
             len(c) for c in pd.read_csv(output, usecols=["anomaly"], chunksize=1_000_000)
@@ -124,7 +107,8 @@ def main() -> None:
             "chunk_size": args.chunk_size,
             "input_bytes": source.stat().st_size,
             "output_bytes": output.stat().st_size,
-            "peak_rss_mib": round(peak_kib / 1024, 1),
+            "peak_rss_mib": child["peak_rss_mb"],
+            "peak_measure": "VmHWM of the child (/proc/self/status)",
             "wall_s": round(wall, 1),
             "rows_per_s": round(rows / wall),
             "cpu_s": round(cpu, 1),

@@ -43,7 +43,8 @@ import pandas as pd
 
 from gradgps._io.nmea import nmea_checksum
 
-_CHILD = """
+# A child running the CLI with the given arguments, then printing its peak and exit code.
+_RUN_CLI = """
 import resource, sys
 from gradgps._cli import main
 code = 0
@@ -54,12 +55,32 @@ except SystemExit as exc:
 except Exception as exc:
     print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
     code = 1
+"""
+_PRINT_PEAK = """
+print("MAXRSS_KB", peak, "EXIT", code)
+"""
+_CHILD = (
+    _RUN_CLI
+    + """
 peak = max(
     resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
     resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,  # detect-fleet's workers
 )
-print("MAXRSS_KB", peak, "EXIT", code)
 """
+    + _PRINT_PEAK
+)
+# A child reporting its own peak: VmHWM of /proc/self/status, the high-water mark of this
+# process's memory map. Not getrusage's ru_maxrss: Linux carries that over from the parent
+# across fork + exec, so a parent holding a big input would set a floor under the figure
+# (_CHILD above keeps ru_maxrss for detect-fleet's workers, which VmHWM does not see).
+VMHWM_CHILD = (
+    _RUN_CLI
+    + """
+with open("/proc/self/status") as status:
+    peak = next(int(line.split()[1]) for line in status if line.startswith("VmHWM:"))
+"""
+    + _PRINT_PEAK
+)
 
 
 def _tiny_step_fixes(n: int) -> pd.DataFrame:

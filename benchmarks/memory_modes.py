@@ -44,29 +44,10 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from memory_hostile import run_child
+from memory_hostile import VMHWM_CHILD, run_child
 
 from gradgps import simulate_fleet
 from gradgps._io.nmea import nmea_checksum
-
-# The child's own peak: VmHWM of /proc/self/status, the high-water mark of this process's
-# memory map. Not getrusage's ru_maxrss: Linux carries that over from the parent across
-# fork + exec, so a parent holding a big input would set a floor under every child's figure.
-_CHILD = """
-import sys
-from gradgps._cli import main
-code = 0
-try:
-    main.main(args=sys.argv[1:], standalone_mode=False)
-except SystemExit as exc:
-    code = exc.code or 0
-except Exception as exc:
-    print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
-    code = 1
-with open("/proc/self/status") as status:
-    peak = next(int(line.split()[1]) for line in status if line.startswith("VmHWM:"))
-print("MAXRSS_KB", peak, "EXIT", code)
-"""
 
 _BLOCK = 100  # tracks simulated once and repeated
 _BYTES_PER_ROW = 64.0  # of the CSV below, measured: sizes are approximate
@@ -175,7 +156,7 @@ def _input_of(mode: str) -> str:
 
 def _run(args: list[str]) -> dict[str, object]:
     # The child's own peak (VmHWM), not ru_maxrss, which carries the parent's size.
-    return run_child(args, _CHILD)
+    return run_child(args, VMHWM_CHILD)
 
 
 def _fit(rows: list[dict[str, object]]) -> dict[str, float] | None:

@@ -5,8 +5,10 @@ validation split, in each column variant asked for (``--variant``, default
 positions only: t, lat, lon; data sets without the variant's columns are
 skipped), at the native rate and decimated to 0.5 Hz, the share of the
 untouched drive's fixes flagged, and the anomaly F1 and normal recall under
-protocol ``grad`` (seed 0). ``--threshold`` overrides the model's own, to
-see what a threshold choice costs. Run:
+protocol ``grad`` (seed 0), each scored as the robustness suite scores its
+cells (:func:`gradgps._eval.robustness._cell`: a file's real glitches are
+left out). ``--threshold`` overrides the model's own, to see what a
+threshold choice costs. Run:
 
     python benchmarks/validation_check.py [--model DIR] [--threshold P] [--data-dir DIR]
         [--variant positions|+speed|+speed+heading ...]
@@ -16,14 +18,11 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
 import pandas as pd
 
 from gradgps._data.datasets import load_dataset
-from gradgps._data.inject import inject_grad
-from gradgps._eval.robustness import _variant_columns, decimate
+from gradgps._eval.robustness import _cell, _variant_columns, decimate
 from gradgps._grad.detector import Detector
-from gradgps._result import f1_score
 from gradgps._tracks.track import ColumnMap, to_fixes
 
 DATASETS = ("driveplotr", "tuc", "nl_motorway", "nl_motorway_gopro", "austin2006", "nevada")
@@ -66,14 +65,10 @@ def _check(
         data = table if period is None else decimate(table, cmap, period)
         if period is not None and len(data) == len(table):
             continue  # natively 0.5 Hz
-        clean = det.detect(to_fixes(data[cols], cmap))
-        false_alarms = float(np.mean(clean["anomaly"].to_numpy() == 1))
-        labelled = inject_grad(data[cols], seed=0, columns=cmap)
-        result = det.detect(to_fixes(labelled, cmap))
-        truth = labelled["label_anomaly"].to_numpy() == 1
-        flagged = result["anomaly"].to_numpy() == 1
-        f1 = f1_score(truth, flagged)
-        normal_recall = float(np.mean(~flagged[~truth]))
+        cell = _cell(det, data, cols, cmap)
+        false_alarms = cell["clean"]["false_alarm_rate"]
+        f1 = cell["grad"]["anomaly"]["f1"]
+        normal_recall = cell["grad"]["normal"]["recall"]
         print(
             f"| {name} | {variant} | {rate} | {len(data):,} "
             f"| {100 * false_alarms:.2f} % | {f1:.3f} | {normal_recall:.3f} |"

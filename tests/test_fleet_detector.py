@@ -249,6 +249,27 @@ def test_times_as_datetimes_and_text_are_read_as_the_detector_reads_them() -> No
     assert list(frame.columns)[:2] == ["anomaly", "score"]
 
 
+def test_times_nanoseconds_cannot_hold_are_still_times() -> None:
+    """Datetimes before 1677 or after 2262 (a logger's placeholder year, a corrupt field) fit no
+    nanosecond count: the fleet wrapped them around into other years (3000 read as 1831,
+    1500 as 2084) and ``Detector.update`` raised OverflowError. Both now read each in its own
+    unit, as batch detection reads a column of them."""
+    from gradgps._tracks.track import datetime_seconds
+
+    times = np.array(["1500-01-01T00:00:00", "3000-01-01T00:00:00"], "datetime64[s]")
+    for base in times:
+        t = base + np.arange(8).astype("timedelta64[s]")
+        lat = [45.0 + i * 1e-4 for i in range(8)]
+        fast, ref = FleetDetector(), ReferenceFleet()
+        got = fast.update_many(["x"] * 8, t, lat, [7.0] * 8)
+        assert_same(got, ref.update_many(["x"] * 8, t, lat, [7.0] * 8))
+        assert (got.invalid_reason == "").all()
+        seconds = datetime_seconds(pd.Series(t).dt.tz_localize("UTC"))
+        assert fast.get_state("x")["last_t"] == seconds[-1]
+    for text in ("3000-01-01T00:00:00", "1500-01-01T00:00:00+01:00"):
+        assert Detector().update(text, 45.0, 7.0).invalid_reason == ""
+
+
 def test_receiver_fields_are_read_by_position_whatever_the_index() -> None:
     """A pandas Series with its own index is one value per fix in order, as every other
     argument: the per-fix path once looked values up by label (KeyError on index 10-12)."""

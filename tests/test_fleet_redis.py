@@ -192,10 +192,10 @@ def test_a_conflicting_commit_is_redone_from_the_stored_state(
     run_detectors = stalled._run_detectors
     interfered = []
 
-    def other_commits_first(messages: Any, tracks: Any) -> Any:
+    def other_commits_first(messages: Any, tracks: Any, *rest: Any) -> Any:
         if not interfered:  # between stalled's WATCH and its MULTI
             interfered.append(other._commit(held))
-        return run_detectors(messages, tracks)
+        return run_detectors(messages, tracks, *rest)
 
     monkeypatch.setattr(stalled, "_run_detectors", other_commits_first)
     assert stalled._commit(held) == (0, len(held))

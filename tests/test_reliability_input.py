@@ -207,7 +207,7 @@ def test_parquet_is_read_in_chunks_with_the_same_results(tmp_path: Path) -> None
     import numpy as np
     import pandas as pd
 
-    from gradgps._io.read import parquet_tables
+    from gradgps._io.read import table_chunks
 
     n = 3000
     rng = np.random.default_rng(4)
@@ -224,7 +224,7 @@ def test_parquet_is_read_in_chunks_with_the_same_results(tmp_path: Path) -> None
     )
     source = tmp_path / "fleet.parquet"
     frame.to_parquet(source, index=False, row_group_size=700)
-    chunks = list(parquet_tables(source, 97))
+    chunks = list(table_chunks(source, 97, fmt="parquet"))
     assert max(len(c.frame) for c in chunks) == 97
     assert sum(len(c.frame) for c in chunks) == n
     outputs = {}
@@ -250,7 +250,7 @@ def test_parquet_chunks_read_without_pandas_3s_converter(
     import pandas as pd
     import pandas.io._util as pandas_util
 
-    from gradgps._io.read import parquet_tables
+    from gradgps._io.read import table_chunks
 
     frame = pd.DataFrame(
         {
@@ -263,7 +263,7 @@ def test_parquet_chunks_read_without_pandas_3s_converter(
     source = tmp_path / "d.parquet"
     frame.to_parquet(source, index=False, row_group_size=20)
     monkeypatch.delattr(pandas_util, "arrow_table_to_pandas", raising=False)
-    chunks = list(parquet_tables(source, 20))
+    chunks = list(table_chunks(source, 20, fmt="parquet"))
     read = pd.concat([c.frame for c in chunks], ignore_index=True)
     assert [len(c.frame) for c in chunks] == [20, 20, 10]
     for column in ("t", "lat", "lon"):

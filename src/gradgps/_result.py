@@ -342,6 +342,13 @@ def encode_floats(values: Iterable[Any] | None) -> list[float | str] | None:
     """Floats for strict JSON: non-finite ones as the strings ``"nan"``, ``"inf"``, ``"-inf"``."""
     if values is None:
         return None
+    if isinstance(values, np.ndarray) and values.ndim == 1 and values.dtype.kind == "f":
+        # A state array (thousands of values): one C loop, then only the few non-finite ones.
+        listed: list[float | str] = values.tolist()
+        for k in np.flatnonzero(~np.isfinite(values)).tolist():
+            x = float(values[k])
+            listed[k] = "nan" if math.isnan(x) else "inf" if x > 0 else "-inf"
+        return listed
     out: list[float | str] = []
     for v in values:
         x = float(v)

@@ -27,7 +27,7 @@ import click
 from .options import READER_FLAGS, column_map, column_options, model_options, option, read_options
 
 if TYPE_CHECKING:
-    from .._tracks.track import ColumnMap, ReadOptions
+    from .._run.settings import RunSettings
 
 __all__ = ["detect"]
 
@@ -114,6 +114,9 @@ def detect(
     """
     extras = (report_path, plots_dir, events_path, geojson_path, gpx_path)
     reading = read_options(cols)
+    from .._run.settings import RunSettings
+
+    settings = RunSettings(model_dir, threshold, fmt, column_map(cols), reading)
     if follow:
         if reading.given:
             # A live stream is parsed value by value, with no column to sniff or convert.
@@ -122,7 +125,7 @@ def detect(
             raise click.UsageError(
                 "--report, --plots, --events, --geojson and --gpx need a whole file, not --follow"
             )
-        _run_follow(input_path, output, model_dir, threshold, fmt, column_map(cols))
+        _run_follow(input_path, output, settings)
         return
     if output is None and all(p is None for p in extras):
         raise click.UsageError(
@@ -138,7 +141,7 @@ def detect(
 
     from .._grad.detector import Detector
     from .._grad.events import EventBuilder
-    from .._io.read import load_table, write_table
+    from .._io.read import chunkable, load_table, write_table
     from .._io.times import output_time_text
     from .._result import ResultCounts
     from .._tracks.input_checks import input_warnings, validated_rates
@@ -151,7 +154,7 @@ def detect(
     time_texts: list[Any] = []
     detector = Detector(model_dir, threshold=threshold)
     time_column: Any = None
-    if chunk_size > 0 and _chunkable(input_path, fmt):
+    if chunk_size > 0 and chunkable(input_path, settings.fmt):
 
         def collect(fixes: pd.DataFrame, result: pd.DataFrame, frame: pd.DataFrame) -> None:
             nonlocal time_column
@@ -163,17 +166,7 @@ def detect(
                 kept.append((fixes, result))
                 time_texts.append(output_time_text(frame, _time_name(fixes)))
 
-        summary = _detect_in_chunks(
-            input_path,
-            output,
-            model_dir,
-            threshold,
-            chunk_size,
-            column_map(cols),
-            collect,
-            reading,
-            fmt,
-        )
+        summary = _detect_in_chunks(input_path, output, settings, chunk_size, collect)
         counts = ResultCounts(summary.rows, summary.anomalies, summary.invalid, summary.alerts)
         warnings: list[str] = list(summary.warnings)
         elapsed = summary.seconds
@@ -181,7 +174,7 @@ def detect(
     else:
         with _steps() as step:
             step("read")
-            table = load_table(input_path, fmt, column_map(cols), reading)
+            table = load_table(input_path, settings.fmt, settings.columns, settings.options)
             fixes = to_fixes(table)
             lowest, highest = validated_rates(detector.model_.config)
             warnings = input_warnings(fixes, min_rate_hz=lowest, max_rate_hz=highest)
@@ -327,13 +320,9 @@ def _events_in_input_form(events: Any, time_column: Any) -> Any:
 def _detect_in_chunks(
     input_path: Path,
     output: Path | None,
-    model_dir: Path | None,
-    threshold: float | None,
+    settings: RunSettings,
     chunk_size: int,
-    columns: ColumnMap,
     on_result: Any = None,
-    reading: ReadOptions | None = None,
-    fmt: str | None = None,
 ) -> Any:
     from rich.console import Console
     from rich.progress import (
@@ -368,26 +357,15 @@ def _detect_in_chunks(
         return detect_csv_in_chunks(
             input_path,
             output,
-            columns=columns,
-            options=reading,
-            model=model_dir,
-            threshold=threshold,
+            settings=settings,
             chunk_size=chunk_size,
             on_start=lambda total: progress.update(task, total=total),
             on_chunk=advance,
             on_result=on_result,
-            fmt=fmt,
         )
 
 
-def _run_follow(
-    input_path: Path,
-    output: Path | None,
-    model_dir: Path | None,
-    threshold: float | None,
-    fmt: str | None,
-    columns: ColumnMap,
-) -> None:
+def _run_follow(input_path: Path, output: Path | None, settings: RunSettings) -> None:
     """``--follow``: follow INPUT ('-' = standard input) and write one CSV line per input line to OUTPUT/stdout."""
     from .._run.follow import follow_lines
 
@@ -395,53 +373,37 @@ def _run_follow(
         # At once, before the first result line: a live reader sees why lines were dropped.
         click.echo(f"warning: {message}", err=True)
 
-    with click.open_file(str(input_path), "r", encoding="utf-8", errors="replace") as source:
+    with contextlib.ExitStack() as stack:
+        source = stack.enter_context(
+            click.open_file(str(input_path), "r", encoding="utf-8", errors="replace")
+        )
         # Line by line, flushing after every line, so a reader at the other end
         # of a pipe sees each verdict at once.
-        if output is None:
+        sink = (
+            None
+            if output is None
+            else stack.enter_context(output.open("w", encoding="utf-8", newline=""))
+        )
 
-            def write(text: str) -> None:
+        def write(text: str) -> None:
+            if sink is None:
                 click.echo(text)  # click.echo flushes
+            else:
+                sink.write(text + "\n")
+                sink.flush()
 
-            counts = follow_lines(
-                source,
-                write,
-                model=model_dir,
-                threshold=threshold,
-                columns=columns,
-                fmt=fmt,
-                warn=warn,
-            )
-        else:
-            with output.open("w", encoding="utf-8", newline="") as sink:
-
-                def write_file(text: str) -> None:
-                    sink.write(text + "\n")
-                    sink.flush()
-
-                counts = follow_lines(
-                    source,
-                    write_file,
-                    model=model_dir,
-                    threshold=threshold,
-                    columns=columns,
-                    fmt=fmt,
-                    warn=warn,
-                )
+        counts = follow_lines(
+            source,
+            write,
+            model=settings.model,
+            threshold=settings.threshold,
+            columns=settings.columns,
+            fmt=settings.fmt,
+            warn=warn,
+        )
     click.echo(
         f"followed {counts.lines:,} lines: {counts.fixes:,} fixes scored, "
         f"{counts.anomalies:,} anomalies, {counts.invalid:,} unusable lines",
         err=True,
     )
     sys.stderr.flush()
-
-
-def _chunkable(path: Path, fmt: str | None) -> bool:
-    """Whether ``path`` is read chunk by chunk: CSV, and Parquet that is not GeoParquet
-    (a GeoParquet file is read whole, so its output keeps the geometry column and
-    the ``geo`` metadata)."""
-    from .._io.geoparquet import geo_metadata
-    from .._io.read import resolve_format
-
-    kind = resolve_format(path, fmt)
-    return kind == "csv" or (kind == "parquet" and geo_metadata(path) is None)

@@ -64,9 +64,9 @@ def detect_fleet(
     from .._grad.detector import load_grad_model
     from .._run.fleet_dask import dask_client
     from .._run.fleet_dask import detect_fleet as run_on_cluster
+    from .._run.settings import RunSettings
 
-    columns = column_map(cols)
-    reading = read_options(cols)
+    settings = RunSettings(model_dir, threshold, fmt, column_map(cols), read_options(cols))
     load_grad_model(model_dir)  # a bad model fails here, not in a thousand tasks
     with (
         dask_client(scheduler, workers) as client,
@@ -83,11 +83,7 @@ def detect_fleet(
             input_dir,
             output_dir,
             client,
-            model=model_dir,
-            threshold=threshold,
-            fmt=fmt,
-            columns=columns,
-            options=reading,
+            settings=settings,
             on_start=lambda n: progress.update(task, total=n),
             on_partition=lambda _: progress.advance(task),
         )

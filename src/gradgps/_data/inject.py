@@ -263,6 +263,30 @@ def _write_labels(result: pd.DataFrame, labels: dict[str, _Channel], use_lon: np
         result[f"label_episode_{name}"] = ch.episode
 
 
+def _write_channel(
+    name: str,
+    ch: _Channel,
+    hit: np.ndarray,
+    rows: np.ndarray,
+    frame: LocalFrame,
+    east: np.ndarray,
+    north: np.ndarray,
+    coords: dict[str, np.ndarray],
+    out: _Channel,
+) -> None:
+    """Write one track's channel ``name`` (``"lat"``/``"lon"``): its offsets at ``hit``
+    moved the true position (``east``, ``north`` in ``frame``) along that axis only and
+    into ``coords[name]`` at those ``rows``; its labels into ``out`` at all ``rows``."""
+    if name == "lat":
+        coords[name][rows[hit]] = frame.to_geodetic(east[hit], north[hit] + ch.offset_m[hit])[0]
+    else:
+        coords[name][rows[hit]] = frame.to_geodetic(east[hit] + ch.offset_m[hit], north[hit])[1]
+    out.offset_m[rows] = ch.offset_m
+    out.time_type[rows] = ch.time_type
+    out.bias_type[rows] = ch.bias_type
+    out.episode[rows] = ch.episode
+
+
 def inject_grad(
     table: pd.DataFrame, *, seed: int, scale: float = 1.0, columns: ColumnMap | None = None
 ) -> pd.DataFrame:
@@ -293,16 +317,10 @@ def inject_grad(
         east, north = frame.to_local(lat_true[rows], lon_true[rows])
         for name in ("lat", "lon"):
             ch = scheduler.channel(name, rows.size)
-            hit = ch.episode >= 0
-            if name == "lat":
-                lat[rows[hit]] = frame.to_geodetic(east[hit], north[hit] + ch.offset_m[hit])[0]
-            else:
-                lon[rows[hit]] = frame.to_geodetic(east[hit] + ch.offset_m[hit], north[hit])[1]
-            out = labels[name]
-            out.offset_m[rows] = ch.offset_m
-            out.time_type[rows] = ch.time_type
-            out.bias_type[rows] = ch.bias_type
-            out.episode[rows] = ch.episode
+            coords = {"lat": lat, "lon": lon}
+            _write_channel(
+                name, ch, ch.episode >= 0, rows, frame, east, north, coords, labels[name]
+            )
 
     la, lo = labels["lat"], labels["lon"]
     rank_lat = _rank(la.time_type, la.bias_type)
@@ -410,6 +428,24 @@ def _span(t: np.ndarray, start: int, seconds: float) -> int:
     return int(np.searchsorted(t, t[start] + seconds, side="left"))
 
 
+def _step_speeds(t: np.ndarray, east: np.ndarray, north: np.ndarray) -> np.ndarray:
+    """Speed (m/s) over the step from each fix to the next; 0 after the last."""
+    speed: np.ndarray = np.r_[
+        np.hypot(np.diff(east), np.diff(north)) / np.maximum(np.diff(t), 1e-9), 0.0
+    ]
+    return speed
+
+
+def _too_slow_to_freeze(step: np.ndarray, onset: int, steps: slice) -> bool:
+    """Whether a frozen fix there would be a true fix, so no freeze is placed: the vehicle
+    moves slower than :data:`_FREEZE_ONSET_SPEED` over step ``onset`` (into the hold), or at
+    :data:`FREEZE_MOVING_MPS` or more over fewer than half of ``steps`` (the hold is a
+    real stop)."""
+    return bool(
+        step[onset] < _FREEZE_ONSET_SPEED or (step[steps] >= FREEZE_MOVING_MPS).mean() < 0.5
+    )
+
+
 def _std_normal_cdf(x: np.ndarray) -> np.ndarray:
     """Φ, the standard normal distribution function, per element (in [0, 1])."""
     return np.array([0.5 * math.erfc(-v / math.sqrt(2.0)) for v in x.tolist()], dtype=np.float64)
@@ -426,7 +462,7 @@ class _GnssScheduler:
     def track(self, t: np.ndarray, east: np.ndarray, north: np.ndarray) -> list[_GnssEpisode]:
         n = t.size
         busy = np.zeros(n, dtype=bool)
-        step = np.r_[np.hypot(np.diff(east), np.diff(north)) / np.maximum(np.diff(t), 1e-9), 0.0]
+        step = _step_speeds(t, east, north)
         placed: list[_GnssEpisode] = []
         for kind in GNSS_TYPES:
             self.budget[kind] += GNSS_RATES[kind] * n
@@ -494,8 +530,7 @@ class _GnssScheduler:
                 east[start:stop] - east[start - 1], north[start:stop] - north[start - 1]
             )
             if (
-                step[start - 1] < _FREEZE_ONSET_SPEED
-                or (step[start - 1 : stop - 1] >= FREEZE_MOVING_MPS).mean() < 0.5
+                _too_slow_to_freeze(step, start - 1, slice(start - 1, stop - 1))
                 or not (moved > 0).all()
             ):
                 return None
@@ -620,17 +655,9 @@ def inject_gnss(
             ch = scheduler.channel(name, rows.size, own)
             # grad's faults, written one channel at a time exactly as inject_grad writes them.
             hit = (ch.episode >= 0) & (base.episode < 0)
-            if name == "lat":
-                lat[rows[hit]] = frame.to_geodetic(east[hit], north[hit] + ch.offset_m[hit])[0]
-                dn[hit] = ch.offset_m[hit]
-            else:
-                lon[rows[hit]] = frame.to_geodetic(east[hit] + ch.offset_m[hit], north[hit])[1]
-                de[hit] = ch.offset_m[hit]
-            out = labels[name]
-            out.offset_m[rows] = ch.offset_m
-            out.time_type[rows] = ch.time_type
-            out.bias_type[rows] = ch.bias_type
-            out.episode[rows] = ch.episode
+            coords = {"lat": lat, "lon": lon}
+            _write_channel(name, ch, hit, rows, frame, east, north, coords, labels[name])
+            (dn if name == "lat" else de)[hit] = ch.offset_m[hit]
         offset_m[rows] = np.hypot(de, dn)
 
     la, lo = labels["lat"], labels["lon"]
@@ -985,11 +1012,7 @@ def inject_freeze(
         t = t_all[rows]
         frame = LocalFrame(float(lat[rows[0]]), float(lon[rows[0]]))
         east, north = frame.to_local(lat[rows], lon[rows])
-        # A step "moves" at 2 m/s or more: a hold over a car crawling or
-        # stopped looks like the real stop it is, and no one could call it a fault.
-        step_dt = np.maximum(np.diff(t), 1e-9)
-        step_speed = np.r_[np.hypot(np.diff(east), np.diff(north)) / step_dt, 0.0]
-        moving = step_speed >= 2.0
+        step_speed = _step_speeds(t, east, north)
         free = anomaly[rows] == 0
         if rng.random() < stale_start:
             end = int(np.searchsorted(t, t[0] + rng.uniform(*hold_s)))
@@ -1018,8 +1041,7 @@ def inject_freeze(
             if (
                 stop - start < 2
                 or not free[start : stop + 1].all()
-                or step_speed[start] < _FREEZE_ONSET_SPEED
-                or moving[span].mean() < 0.5
+                or _too_slow_to_freeze(step_speed, start, span)
             ):
                 continue
             held = rows[span]

@@ -49,7 +49,7 @@ from .._data.datasets import load_dataset
 from .._data.inject import BIAS_TYPES, GNSS_TYPES, inject_gnss
 from .._result import NO_FIX, NO_SATELLITES
 from .._tracks.track import ColumnMap, to_fixes
-from .metrics import class_scores, type_accuracy
+from .metrics import _detections, class_scores, type_accuracy
 from .robustness import (
     ROBUSTNESS_DATASETS,
     Detector,
@@ -112,22 +112,26 @@ def _predicted_types(result: pd.DataFrame) -> np.ndarray:
 def _episodes(
     episode: np.ndarray, hit: np.ndarray, t: np.ndarray, offset: np.ndarray
 ) -> pd.DataFrame:
-    """Per episode: found, delay (s) and the offset (m) at the first flagged fix."""
-    frame = pd.DataFrame({"episode": episode, "t": t, "hit": hit, "offset": offset})
-    frame = frame.sort_values(["episode", "t"], kind="stable")
-    rows = []
-    for _, part in frame.groupby("episode", sort=True):
-        flagged = part[part["hit"]]
-        found = not flagged.empty
-        rows.append(
-            {
-                "episode": int(part["episode"].iloc[0]),
-                "fixes": len(part),
-                "found": found,
-                "delay_s": float(flagged["t"].iloc[0] - part["t"].iloc[0]) if found else None,
-                "offset_at_detection_m": float(flagged["offset"].iloc[0]) if found else None,
-            }
+    """Per episode (ids >= 0): found, delay (s) and the offset (m) at the first flagged fix
+    (:func:`gradgps.metrics.detection_delays` over time)."""
+    per = _detections(episode, hit, t)
+    rows = [
+        {
+            "episode": int(ep),
+            "fixes": int(points),
+            "found": bool(found),
+            "delay_s": float(delay) if found else None,
+            "offset_at_detection_m": float(offset[first]) if found else None,
+        }
+        for ep, points, found, delay, first in zip(
+            per.index,
+            per["points"],
+            per["found"],
+            per["delay"],
+            per["first_row"],
+            strict=True,
         )
+    ]
     return pd.DataFrame(
         rows, columns=["episode", "fixes", "found", "delay_s", "offset_at_detection_m"]
     )

@@ -122,6 +122,13 @@ def detection_delays(episode: ArrayLike, flagged: ArrayLike, position: ArrayLike
     any of *its* points is flagged (for an intermittent fault, a burst point,
     not a normal point between bursts). ``delay`` is ``nan`` when not found.
     """
+    return _detections(episode, flagged, position)[["found", "delay"]]
+
+
+def _detections(episode: ArrayLike, flagged: ArrayLike, position: ArrayLike) -> pd.DataFrame:
+    """:func:`detection_delays` with two more columns: ``points`` (the episode's number of
+    points) and ``first_row`` (the input row of its first flagged point, the earliest row
+    among equal positions; -1 when not found)."""
     ep = np.asarray(episode, dtype=np.int64)
     hit = np.asarray(flagged).astype(bool)
     pos = np.asarray(position, dtype=np.float64)
@@ -130,11 +137,24 @@ def detection_delays(episode: ArrayLike, flagged: ArrayLike, position: ArrayLike
         {"episode": ep[sel], "pos": pos[sel], "flag_pos": np.where(hit[sel], pos[sel], np.inf)}
     )
     grouped = frame.groupby("episode", sort=True).agg(
-        start=("pos", "min"), first=("flag_pos", "min")
+        start=("pos", "min"), first=("flag_pos", "min"), points=("pos", "size")
     )
     found = np.isfinite(grouped["first"].to_numpy())
     delay = np.where(found, grouped["first"].to_numpy() - grouped["start"].to_numpy(), np.nan)
-    return pd.DataFrame({"found": found, "delay": delay}, index=grouped.index)
+    # Rows by episode, then flagged position (stable): each episode's first row is its first flag.
+    rows, ids = np.flatnonzero(sel), ep[sel]
+    order = np.lexsort((frame["flag_pos"].to_numpy(), ids))
+    heads = order[np.r_[True, np.diff(ids[order]) != 0]] if order.size else order
+    first_row = np.where(found, rows[heads], -1)
+    return pd.DataFrame(
+        {
+            "found": found,
+            "delay": delay,
+            "points": grouped["points"].to_numpy(),
+            "first_row": first_row,
+        },
+        index=grouped.index,
+    )
 
 
 def event_recall(

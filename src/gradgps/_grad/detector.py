@@ -58,7 +58,7 @@ import itertools
 import json
 import math
 import os
-from collections.abc import Hashable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -87,7 +87,7 @@ from .._result import (
 )
 from .._tracks.geo import LocalFrame, far_apart_scalar
 from .._tracks.preprocess import stream_reasons
-from .._tracks.track import ColumnKeywords, ColumnMap, check_keywords
+from .._tracks.track import ColumnKeywords, ColumnMap, check_keywords, datetime_seconds
 from .core import N_CORE_PARAMS, _layout
 from .defaults import FRAME_RADIUS_M, MIN_STEP_S, grad_points
 from .events import fault_events
@@ -306,13 +306,92 @@ def _time_number(value: Any) -> float:
             return math.nan
         if stamp.tzinfo is None:
             stamp = stamp.tz_localize("UTC")
-        return float(stamp.value) / 1e9
+        try:
+            return float(stamp.value) / 1e9
+        except OverflowError:  # no nanoseconds since 1970 (before 1677, after 2262): still a time
+            utc = pd.Series(np.array([stamp.asm8])).dt.tz_localize("UTC")  # in its own unit
+            return float(datetime_seconds(utc)[0])
     return as_number(value)
 
 
 def _readings(values: NDArray[np.float64]) -> NDArray[np.float64]:
     """:func:`gradgps._result.reading` for a whole column."""
     return np.where(np.isfinite(values), values, np.nan)
+
+
+#: One usable fix as a stream keeps it while its segment's period is provisional:
+#: ``(t, lat, lon, speed, heading)``.
+Fix = tuple[float, float, float, float, float]
+
+
+def _follow_segment(
+    fix: Fix,
+    last_t: float | None,
+    origin: tuple[float, float],
+    period: float,
+    warm: list[Fix],
+    max_gap_s: float,
+    new_segment: Callable[[float, float, float], None],
+    step: Callable[[float, float, float, float, float], None],
+) -> tuple[list[Fix], bool]:
+    """The segment rule of one stream for one usable ``fix`` (see the module docstring),
+    shared by :meth:`Detector.update` and :class:`FleetDetector`'s per-fix path.
+
+    ``last_t``: the previous usable fix's time (``None``: the stream's first fix);
+    ``origin``, ``period``: the segment's frame origin and sampling period; ``warm``:
+    its fixes so far while the period is provisional. ``new_segment(period, lat0, lon0)``
+    makes a fresh segment state; ``step(dt, lat, lon, speed, heading)`` advances it.
+    Returns the warm-up fixes to keep and whether ``fix`` began a new segment.
+    """
+    t, lat, lon = fix[0], fix[1], fix[2]
+    dt = 0.0 if last_t is None else t - last_t
+    if (
+        last_t is None
+        or dt > max_gap_s
+        or far_apart_scalar(origin[0], origin[1], lat, lon, FRAME_RADIUS_M)
+    ):
+        new_segment(1.0, lat, lon)
+        step(0.0, lat, lon, fix[3], fix[4])
+        return [fix], True
+    if not warm:
+        step(dt, lat, lon, fix[3], fix[4])
+        return warm, False
+    warm.append(fix)
+    provisional = warmup_periods([w[0] for w in warm])[-1]
+    if provisional != period:
+        new_segment(provisional, origin[0], origin[1])
+        for j, w in enumerate(warm):
+            step(w[0] - warm[j - 1][0] if j else 0.0, w[1], w[2], w[3], w[4])
+    else:
+        step(dt, lat, lon, fix[3], fix[4])
+    return ([] if len(warm) > PERIOD_STEPS else warm), False  # past PERIOD_STEPS: final
+
+
+def _state(
+    det: Detector,
+    seg_count: int,
+    frame: tuple[float, float] | None,
+    last_t: float | None,
+    period: float,
+    warm: Iterable[Fix],
+    S: NDArray[Any] | None,
+    H: NDArray[Any] | None,
+) -> dict[str, Any]:
+    """A stream's state as :meth:`Detector.get_state` writes it (``det``: its model and
+    settings), for a Detector and for one vehicle of a :class:`FleetDetector` alike."""
+    return {
+        "format": _STATE_FORMAT,
+        "model_checksum": det.model_.checksum,
+        "settings_checksum": det._settings,
+        "threshold": det.model_.params.threshold,
+        "frame": None if frame is None else list(frame),
+        "last_t": last_t,
+        "segment_count": seg_count,
+        "period": period,
+        "warm": [encode_floats(w) for w in warm],
+        "S": encode_floats(S),
+        "H": encode_floats(H),
+    }
 
 
 def track_input(data: Any, **columns: Unpack[ColumnKeywords]) -> TrackInput:
@@ -371,11 +450,12 @@ class Detector:
         self._H: NDArray[np.float32] | None = None
         self._work: Any = None
         self._seg_count = 0
-        # The segment's fixes while its period is provisional: (t, lat, lon, speed, heading).
-        self._warm: list[tuple[float, float, float, float, float]] = []
+        # The segment's fixes while its period is provisional.
+        self._warm: list[Fix] = []
 
-    def _new_segment(self, period: float) -> None:
-        assert self._frame is not None
+    def _new_segment(self, period: float, lat0: float, lon0: float) -> None:
+        if self._frame is None or (self._frame.lat0, self._frame.lon0) != (lat0, lon0):
+            self._frame = LocalFrame(lat0, lon0)
         m = self.model_
         self._period = period
         self._P = m.params.array(period, self._frame, m.dims)
@@ -441,33 +521,18 @@ class Detector:
         )
         if reason:
             return PointResult.invalid(reason)
-        fix = (t_f, lat_f, lon_f, reading(speed), reading(heading))
-        dt = 0.0 if self._last_t is None else t_f - self._last_t
-        if (
-            self._frame is None
-            or self._last_t is None
-            or dt > self.model_.params.max_gap_s
-            or far_apart_scalar(self._frame.lat0, self._frame.lon0, lat_f, lon_f, FRAME_RADIUS_M)
-        ):
-            self._frame = LocalFrame(lat_f, lon_f)
-            self._warm = [fix]
-            self._seg_count = 0
-            self._new_segment(1.0)
-            self._step(0.0, *fix[1:])
-        elif self._warm:
-            self._warm.append(fix)
-            period = warmup_periods([w[0] for w in self._warm])[-1]
-            if period != self._period:
-                self._new_segment(period)
-                for j, w in enumerate(self._warm):
-                    self._step(w[0] - self._warm[j - 1][0] if j else 0.0, *w[1:])
-            else:
-                self._step(dt, *fix[1:])
-            if len(self._warm) > PERIOD_STEPS:
-                self._warm = []  # the period is final
-        else:
-            self._step(dt, *fix[1:])
-        self._seg_count += 1
+        frame = self._frame
+        self._warm, restarted = _follow_segment(
+            (t_f, lat_f, lon_f, reading(speed), reading(heading)),
+            self._last_t,
+            (math.nan, math.nan) if frame is None else (frame.lat0, frame.lon0),
+            self._period,
+            self._warm,
+            self.model_.params.max_gap_s,
+            self._new_segment,
+            self._step,
+        )
+        self._seg_count = 1 if restarted else self._seg_count + 1
         self._last_t = t_f
         o = self._out
         flag = int(o[O_FLAG])
@@ -493,20 +558,17 @@ class Detector:
         exactly through JSON). The segment's parameters are not stored: they
         follow from the model, ``frame`` and ``period``.
         """
-
-        return {
-            "format": _STATE_FORMAT,
-            "model_checksum": self.model_.checksum,
-            "settings_checksum": self._settings,
-            "threshold": self.model_.params.threshold,
-            "frame": None if self._frame is None else [self._frame.lat0, self._frame.lon0],
-            "last_t": self._last_t,
-            "segment_count": self._seg_count,
-            "period": self._period,
-            "warm": [encode_floats(w) for w in self._warm],
-            "S": encode_floats(self._S),
-            "H": encode_floats(self._H),
-        }
+        frame = self._frame
+        return _state(
+            self,
+            self._seg_count,
+            None if frame is None else (frame.lat0, frame.lon0),
+            self._last_t,
+            self._period,
+            self._warm,
+            self._S,
+            self._H,
+        )
 
     def set_state(self, state: Mapping[str, Any]) -> Detector:
         """Restore a state from :meth:`get_state` (same model and settings); returns self.
@@ -792,9 +854,9 @@ class MultiTrackDetector:
     ) -> None:
         self.model = model
         self.threshold = threshold
-        self.detectors: dict[str, Detector] = {}
+        self.detectors: dict[Hashable, Detector] = {}
 
-    def detector(self, track: str) -> Detector:
+    def detector(self, track: Hashable) -> Detector:
         """The streaming Detector of ``track`` (made on first sight)."""
         det = self.detectors.get(track)
         if det is None:
@@ -1078,6 +1140,10 @@ def _times(values: Any, n: int) -> FloatArray:
         ns = arr.astype("datetime64[ns]")
         out = ns.astype(np.int64).astype(np.float64) / 1e9
         out[np.isnat(ns)] = np.nan
+        # Times nanoseconds do not hold exactly (years outside 1677-2262, finer units)
+        # wrapped around or were cut: those one by one, as the Detector reads them.
+        for k in np.flatnonzero((ns.astype(arr.dtype) != arr) & ~np.isnat(arr)).tolist():
+            out[k] = _time_number(arr[k])
         return out
     return _numbers(values, n, _time_number)
 
@@ -1099,17 +1165,6 @@ def _receiver_codes(fix_quality: Any, satellites: Any, n: int) -> NDArray[np.int
         no_fix = np.array([fix_quality_code(v) == 0.0 for v in q.tolist()], bool)
         codes[no_fix] = 1
     return codes
-
-
-def _encode(values: NDArray[Any]) -> list[float | str]:
-    """:func:`gradgps._result.encode_floats` of an array, without the per-value Python loop."""
-    out: list[float | str] = values.tolist()
-    bad = np.flatnonzero(~np.isfinite(values))
-    for k in bad.tolist():
-        x = out[k]
-        assert isinstance(x, float)
-        out[k] = "nan" if math.isnan(x) else "inf" if x > 0 else "-inf"
-    return out
 
 
 class FleetDetector:
@@ -1158,7 +1213,7 @@ class FleetDetector:
         self._S = np.zeros(cap * int(new_state(P0).size))
         self._s_used = 0
         # The segment's fixes while its period is provisional, per slot (see Detector).
-        self._warm: list[list[tuple[float, float, float, float, float]]] = []
+        self._warm: list[list[Fix]] = []
 
     # -- vehicles --------------------------------------------------------------
 
@@ -1266,8 +1321,9 @@ class FleetDetector:
         self._S = buf
         self._s_used = at
 
-    def _new_segment(self, s: int, period: float) -> None:
+    def _new_segment(self, s: int, period: float, lat0: float, lon0: float) -> None:
         m = self.model_
+        self._lat0[s], self._lon0[s] = lat0, lon0
         self._period[s] = period
         P = m.params.array(period, LocalFrame(float(self._lat0[s]), float(self._lon0[s])), m.dims)
         self._store_segment(s, P, new_state(P))
@@ -1291,52 +1347,29 @@ class FleetDetector:
             out,
         )
 
-    def _update_one(
-        self,
-        s: int,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float,
-        heading: float,
-        receiver: int,
-        out: FloatArray,
-    ) -> int:
-        """:meth:`Detector.update` on slot ``s``: writes the outputs into ``out``, returns
-        the invalid reason's code in :data:`REASONS` (0 for a usable fix; ``receiver``: the
-        receiver's verdict as :func:`_receiver_codes` gives it)."""
+    def _update_one(self, s: int, fix: Fix, receiver: int, out: FloatArray) -> int:
+        """:meth:`Detector.update` of ``fix`` on slot ``s``: writes the outputs into ``out``,
+        returns the invalid reason's code in :data:`REASONS` (0 for a usable fix;
+        ``receiver``: the receiver's verdict as :func:`_receiver_codes` gives it)."""
+        t = fix[0]
         seg = int(self._seg[s])
         last = None if seg == 0 else float(self._last[s])
-        code = _reason_code(t, lat, lon, seg == 0, math.nan if last is None else last, receiver)
+        code = _reason_code(
+            t, fix[1], fix[2], seg == 0, math.nan if last is None else last, receiver
+        )
         if code:
             return code
-        fix = (t, lat, lon, speed, heading)
-        warm = self._warm[s]
-        dt = 0.0 if last is None else t - last
-        if (
-            last is None
-            or dt > self._max_gap
-            or far_apart_scalar(self._lat0[s], self._lon0[s], lat, lon, FRAME_RADIUS_M)
-        ):
-            self._lat0[s], self._lon0[s] = lat, lon
-            self._warm[s] = [fix]
-            seg = 0
-            self._new_segment(s, 1.0)
-            self._step(s, 0.0, lat, lon, speed, heading, out)
-        elif warm:
-            warm.append(fix)
-            period = warmup_periods([w[0] for w in warm])[-1]
-            if period != self._period[s]:
-                self._new_segment(s, period)
-                for j, w in enumerate(warm):
-                    self._step(s, w[0] - warm[j - 1][0] if j else 0.0, *w[1:], out)
-            else:
-                self._step(s, dt, lat, lon, speed, heading, out)
-            if len(warm) > PERIOD_STEPS:
-                self._warm[s] = []  # the period is final
-        else:
-            self._step(s, dt, lat, lon, speed, heading, out)
-        self._seg[s] = seg + 1
+        self._warm[s], restarted = _follow_segment(
+            fix,
+            last,
+            (float(self._lat0[s]), float(self._lon0[s])),
+            float(self._period[s]),
+            self._warm[s],
+            self._max_gap,
+            lambda period, lat0, lon0: self._new_segment(s, period, lat0, lon0),
+            lambda dt, la, lo, sp, hd: self._step(s, dt, la, lo, sp, hd, out),
+        )
+        self._seg[s] = 1 if restarted else seg + 1
         self._last[s] = t
         return 0
 
@@ -1400,6 +1433,7 @@ class FleetDetector:
         code = np.zeros(n, np.int64)
         todo = np.arange(n, dtype=np.int64)
         deferred = np.empty(n, np.int64)
+        columns = (t_f, lat_f, lon_f, speed_f, heading_f)
         for round_ in range(_MAX_ROUNDS + 1):
             if round_ < _MAX_ROUNDS:
                 n_def = _fleet_kernel(
@@ -1439,16 +1473,9 @@ class FleetDetector:
                 if s in final:
                     back.append(i)  # its period is final again: back to the kernel
                     continue
-                code[i] = self._update_one(
-                    s,
-                    float(t_f[i]),
-                    float(lat_f[i]),
-                    float(lon_f[i]),
-                    float(speed_f[i]),
-                    float(heading_f[i]),
-                    int(receiver[i]),
-                    out[i],
-                )
+                t_i, lat_i, lon_i, speed_i, heading_i = (float(c[i]) for c in columns)
+                fix = (t_i, lat_i, lon_i, speed_i, heading_i)
+                code[i] = self._update_one(s, fix, int(receiver[i]), out[i])
                 if round_ < _MAX_ROUNDS and self._seg[s] > PERIOD_STEPS:
                     final.add(s)
             if not back:
@@ -1485,29 +1512,19 @@ class FleetDetector:
         fixes (restore it in either class). A vehicle not held is a fresh detector."""
         det = self._template  # never fed: its state is a fresh detector's
         s = self._index.get(vehicle)
-        if s is None:
+        if s is None or self._seg[s] == 0:
             return det.get_state()
-        seg = int(self._seg[s])
-        state: dict[str, Any] = {
-            "format": _STATE_FORMAT,
-            "model_checksum": self.model_.checksum,
-            "settings_checksum": det._settings,
-            "threshold": self.model_.params.threshold,
-            "frame": None,
-            "last_t": None,
-            "segment_count": seg,
-            "period": float(self._period[s]),
-            "warm": [encode_floats(w) for w in self._warm[s]],
-            "S": None,
-            "H": None,
-        }
-        if seg:
-            a, n = int(self._s_off[s]), int(self._s_len[s])
-            state["frame"] = [float(self._lat0[s]), float(self._lon0[s])]
-            state["last_t"] = float(self._last[s])
-            state["S"] = _encode(self._S[a : a + n])
-            state["H"] = _encode(self._H[s])
-        return state
+        a, n = int(self._s_off[s]), int(self._s_len[s])
+        return _state(
+            det,
+            int(self._seg[s]),
+            (float(self._lat0[s]), float(self._lon0[s])),
+            float(self._last[s]),
+            float(self._period[s]),
+            self._warm[s],
+            self._S[a : a + n],
+            self._H[s],
+        )
 
     def set_state(self, vehicle: Hashable, state: Mapping[str, Any]) -> None:
         """Restore ``vehicle`` from a :meth:`get_state` (or :meth:`Detector.get_state`) state of
@@ -1534,15 +1551,12 @@ class ReferenceFleet:
     def __init__(
         self, model: str | os.PathLike[str] | None = None, *, threshold: float | None = None
     ) -> None:
-        self.model = model
-        self.threshold = threshold
-        self.detectors: dict[Hashable, Detector] = {}
+        self.tracks = MultiTrackDetector(model, threshold=threshold)
 
-    def _detector(self, vehicle: Hashable) -> Detector:
-        det = self.detectors.get(vehicle)
-        if det is None:
-            det = self.detectors[vehicle] = Detector(self.model, threshold=self.threshold)
-        return det
+    @property
+    def detectors(self) -> dict[Hashable, Detector]:
+        """The vehicles' detectors, by vehicle id (those of :attr:`tracks`)."""
+        return self.tracks.detectors
 
     def update_many(
         self,
@@ -1560,7 +1574,7 @@ class ReferenceFleet:
             return None if values is None else values[i]
 
         results = [
-            self._detector(v).update(
+            self.tracks.detector(v).update(
                 t[i],
                 lat[i],
                 lon[i],
@@ -1590,7 +1604,7 @@ class ReferenceFleet:
         return self.detectors[vehicle].get_state()
 
     def set_state(self, vehicle: Hashable, state: Mapping[str, Any]) -> None:
-        det = Detector(self.model, threshold=self.threshold).set_state(state)
+        det = Detector(self.tracks.model, threshold=self.tracks.threshold).set_state(state)
         self.detectors[vehicle] = det
 
     def drop(self, vehicle: Hashable) -> None:

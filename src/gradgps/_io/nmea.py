@@ -52,7 +52,7 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import InputError
-from .._tracks.track import ColumnMap, Table
+from .._tracks.track import ColumnMap, Table, day_rollovers
 from .files import READ_ERRORS, damaged, open_bytes
 from .times import iso_utc, time_of_day_utc
 
@@ -72,7 +72,6 @@ __all__ = [
 
 MAX_NOTES: Final = 20
 KNOT_MS: Final = 1852.0 / 3600.0
-_HALF_DAY: Final = 43200.0
 _DAY: Final = 86400.0
 #: An RMC date one day behind, this many seconds or less into the new day, is
 #: taken as stale (see :func:`epoch_times`); later in the day it is believed.
@@ -371,18 +370,8 @@ def epoch_times(tod: np.ndarray, midnight: np.ndarray) -> np.ndarray:
     (the day rolled over and the date did not follow), or when the next
     dated epoch, also just after midnight, names the following day.
     """
-    continuous = np.full(tod.size, np.nan)
-    rollovers = np.zeros(tod.size, dtype=np.int64)
-    days = 0
-    previous = math.nan
-    for i, value in enumerate(tod):
-        if math.isnan(value):
-            continue
-        if not math.isnan(previous) and value < previous - _HALF_DAY:
-            days += 1
-        previous = value
-        continuous[i] = value + days * _DAY
-        rollovers[i] = days
+    rollovers = day_rollovers(tod)
+    continuous = tod + rollovers * _DAY
     dated = np.flatnonzero(np.isfinite(midnight) & np.isfinite(continuous))
     if not dated.size:
         return continuous

@@ -66,13 +66,13 @@ __all__ = [
     "FORMATS",
     "CsvChunks",
     "TableWriter",
-    "csv_tables",
+    "chunkable",
     "iter_csv_tables",
     "load_table",
-    "parquet_tables",
     "read_fixes",
     "read_table",
     "resolve_format",
+    "table_chunks",
     "write_table",
 ]
 
@@ -491,23 +491,7 @@ def iter_csv_tables(
     pass also counts the rows (:attr:`CsvChunks.n_rows`, for progress bars).
     The keywords are :func:`read_table`'s.
     """
-    return csv_tables(path, chunksize, columns, reader_options(options))
-
-
-def csv_tables(
-    path: str | Path,
-    chunksize: int,
-    columns: ColumnMap | None = None,
-    options: ReadOptions | None = None,
-) -> CsvChunks:
-    """:func:`iter_csv_tables` with the reader options as one object (see :func:`load_table`)."""
-    path, options = _chunked_read(path, chunksize, options, "csv")
-    layout = _scan_csv(path, options)
-    return CsvChunks(
-        n_rows=layout.n_rows,
-        header=layout.header,
-        chunks=_csv_chunks(path, layout, chunksize, columns or ColumnMap(), options),
-    )
+    return table_chunks(path, chunksize, columns, reader_options(options), "csv")
 
 
 @dataclass
@@ -748,19 +732,14 @@ def _read_csv(path: Path, columns: ColumnMap | None, options: ReadOptions) -> Ta
     return Table(frame=frame, source=source, first_line=layout.first_line if regular else None)
 
 
-def parquet_tables(
-    path: str | Path,
-    chunksize: int,
-    columns: ColumnMap | None = None,
-    options: ReadOptions | None = None,
+def _parquet_tables(
+    path: Path, chunksize: int, columns: ColumnMap, options: ReadOptions
 ) -> CsvChunks:
-    """A Parquet file as a stream of Tables of at most ``chunksize`` rows (:func:`csv_tables`'s
-    counterpart): record batches of one row group at a time, so memory is bounded by the
-    chunk and the file's largest row group, not by the file. Each chunk is converted to
-    pandas exactly as :func:`pandas.read_parquet` converts the whole file. A file with a
-    stored (non-range) index, which the whole-file reader turns into columns, is read
-    whole, as one chunk."""
-    path, options = _chunked_read(path, chunksize, options, "parquet")
+    """A Parquet file as a stream of Tables of at most ``chunksize`` rows: record batches of
+    one row group at a time, so memory is bounded by the chunk and the file's largest row
+    group, not by the file. Each chunk is converted to pandas exactly as
+    :func:`pandas.read_parquet` converts the whole file. A file with a stored (non-range)
+    index, which the whole-file reader turns into columns, is read whole, as one chunk."""
     source = str(path)
     check_readable(path)
     try:
@@ -778,7 +757,7 @@ def parquet_tables(
     except (ValueError, OSError, TypeError) as exc:
         raise _unreadable_parquet(exc, source) from None
     if stored_index:
-        whole = replace(_read_parquet(path), columns=columns or ColumnMap(), options=options)
+        whole = replace(_read_parquet(path), columns=columns, options=options)
         return CsvChunks(
             n_rows=len(whole.frame), header=tuple(whole.frame.columns), chunks=iter([whole])
         )
@@ -797,13 +776,44 @@ def parquet_tables(
             yield Table(
                 frame=frame.reset_index(drop=True),
                 source=source,
-                columns=columns or ColumnMap(),
+                columns=columns,
                 row_offset=offset,
                 options=options,
             )
             offset += len(frame)
 
     return CsvChunks(n_rows=n_rows, header=tuple(schema.names), chunks=chunks())
+
+
+def chunkable(path: str | Path, fmt: str | None = None) -> bool:
+    """Whether ``path`` is read chunk by chunk (:func:`table_chunks`): CSV, and Parquet that
+    is not GeoParquet (a GeoParquet file is read whole, by :func:`load_table`, so its
+    output keeps the geometry column and the ``geo`` metadata)."""
+    kind = resolve_format(path, fmt)
+    return kind == "csv" or (kind == "parquet" and geo_metadata(Path(path)) is None)
+
+
+def table_chunks(
+    path: str | Path,
+    chunksize: int,
+    columns: ColumnMap | None = None,
+    options: ReadOptions | None = None,
+    fmt: str | None = None,
+) -> CsvChunks:
+    """A CSV or Parquet file (``fmt``, or as :func:`resolve_format` finds it; anything but
+    Parquet is read as CSV) as a stream of Tables of at most ``chunksize`` rows: a CSV as
+    :func:`iter_csv_tables` describes, a Parquet file a row group at a time. ``options``:
+    the reader options as one object (see :func:`load_table`)."""
+    kind = "parquet" if resolve_format(path, fmt) == "parquet" else "csv"
+    path, options = _chunked_read(path, chunksize, options, kind)
+    if kind == "parquet":
+        return _parquet_tables(path, chunksize, columns or ColumnMap(), options)
+    layout = _scan_csv(path, options)
+    return CsvChunks(
+        n_rows=layout.n_rows,
+        header=layout.header,
+        chunks=_csv_chunks(path, layout, chunksize, columns or ColumnMap(), options),
+    )
 
 
 def _arrow_to_pandas(table: Any) -> pd.DataFrame:
@@ -836,7 +846,7 @@ def _arrow_to_pandas(table: Any) -> pd.DataFrame:
 def _chunked_read(
     path: str | Path, chunksize: int, options: ReadOptions | None, kind: str
 ) -> tuple[Path, ReadOptions]:
-    """Check a chunked reader's arguments once (csv_tables and parquet_tables alike),
+    """Check a chunked reader's arguments once (CSV and Parquet alike),
     including, as :func:`load_table` does, that every option given applies to ``kind``."""
     if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
         raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")

@@ -33,10 +33,11 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._grad.detector import MultiTrackDetector, load_grad_model
-from .._io.read import TableWriter, csv_tables, parquet_tables, resolve_format
+from .._io.read import TableWriter, table_chunks
 from .._result import RESULT_DTYPES
 from .._tracks.input_checks import InputChecks, validated_rates
-from .._tracks.track import ColumnMap, ReadOptions, to_fixes
+from .._tracks.track import to_fixes
+from .settings import DEFAULT_SETTINGS, RunSettings
 
 __all__ = ["DetectSummary", "detect_csv_in_chunks"]
 
@@ -64,18 +65,15 @@ def detect_csv_in_chunks(
     input_path: str | os.PathLike[str],
     output: str | os.PathLike[str] | None,
     *,
-    columns: ColumnMap | None = None,
-    options: ReadOptions | None = None,
-    model: str | os.PathLike[str] | None = None,
-    threshold: float | None = None,
+    settings: RunSettings = DEFAULT_SETTINGS,
     chunk_size: int = 200_000,
     on_start: Callable[[int], None] | None = None,
     on_chunk: Callable[[int], None] | None = None,
     on_result: Callable[[pd.DataFrame, pd.DataFrame, pd.DataFrame], None] | None = None,
-    fmt: str | None = None,
 ) -> DetectSummary:
-    """Detect faults in every row of a CSV (or Parquet file: ``fmt``, or the file's
-    extension), ``chunk_size`` rows at a time; write ``output``.
+    """Detect faults in every row of a CSV (or Parquet file: ``settings.fmt``, or as
+    :func:`gradgps._io.read.resolve_format` finds it), ``chunk_size`` rows at a time, with
+    the detector and reading of ``settings``; write ``output``.
 
     The output (``.csv``, ``.csv.gz`` or ``.parquet``) has every input
     column, in order, then the result columns, one row per input row. It is
@@ -83,15 +81,13 @@ def detect_csv_in_chunks(
     ``on_start(total_rows)`` is called once the file's structure is checked,
     ``on_chunk(rows)`` after each chunk (for progress bars), ``on_result(fixes,
     result, frame)`` with each chunk's canonical fixes, result and input rows
-    (for events, a report or exports). ``output`` ``None`` writes no table. ``options`` are
-    the reader options (:func:`gradgps._io.read.load_table`).
+    (for events, a report or exports). ``output`` ``None`` writes no table.
     """
     started = time.perf_counter()
-    streams = MultiTrackDetector(model, threshold=threshold)
-    if resolve_format(Path(input_path), fmt) == "parquet":
-        chunks = parquet_tables(Path(input_path), chunk_size, columns, options)
-    else:
-        chunks = csv_tables(Path(input_path), chunk_size, columns, options)
+    streams = MultiTrackDetector(settings.model, threshold=settings.threshold)
+    chunks = table_chunks(
+        Path(input_path), chunk_size, settings.columns, settings.options, settings.fmt
+    )
     clash = [c for c in RESULT_DTYPES if c in chunks.header]
     if clash:
         raise InputError(
@@ -102,7 +98,7 @@ def detect_csv_in_chunks(
     if on_start is not None:
         on_start(chunks.n_rows)
     counts = np.zeros(3, np.int64)
-    checks = InputChecks(*validated_rates(load_grad_model(model).config))
+    checks = InputChecks(*validated_rates(load_grad_model(settings.model).config))
     rows = 0
     with contextlib.ExitStack() as stack:
         writer = (

@@ -40,7 +40,7 @@ import os
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import unquote
@@ -48,7 +48,7 @@ from urllib.parse import unquote
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
-from .._tracks.track import ColumnMap, ReadOptions
+from .settings import DEFAULT_SETTINGS, RunSettings
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -184,28 +184,26 @@ def find_partitions(input_dir: str | os.PathLike[str]) -> list[VehiclePartition]
 
 
 def detect_partition(
-    partition: VehiclePartition,
-    output_dir: str,
-    model: str | None = None,
-    threshold: float | None = None,
-    fmt: str | None = None,
-    columns: ColumnMap | None = None,
-    options: ReadOptions | None = None,
+    partition: VehiclePartition, output_dir: str, settings: RunSettings = DEFAULT_SETTINGS
 ) -> PartitionSummary:
     """Run the detector on one vehicle's files and write its output files (one Dask task).
 
     The files are joined (rows in file order) and detected as one table,
-    then the output is cut back into one file per input file. ``options``
-    are the reader options (:func:`gradgps._io.read.load_table`).
+    then the output is cut back into one file per input file. ``settings``:
+    the detector and how the files are read.
     """
     from .._grad.detector import Detector
     from .._io.read import load_table, write_table
     from .._tracks.track import to_fixes
 
-    tables = [load_table(path, fmt, columns, options) for path in partition.files]
+    tables = [
+        load_table(path, settings.fmt, settings.columns, settings.options)
+        for path in partition.files
+    ]
     # to_fixes per file, so an error names the file and row it is about.
     fixes = pd.concat([to_fixes(t) for t in tables], ignore_index=True)
-    result = Detector(model, threshold=threshold).detect(fixes).reset_index(drop=True)
+    detector = Detector(settings.model, threshold=settings.threshold)
+    result = detector.detect(fixes).reset_index(drop=True)
     start = 0
     for table, relative in zip(tables, partition.outputs, strict=True):
         frame = table.frame.reset_index(drop=True)
@@ -257,15 +255,12 @@ def detect_fleet(
     output_dir: str | os.PathLike[str],
     client: Client,
     *,
-    model: str | os.PathLike[str] | None = None,
-    threshold: float | None = None,
-    fmt: str | None = None,
-    columns: ColumnMap | None = None,
-    options: ReadOptions | None = None,
+    settings: RunSettings = DEFAULT_SETTINGS,
     on_partition: Callable[[PartitionSummary], None] | None = None,
     on_start: Callable[[int], None] | None = None,
 ) -> FleetSummary:
-    """Detect every vehicle of ``input_dir`` on ``client``'s cluster; write ``output_dir``.
+    """Detect every vehicle of ``input_dir`` on ``client``'s cluster with the detector and
+    reading of ``settings``; write ``output_dir``.
 
     ``on_start(n_vehicles)`` is called once the partitions are known and
     ``on_partition(summary)`` after each vehicle (progress bars). The first
@@ -284,16 +279,13 @@ def detect_fleet(
         on_start(len(partitions))
     target.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    model_path = None if model is None else str(Path(model).resolve())
+    model = settings.model
+    task_settings = replace(settings, model=None if model is None else str(Path(model).resolve()))
     futures = client.map(
         detect_partition,
         partitions,
         output_dir=str(target.resolve()),
-        model=model_path,
-        threshold=threshold,
-        fmt=fmt,
-        columns=columns,
-        options=options,
+        settings=task_settings,
         pure=False,
     )
     summaries: list[PartitionSummary] = []

@@ -68,8 +68,8 @@ import os
 import re
 import time
 from collections import OrderedDict
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import astuple, dataclass, fields
 from typing import TYPE_CHECKING, Any
 
 from .._exceptions import ConfigError, GradGPSError
@@ -277,53 +277,34 @@ def _text(value: float) -> str:
     return repr(float(value))
 
 
-def _output(message: _Message, result: PointResult) -> dict[str, str]:
+def _output(message: _Message, verdict: Sequence[Any]) -> dict[str, str]:
+    """The output message of ``message``; ``verdict``: a :class:`PointResult`'s fields in
+    order (``anomaly``, ``score``, ... ``invalid_reason``)."""
+    anomaly, score, bias, kind, lat, lon, alert, reason = verdict
     return {
         "source_id": message.id,
         "vehicle_id": message.vehicle.decode("utf-8", "backslashreplace"),
         "t": message.fields.get("t", ""),
-        "anomaly": str(int(result.anomaly)),
-        "score": _text(result.score),
-        "bias_type": result.bias_type or "",
-        "time_type": result.time_type or "",
-        "lat_clean": _text(result.lat_clean),
-        "lon_clean": _text(result.lon_clean),
-        "alert": str(int(result.alert)),
-        "invalid_reason": result.invalid_reason,
+        "anomaly": str(int(anomaly)),
+        "score": _text(score),
+        "bias_type": bias or "",
+        "time_type": kind or "",
+        "lat_clean": _text(lat),
+        "lon_clean": _text(lon),
+        "alert": str(int(alert)),
+        "invalid_reason": reason,
     }
+
+
+def _invalid(message: _Message, reason: str) -> dict[str, str]:
+    """The output of a message that could not be used."""
+    return _output(message, astuple(PointResult.invalid(reason)))
 
 
 def _outputs(messages: list[_Message], result: FleetResult) -> list[dict[str, str]]:
     """:func:`_output` for a whole :meth:`FleetDetector.update_many` result at once."""
-    columns = zip(
-        result.anomaly.tolist(),
-        result.score.tolist(),
-        result.bias_type.tolist(),
-        result.time_type.tolist(),
-        result.lat_clean.tolist(),
-        result.lon_clean.tolist(),
-        result.alert.tolist(),
-        result.invalid_reason.tolist(),
-        strict=True,
-    )
-    return [
-        {
-            "source_id": m.id,
-            "vehicle_id": m.vehicle.decode("utf-8", "backslashreplace"),
-            "t": m.fields.get("t", ""),
-            "anomaly": str(anomaly),
-            "score": repr(score),
-            "bias_type": bias or "",
-            "time_type": kind or "",
-            "lat_clean": repr(lat),
-            "lon_clean": repr(lon),
-            "alert": str(alert),
-            "invalid_reason": reason,
-        }
-        for m, (anomaly, score, bias, kind, lat, lon, alert, reason) in zip(
-            messages, columns, strict=True
-        )
-    ]
+    columns = (getattr(result, f.name).tolist() for f in fields(PointResult))
+    return [_output(m, v) for m, v in zip(messages, zip(*columns, strict=True), strict=True)]
 
 
 class RedisStreamWorker:
@@ -379,7 +360,6 @@ class RedisStreamWorker:
         self._route = client.register_script(ROUTE_SCRIPT)
         self._read = client.register_script(READ_SCRIPT)
         self._dead: list[dict[str, str]] = []
-        self._per_message = False  # score the current page message by message (see _commit)
 
     def _check(self) -> None:
         kwargs = self.client.connection_pool.connection_kwargs
@@ -565,7 +545,7 @@ class RedisStreamWorker:
 
         vehicles = sorted({m.vehicle for m in messages})
         keys = [self._state_key(v) for v in vehicles]
-        self._per_message = False
+        per_message = False  # score the page message by message (after a failed batch)
         for _ in range(_MAX_CONFLICTS):
             with self.client.pipeline(transaction=True) as pipe:
                 try:
@@ -582,7 +562,7 @@ class RedisStreamWorker:
                         else []
                     )
                     tracks = {v: self._restore(v, s) for v, s in zip(vehicles, stored, strict=True)}
-                    outputs, changed = self._run_detectors(messages, tracks)
+                    outputs, changed = self._run_detectors(messages, tracks, per_message)
                     pipe.multi()
                     for fields in outputs:
                         pipe.xadd(self.output_stream, fields)  # type: ignore[arg-type]
@@ -605,7 +585,7 @@ class RedisStreamWorker:
                     # Scoring the page at once raised (a bug): redo it message by message
                     # from the stored states, so only the failing message is lost.
                     self._forget(vehicles)
-                    self._per_message = True
+                    per_message = True
                     continue
                 except BaseException:
                     # Dying mid-page (or a Redis error): the in-memory states may have run
@@ -628,11 +608,13 @@ class RedisStreamWorker:
         self,
         messages: list[_Message],
         tracks: dict[bytes, str],
+        per_message: bool = False,
     ) -> tuple[list[dict[str, str]], set[bytes]]:
         """The page's outputs in message order, and the vehicles whose state changed.
 
         ``tracks``: each vehicle's last processed message id, moved on here. The page's
-        usable messages are scored in one :meth:`FleetDetector.update_many`.
+        usable messages are scored in one :meth:`FleetDetector.update_many` (one call per
+        message with ``per_message``, see :meth:`_score`).
         """
         outputs: list[dict[str, str] | None] = []
         changed: set[bytes] = set()
@@ -642,45 +624,46 @@ class RedisStreamWorker:
             if _id_key(message.id) <= _id_key(tracks[message.vehicle]):
                 continue  # already in the output stream: processed before a takeover
             if message.problem:
-                result: PointResult | None = PointResult.invalid(message.problem)
+                output: dict[str, str] | None = _invalid(message, message.problem)
             elif not message.fields:
-                result = PointResult.invalid(
-                    "message deleted from the stream before it was processed"
+                output = _invalid(
+                    message, "message deleted from the stream before it was processed"
                 )
             elif not message.vehicle:
-                result = PointResult.invalid("message has no vehicle_id")
+                output = _invalid(message, "message has no vehicle_id")
             else:
-                result = None
+                output = None
                 fixes.append(message)
                 at.append(len(outputs))
-            outputs.append(None if result is None else _output(message, result))
+            outputs.append(output)
             tracks[message.vehicle] = message.id
             changed.add(message.vehicle)
         if fixes:
-            for k, fields in zip(at, self._score(fixes), strict=True):
-                outputs[k] = fields
+            for k, scored in zip(at, self._score(fixes, per_message), strict=True):
+                outputs[k] = scored
         return [o for o in outputs if o is not None], changed
 
-    def _score(self, fixes: list[_Message]) -> list[dict[str, str]]:
+    def _score(self, fixes: list[_Message], per_message: bool) -> list[dict[str, str]]:
         """The outputs of these messages (in order), scored in one batch; if that raises (a
-        bug must not stop the fleet), message by message, a failing one reported and its
-        vehicle restarted with a fresh detector."""
+        bug must not stop the fleet), :class:`_BatchFailed`, and the page is redone with
+        ``per_message``: message by message, a failing one reported and its vehicle
+        restarted with a fresh detector."""
 
         def batch(messages: list[_Message]) -> FleetResult:
             # Other fields (sensor channels) are not used by the position model.
-            fields = [m.fields for m in messages]
+            given = [m.fields for m in messages]
             return self._fleet.update_many(
                 [m.vehicle for m in messages],
-                [_number(f.get("t")) for f in fields],
-                [_number(f.get("lat")) for f in fields],
-                [_number(f.get("lon")) for f in fields],
-                [_number(f.get("speed")) for f in fields],
-                [_number(f.get("heading")) for f in fields],
-                fix_quality=[f.get("fix_quality") for f in fields],
-                satellites=[_number(f.get("satellites")) for f in fields],
+                [_number(f.get("t")) for f in given],
+                [_number(f.get("lat")) for f in given],
+                [_number(f.get("lon")) for f in given],
+                [_number(f.get("speed")) for f in given],
+                [_number(f.get("heading")) for f in given],
+                fix_quality=[f.get("fix_quality") for f in given],
+                satellites=[_number(f.get("satellites")) for f in given],
             )
 
-        if not self._per_message:
+        if not per_message:
             try:
                 return _outputs(fixes, batch(fixes))
             except Exception as exc:
@@ -693,10 +676,9 @@ class RedisStreamWorker:
                 outputs.extend(_outputs([message], batch([message])))
             except Exception as exc:  # report it, go on
                 text = f"{type(exc).__name__}: {exc}"[:2000]
-                result = PointResult.invalid(f"could not be processed ({text})")
                 self._fleet.drop(message.vehicle)
                 self._dead.append({"source_id": message.id, "problem": text})
-                outputs.append(_output(message, result))
+                outputs.append(_invalid(message, f"could not be processed ({text})"))
         return outputs
 
 

@@ -61,7 +61,7 @@ from .._grad.detector import Detector, MultiTrackDetector
 from .._io.nmea import STALE_DATE_S, Malformed, parse_gga, parse_rmc, split_sentence
 from .._io.times import iso_utc_one, time_of_day_utc
 from .._result import RESULT_COLUMNS, PointResult
-from .._tracks.track import ColumnMap, resolve_columns
+from .._tracks.track import ColumnMap, resolve_columns, rolled_over
 
 __all__ = [
     "MAX_BANNER_LINES",
@@ -151,11 +151,9 @@ def _satellites(text: str | None) -> float | None:
 class _CsvFollower:
     """One CSV stream: the header fixes the columns, then one fix per line."""
 
-    def __init__(
-        self, header: list[str], columns: ColumnMap | None, streams: MultiTrackDetector
-    ) -> None:
+    def __init__(self, header: list[str], roles: ColumnMap, streams: MultiTrackDetector) -> None:
+        """``roles``: the header's columns as :meth:`_Start.header` resolved them."""
         self.header = header
-        roles = resolve_columns(header, columns, source="<stdin>")
         self.index = {
             role: (None if name is None else header.index(name))
             for role, name in roles.as_dict().items()
@@ -278,10 +276,7 @@ class _NmeaFollower:
             _, epoch_line, verdict = self.last_epoch
             scored = None
         else:
-            if (
-                not (math.isnan(tod) or math.isnan(self.last_tod))
-                and tod < self.last_tod - _DAY / 2
-            ):
+            if rolled_over(self.last_tod, tod):
                 self.day_offset += _DAY  # midnight
             if not math.isnan(tod):
                 self.last_tod = tod
@@ -332,11 +327,12 @@ class _Start:
     def nmea(self, text: str) -> bool:
         return self.fmt == "nmea" or (self.fmt is None and text.lstrip().startswith(("$", "!")))
 
-    def header(self, text: str) -> list[str] | None:
-        """The CSV header if ``text`` is one; None (and the line counted) for a banner line."""
+    def header(self, text: str) -> tuple[list[str], ColumnMap] | None:
+        """The CSV header if ``text`` is one, with its columns' roles; None (and the line
+        counted) for a banner line."""
         fields = next(csv.reader([text]))
         try:
-            resolve_columns(fields, self.columns, source="<stdin>")
+            roles = resolve_columns(fields, self.columns, source="<stdin>")
         except InputError as exc:
             if self.header_error is not None and len(fields) == self.header_width:
                 raise self.header_error from None  # its data rows follow: a bad header
@@ -346,7 +342,7 @@ class _Start:
             if len(self.skipped) > MAX_BANNER_LINES:
                 self.give_up()
             return None
-        return fields
+        return fields, roles
 
     def give_up(self) -> None:
         """No start found: the error a header-less input gets (as without banner skipping)."""
@@ -403,9 +399,7 @@ def follow_lines(
             if start.skipped and warn is not None:
                 warn(start.warning("NMEA sentence" if header is None else "CSV header"))
             if header is not None:
-                follower = _CsvFollower(
-                    header, columns, MultiTrackDetector(model, threshold=threshold)
-                )
+                follower = _CsvFollower(*header, MultiTrackDetector(model, threshold=threshold))
                 write(_csv_text(follower.out_header()))
                 continue
             follower = _NmeaFollower(Detector(model, threshold=threshold))

@@ -588,6 +588,27 @@ def _times(frame: pd.DataFrame, col: str, table: Table) -> np.ndarray:
     return datetime_seconds(parsed)
 
 
+#: A time of day lower than the previous one by more than this (12 h) is the next day's.
+ROLLOVER_S = 43200.0
+
+
+def rolled_over(previous: Any, tod: Any) -> Any:
+    """Whether time of day ``tod`` follows ``previous`` across a midnight (it falls by more
+    than :data:`ROLLOVER_S`): the one rule of a log without dates, for the NMEA reader,
+    ``--follow`` and NMEA times read back. NaN never rolls over. Scalars or arrays."""
+    return tod < previous - ROLLOVER_S
+
+
+def day_rollovers(tod: np.ndarray) -> np.ndarray:
+    """Per time of day, the midnights passed since the first (:func:`rolled_over` from the
+    previous one that is not NaN); 0 where ``tod`` is NaN."""
+    out = np.zeros(tod.size, dtype=np.int64)
+    present = np.flatnonzero(~np.isnan(tod))
+    values = tod[present]
+    out[present[1:]] = np.cumsum(rolled_over(values[:-1], values[1:]))
+    return out
+
+
 #: A time of day without a date, in the ISO-8601 form NMEA logs without a date are written in.
 _UTC_TIME_OF_DAY = re.compile(r"^(\d{2}):(\d{2}):(\d{2}(?:\.\d+)?)Z$")
 
@@ -609,8 +630,7 @@ def _times_of_day(text: pd.Series) -> np.ndarray | None:
     values = (
         parts[0].astype(float) * 3600.0 + parts[1].astype(float) * 60.0 + parts[2].astype(float)
     ).to_numpy()
-    days = np.concatenate([[0], np.cumsum(np.diff(values) < -43200.0)])
-    seconds[np.flatnonzero(text.notna().to_numpy())] = values + days * 86400.0
+    seconds[np.flatnonzero(text.notna().to_numpy())] = values + day_rollovers(values) * 86400.0
     return seconds
 
 
