@@ -38,13 +38,18 @@ other) and per point:
 * three unexplained steps in a row that miss the prediction by the same
   amount (within ``threshold_m``), at a speed a car can drive, are a
   *velocity error*, not a fault: a jump is one step off, after which its points move
-  like the real track, while a wrong predicted velocity (a motion model
-  pulled off by a noise run, a segment whose first fix was off, a reported
-  course that is wrong for a while) misses every step by the same amount.
+  like the real track, while a wrong predicted velocity (the estimate a
+  segment's first step set from a fix that was off, or one learnt from noise
+  steps that happened to look explained) misses every step by the same amount.
   The third step undoes what the run did to the offset and corrects the
-  velocity (the bias when a velocity is reported, else the constant-velocity
-  estimate) by the miss; without this, the tracker added the same miss to
-  the offset every step and held the sum on clean fixes for ``max_fault_s``;
+  constant-velocity estimate by the miss; without this, the tracker added
+  the same miss to the offset every step and held the sum on clean fixes for
+  ``max_fault_s``. Only where the tracker predicts with its own estimate:
+  a reported velocity (or the motion model's, which the pipeline passes
+  only while that model follows the fixes) has the bias for its steady
+  errors, and a bias pushed by a whole miss stayed wrong once that velocity
+  was right again (the bias learns outside faults only) and held a phantom
+  offset at the next stop (fresh simulated drives at 0.5 Hz);
 * the *clean-track estimate* is dead-reckoned with the predicted steps and
   re-anchored on the fix after every explained step outside a suspected
   fault (not on the unexplained step that seems to end one: that fix may be
@@ -90,6 +95,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._exceptions import ConfigError
 
 __all__ = [
+    "CAR_MAX_SPEED",
     "OFFSET_FEATURES",
     "OffsetParams",
     "offset_features",
@@ -160,7 +166,7 @@ N_OFFSET_STATE = 23
 # step is a speed a car can have: a stationary receiver's noise run of 0, +23,
 # +47 m at 5 Hz agrees with itself step to step at 120 m/s, and that is no
 # velocity to learn.
-_CAR_MAX_SPEED = 70.0
+CAR_MAX_SPEED = 70.0
 # Unexplained steps in a row, each missing the prediction by the same amount, that
 # make a velocity error: three fixes after the last explained one moving
 # consistently among themselves (two steps of a noise run agree by chance).
@@ -301,9 +307,10 @@ def offset_features_reference(
             if explained or undone:
                 run[c] = 0
             elif (
-                run[c] > 0
+                not reported
+                and run[c] > 0
                 and abs(residual[c] - last_residual[c]) <= prm.threshold_m
-                and math.hypot(*step) <= _CAR_MAX_SPEED * d[i]
+                and math.hypot(*step) <= CAR_MAX_SPEED * d[i]
             ):
                 run[c] += 1  # the fixes move consistently; the prediction misses them
             else:
@@ -313,10 +320,7 @@ def offset_features_reference(
             elif run[c] >= _VELOCITY_ERROR_STEPS:  # a wrong velocity, not a fault: undo
                 # what those steps did to the offset, correct the velocity
                 offset[c] = before_run[c]
-                if reported:
-                    bias[c] += residual[c] / d[i]
-                else:
-                    cv[c] += residual[c] / d[i]
+                cv[c] += residual[c] / d[i]
                 clean[c] = fix[i, c] - offset[c]
                 run[c] = 0
             elif not explained:  # a fault starts, changes or ends: two estimates of the
@@ -407,7 +411,12 @@ def _channel(
     # before the first of them is kept.
     run = 0.0
     if not explained and not undone:
-        if drivable and state[qu] > 0.0 and abs(residual - state[qr]) <= p[P_THRESHOLD]:
+        if (
+            not reported
+            and drivable
+            and state[qu] > 0.0
+            and abs(residual - state[qr]) <= p[P_THRESHOLD]
+        ):
             run = state[qu] + 1.0
         else:
             run = 1.0
@@ -425,10 +434,7 @@ def _channel(
         # to the offset is undone and the velocity corrected, instead of adding
         # the same miss to the offset every step and holding it for max_fault_s.
         state[o] = state[qo]
-        if reported:
-            state[b] += residual / dt
-        else:
-            state[cv] += residual / dt
+        state[cv] += residual / dt
         state[ce] = fix - state[o]
         run = 0.0
     elif not explained:
@@ -499,7 +505,7 @@ def offset_step(
             norm_before = np.hypot(state[S_OE], state[S_ON])
             before_e = state[S_OE]
             before_n = state[S_ON]
-            drivable = np.hypot(step_e, step_n) <= _CAR_MAX_SPEED * dt
+            drivable = np.hypot(step_e, step_n) <= CAR_MAX_SPEED * dt
             _channel(p, state, 0, east, pred_e, out[4], step_e, dt, reported, drivable)
             _channel(p, state, 1, north, pred_n, out[5], step_n, dt, reported, drivable)
             if max(abs(state[S_OE]), abs(state[S_ON])) > p[P_THRESHOLD]:

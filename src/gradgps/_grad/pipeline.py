@@ -75,11 +75,13 @@ from .motion import (
     N_MOTION_FEATURES,
     N_MOTION_PARAMS,
     N_MOTION_STATE,
+    P_GATE,
     MotionParams,
     motion_step,
     motion_velocity,
 )
 from .offset import (
+    CAR_MAX_SPEED,
     N_OFFSET_FEATURES,
     N_OFFSET_PARAMS,
     N_OFFSET_STATE,
@@ -122,8 +124,8 @@ N_REST_PARAMS = _MOTION + N_MOTION_PARAMS
 # heading the pipeline used for the point (reported, or the motion model's).
 _SH = N_OFFSET_FEATURES + N_MOTION_FEATURES
 _N_OFF_OUT = _SH + 2
-# Where the motion model's seconds of dead reckoning sit in its outputs.
-_RUN_S = MOTION_FEATURES.index("motion_run_s")
+# Where the motion model's normalised innovation sits in its outputs.
+_NIS = MOTION_FEATURES.index("motion_nis")
 # State blocks after the core's: offset, time, recovery, motion.
 _N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_MOTION_STATE
 # Per-point outputs.
@@ -235,11 +237,13 @@ def _features_point(
     expected step, the offset tracker and the recovery: without it those fall
     back to per-channel constant-velocity guesses that lag in every curve and
     never re-acquire after a long jump on a positions-only file (issue 13).
-    The offset tracker takes it only while the model follows the fixes: a fix
-    the model rejected says its velocity has not been confirmed (after a noise
-    run it may be 10-30 m/s wrong for seconds), and dead reckoning with it made
-    the tracker add the same miss to the offset every step; it then predicts
-    with its own estimate from the steps it explained.
+    The offset tracker takes it only for a fix the model predicted (within its
+    gate), at a speed a car drives: a fix it rejected, or re-acquired after
+    rejecting, says its velocity is unconfirmed (a first step from a fix 30 m
+    off starts it at 300 m/s at 10 Hz) (after a noise run it may be 10-30 m/s wrong for seconds),
+    and dead reckoning with it made the tracker add the same miss to the
+    offset every step; the tracker then predicts with its own estimate from
+    the steps it explained.
     The speed and heading used are left in ``off_out[_SH : _SH + 2]`` for the
     recovery in :func:`_decide_point`.
     """
@@ -259,7 +263,7 @@ def _features_point(
                 speed = m_speed
             if not np.isfinite(heading):
                 heading = m_heading
-            if m_out[_RUN_S] == 0.0:
+            if m_out[_NIS] <= rest[_MOTION + P_GATE] and speed <= CAR_MAX_SPEED:
                 off_speed = speed
                 off_heading = heading
     off_out[_SH] = speed
