@@ -54,21 +54,42 @@ from .._grad.rema import RemaParams
 from .base import BatchBaseline, Segment, flags_frame, input_names, segments
 
 __all__ = [
+    "CROSS_SOURCES",
+    "EVIDENCE_SPANS",
+    "N_CROSS",
     "N_RAW",
     "ROBUST_SPAN",
     "SENSOR_BIAS_CLASSES",
     "ChannelGradDetector",
     "ChannelGradModel",
     "channel_features",
+    "channel_signals",
     "cross_names",
+    "feature_width",
+    "rema_names",
     "signed_log",
 ]
 
 SENSOR_BIAS_CLASSES = ("none", "instant", "constant", "bias", "drift")
-#: Raw features per channel: the reading, its step difference, and that step over its robust spread.
-N_RAW = 3
-#: Steps over which the robust spread of a step or residual is measured.
+#: Raw features per channel: the reading, its step difference, that step over its robust
+#: spread, the reading's departure from its recent level (over its robust spread), and how
+#: many steps it has been held exactly (a stuck sensor).
+N_RAW = 5
+#: Features per consistency residual: the residual, over its robust spread, its departure
+#: from its recent level (raw and over its robust spread), that departure averaged over
+#: :data:`EVIDENCE_SPANS`, then REMA + MS-SW on the residual.
+N_CROSS = 4 + 3 + N_CHANNEL
+#: Steps over which a causal level (median) and robust spread are measured.
 ROBUST_SPAN = 30
+#: Steps over which a residual's departure is averaged: evidence that builds up over a
+#: lasting fault (a bias, a drift) while noise averages out.
+EVIDENCE_SPANS = (3, 10, 20)
+#: Which channels' faults each consistency residual sees (REMA on it is tuned against them).
+CROSS_SOURCES = {
+    "dspeed_dt_minus_accel": ("speed", "accel_x_mps2"),
+    "speed_minus_speed_fix": ("speed",),
+    "dspeed_fix_dt_minus_accel": ("accel_x_mps2",),
+}
 
 
 def _filled(x: np.ndarray) -> np.ndarray:
@@ -93,6 +114,32 @@ def _robust_z(x: np.ndarray, span: int = ROBUST_SPAN) -> np.ndarray:
     return np.where(np.isfinite(z), z, 0.0)
 
 
+def _departure(x: np.ndarray, span: int = ROBUST_SPAN) -> np.ndarray:
+    """``x`` minus its causal level: the median of the previous ``span`` values (0 before three exist).
+
+    A slow offset between two sensors (a mounting tilt, a scale error) stays in
+    the level; a fault that starts now departs from it.
+    """
+    level = pd.Series(x).shift(1).rolling(span, min_periods=3).median().to_numpy()
+    d = x - level
+    return np.where(np.isfinite(d), d, 0.0)
+
+
+def _held(x: np.ndarray, cap: int = ROBUST_SPAN) -> np.ndarray:
+    """Steps the reading has repeated exactly, up to ``cap``: what a stuck sensor does."""
+    same = np.r_[False, np.diff(x) == 0.0]
+    run = np.zeros(x.size)
+    for i in np.flatnonzero(same):
+        run[i] = run[i - 1] + 1.0
+    return np.minimum(run, cap)
+
+
+def _evidence(z: np.ndarray) -> list[np.ndarray]:
+    """Causal means of ``z`` over the last :data:`EVIDENCE_SPANS` steps."""
+    s = pd.Series(z)
+    return [s.rolling(k, min_periods=1).mean().to_numpy() for k in EVIDENCE_SPANS]
+
+
 def signed_log(x: np.ndarray) -> np.ndarray:
     """``sign(x) · log(1 + |x|)``: keeps small values, tames fault-sized outliers for the scaler."""
     out: np.ndarray = np.sign(x) * np.log1p(np.abs(x))
@@ -100,10 +147,20 @@ def signed_log(x: np.ndarray) -> np.ndarray:
 
 
 def cross_names(inputs: str) -> tuple[str, ...]:
-    """Names of the cross-channel consistency features for an input kind."""
+    """Names of the cross-channel consistency residuals for an input kind."""
     if inputs == "sensor-fix":
         return ("dspeed_dt_minus_accel", "speed_minus_speed_fix", "dspeed_fix_dt_minus_accel")
     return ("dspeed_dt_minus_accel",)
+
+
+def rema_names(inputs: str) -> tuple[str, ...]:
+    """What REMA runs on, in the order of a model's ``rema`` settings: the channels, then the residuals."""
+    return (*input_names(inputs), *cross_names(inputs))
+
+
+def feature_width(inputs: str) -> int:
+    """Columns of :func:`channel_features` for an input kind."""
+    return len(input_names(inputs)) * (N_CHANNEL + N_RAW) + len(cross_names(inputs)) * N_CROSS
 
 
 def _cross(values: dict[str, np.ndarray], dt: np.ndarray, inputs: str) -> list[np.ndarray]:
@@ -119,30 +176,54 @@ def _cross(values: dict[str, np.ndarray], dt: np.ndarray, inputs: str) -> list[n
     return [np.where(np.isfinite(c), c, 0.0) for c in out]
 
 
+def channel_signals(segment: Segment, inputs: str = "sensor") -> dict[str, np.ndarray]:
+    """What REMA runs on (:func:`rema_names`): each channel (missing readings carried forward)
+    and each consistency residual (undefined ones 0)."""
+    n = len(segment.t)
+    period = float(segment.t[1] - segment.t[0]) if n > 1 and segment.t[1] > segment.t[0] else 1.0
+    names = input_names(inputs)
+    values = {name: _filled(segment.values[:, k]) for k, name in enumerate(names)}
+    dt = np.r_[period, np.diff(segment.t)]
+    dt = np.where(dt > 0, dt, np.nan)
+    cross = dict(zip(cross_names(inputs), _cross(values, dt, inputs), strict=True))
+    return {**values, **cross}
+
+
+def _ms_sw(x: np.ndarray, period: float, features: FeatureParams, rema: RemaParams) -> np.ndarray:
+    """REMA + the 11 MS-SW features of one 1-D signal."""
+    n = x.size
+    long_n, short_n = features.points(period)
+    zeros, nan = np.zeros(n), np.full(n, np.nan)
+    out: np.ndarray = features_batch_kernel(
+        x, zeros, nan, nan, period, long_n, short_n, rema.to_array(), False
+    )[:, :N_CHANNEL]
+    return out
+
+
 def channel_features(
     segment: Segment, features: FeatureParams, rema: Sequence[RemaParams], inputs: str = "sensor"
 ) -> np.ndarray:
-    """(n, C·(11 + 3) + 2·cross) features of one sensor segment, signed-log compressed (module docstring)."""
+    """(n, :func:`feature_width`) features of one sensor segment, signed-log compressed.
+
+    ``rema``: one setting per :func:`rema_names` entry (channels, then residuals).
+    """
     n = len(segment.t)
     period = float(segment.t[1] - segment.t[0]) if n > 1 and segment.t[1] > segment.t[0] else 1.0
-    long_n, short_n = features.points(period)
-    zeros, nan = np.zeros(n), np.full(n, np.nan)
-    names = input_names(inputs)
-    values = {name: _filled(segment.values[:, k]) for k, name in enumerate(names)}
+    signals = channel_signals(segment, inputs)
     parts = []
-    for k, name in enumerate(names):
-        x = values[name]
-        parts.append(
-            features_batch_kernel(
-                x, zeros, nan, nan, period, long_n, short_n, rema[k].to_array(), False
-            )[:, :N_CHANNEL]
-        )
+    for k, name in enumerate(input_names(inputs)):
+        x = signals[name]
+        parts.append(_ms_sw(x, period, features, rema[k]))
         step = _step(x)
-        parts.append(np.column_stack([x, step, _robust_z(step)]))
-    dt = np.r_[period, np.diff(segment.t)]
-    dt = np.where(dt > 0, dt, np.nan)
-    cross = _cross(values, dt, inputs)
-    parts.append(np.column_stack(cross + [_robust_z(c) for c in cross]))
+        level = _departure(x)
+        parts.append(np.column_stack([x, step, _robust_z(step), _robust_z(level), _held(x)]))
+    first = len(input_names(inputs))
+    for j, name in enumerate(cross_names(inputs)):
+        r = signals[name]
+        d = _departure(r)
+        dz = _robust_z(d)
+        parts.append(np.column_stack([r, _robust_z(r), d, dz, *_evidence(dz)]))
+        parts.append(_ms_sw(r, period, features, rema[first + j]))
     out: np.ndarray = signed_log(np.hstack(parts))
     return out
 
