@@ -12,26 +12,39 @@ per channel (``speed``, [``speed_fix_mps``], ``accel_x_mps2``, ``gyro_z_dps``)
   intercept, fit error over 30 s; spread, RSI, range, last change over 5 s;
   REMA distance, width, flag, alpha), with REMA **tuned per channel** on the
   validation split (:mod:`gradgps._train.channel_grad`);
-* the raw reading and its step difference ``x[i] - x[i-1]`` (what instant,
-  constant and bias faults change; the MS-SW windows blur a one-step jump
-  on channels whose natural spread is as large as the fault);
+* the raw reading and its step difference ``x[i] - x[i-1]``, that step over
+  its causal robust spread (what instant, constant and bias faults change;
+  the MS-SW windows blur a one-step jump on channels whose natural spread is
+  as large as the fault), the reading's departure from its causal level
+  (the median of the previous 30 readings) over its robust spread, and how
+  many steps the reading has repeated exactly (a stuck sensor holds its
+  value to the last digit; a live one rarely does twice in a row);
 
-and across channels (**consistency**, what a fault on one sensor breaks):
+and across channels (**consistency**, what a fault on one sensor breaks),
+the residuals
 
 * ``d(speed)/dt - accel``: the reported speed's change against the
   measured longitudinal acceleration (mean of the two readings);
 * with the second speed source (input ``sensor-fix``): ``speed -
   speed_fix`` (reported against position-derived speed, both at the
-  half step) and ``d(speed_fix)/dt - accel``.
+  half step) and ``d(speed_fix)/dt - accel``,
 
--> every feature signed-log compressed (``sign(x) log(1 + |x|)``), the steps
-and residuals also over their causal robust spread (MAD of the previous 30
-steps) -> the same stacked GRU (32, 16) with an anomaly head and a
+each as the residual, the residual over its robust spread, its departure
+from its causal level (a slow offset between two sensors, a mounting tilt
+or a scale error, stays in the level; a fault that starts now departs from
+it), that departure over its robust spread, and that averaged over the last
+3, 10 and 20 steps (evidence that builds up over a lasting bias or drift
+while noise averages out); plus REMA (tuned per residual against the labels
+of the channels it sees, :data:`CROSS_SOURCES`) + MS-SW on the residual.
+
+-> every feature signed-log compressed (``sign(x) log(1 + |x|)``; a robust
+spread is 1.4826 × the median of ``|x|`` over the previous 30 steps) -> the
+same stacked GRU (32, 16) with an anomaly head and a
 bias-type head over ``none``, ``instant``, ``constant``, ``bias``,
 ``drift``, fed the paper's sliding window of 10 steps, trained by
 :func:`gradgps._train.channel_grad.dataset_channel_grad` (early stopping on
-validation F1, the baselines' data and budget), with the anomaly threshold
-tuned on validation F1 under a normal-recall floor.
+validation F1 at the threshold it will get, the baselines' data and budget),
+with the anomaly threshold tuned on validation F1 under a normal-recall floor.
 
 Where it differs from position GRAD: no offset tracker, time classifier or
 recovery (the protocol scores detection and type only), and batch inference
