@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps import LocalFrame
-from gradgps._baselines.base import segments
+from gradgps._baselines.base import input_names, segments
 from gradgps._baselines.cnn_kf import CnnKalmanDetector
 from gradgps._baselines.kalman import KalmanDetector, KalmanParams, kf_reference, kf_segment_kernel
 from gradgps._baselines.window import ARCHITECTURES, WindowClassifier, WindowModel
@@ -173,16 +173,31 @@ def test_window_training_learns_an_obvious_fault() -> None:
 
 
 def test_channel_grad_features_are_the_position_features_plus_raw_and_consistency() -> None:
-    from gradgps._baselines.channel_grad import N_RAW, channel_features, cross_names, signed_log
+    from gradgps._baselines.channel_grad import (
+        N_CROSS,
+        N_RAW,
+        channel_features,
+        channel_signals,
+        cross_names,
+        feature_width,
+        rema_names,
+        signed_log,
+    )
     from gradgps._grad.features import N_CHANNEL, FeatureParams, features_reference
     from gradgps._grad.rema import RemaParams
 
     fixes = drive(50)
     seg = segments(fixes, "sensor")[0][0]
-    rema = (RemaParams(), RemaParams(sensitivity=4.0), RemaParams(alpha=0.3, slide_size=5))
+    assert rema_names("sensor") == (*input_names("sensor"), "dspeed_dt_minus_accel")
+    rema = (
+        RemaParams(),
+        RemaParams(sensitivity=4.0),
+        RemaParams(alpha=0.3, slide_size=5),
+        RemaParams(slide_size=20),
+    )
     feats = channel_features(seg, FeatureParams(speed_heading=False), rema)
     width = N_CHANNEL + N_RAW
-    assert feats.shape == (50, 3 * width + 2 * len(cross_names("sensor")))
+    assert feats.shape == (50, feature_width("sensor")) == (50, 3 * width + N_CROSS)
     for k in range(3):
         x = seg.values[:, k]
         expected = features_reference(seg.t, x, x, FeatureParams(speed_heading=False), rema[k])
@@ -196,20 +211,45 @@ def test_channel_grad_features_are_the_position_features_plus_raw_and_consistenc
         np.testing.assert_allclose(feats[1:, k * width + N_CHANNEL + 1], signed_log(np.diff(x)))
     speed, accel = seg.values[:, 0], seg.values[:, 1]
     residual = np.diff(speed) - 0.5 * (accel[1:] + accel[:-1])
-    np.testing.assert_allclose(feats[1:, -2], signed_log(residual))
+    cross = feats[:, 3 * width :]
+    np.testing.assert_allclose(cross[1:, 0], signed_log(residual))
     # ... and over its robust spread: 1.4826 MAD of the previous 30 steps.
     i = 40
     spread = 1.4826 * np.median(np.abs(np.r_[0.0, residual][i - 30 : i]))
-    assert feats[i, -1] == pytest.approx(signed_log(np.r_[0.0, residual][i] / spread))
+    assert cross[i, 1] == pytest.approx(signed_log(np.r_[0.0, residual][i] / spread))
+    # ... and its departure from its level, the median of the previous 30 residuals.
+    level = np.median(np.r_[0.0, residual][i - 30 : i])
+    assert cross[i, 2] == pytest.approx(signed_log(np.r_[0.0, residual][i] - level))
+    # REMA + MS-SW run on the residual too, with the residual's own REMA setting.
+    r = np.r_[-accel[0], residual]  # the first step is 0: the residual is -accel there
+    np.testing.assert_allclose(channel_signals(seg, "sensor")["dspeed_dt_minus_accel"], r)
+    expected = features_reference(seg.t, r, r, FeatureParams(speed_heading=False), rema[3])
+    np.testing.assert_allclose(
+        cross[:, -N_CHANNEL:],
+        signed_log(np.nan_to_num(expected[:, :N_CHANNEL], nan=np.nan)),
+        rtol=1e-7,
+        atol=1e-7,
+    )
     # With the second speed source: reported against fix-derived speed.
     fixes["speed_fix_mps"] = fixes["speed"] + 0.5
     seg4 = segments(fixes, "sensor-fix")[0][0]
     feats4 = channel_features(
-        seg4, FeatureParams(speed_heading=False), (RemaParams(),) * 4, "sensor-fix"
+        seg4, FeatureParams(speed_heading=False), (RemaParams(),) * 7, "sensor-fix"
     )
-    assert feats4.shape == (50, 4 * width + 6)
+    assert feats4.shape == (50, 4 * width + 3 * N_CROSS) == (50, feature_width("sensor-fix"))
+    assert cross_names("sensor-fix")[1] == "speed_minus_speed_fix"
     mid = 0.5 * (speed[1:] + speed[:-1])
-    np.testing.assert_allclose(feats4[1:, -5], signed_log(mid - (speed[1:] + 0.5)))
+    second = feats4[:, 4 * width + N_CROSS :]
+    np.testing.assert_allclose(second[1:, 0], signed_log(mid - (speed[1:] + 0.5)))
+
+
+def test_channel_grad_counts_held_readings() -> None:
+    from gradgps._baselines.channel_grad import ROBUST_SPAN, _held
+
+    x = np.r_[1.0, 2.0, 2.0, 2.0, 3.0, np.full(40, 4.0)]
+    held = _held(x)
+    np.testing.assert_array_equal(held[:7], [0, 0, 1, 2, 0, 0, 1])
+    assert held[-1] == ROBUST_SPAN  # capped
 
 
 def test_recall_floor_threshold_keeps_normal_recall() -> None:

@@ -21,12 +21,11 @@ from _detector_checks import (
     check_batch_schema_index_and_invalid_rows,
 )
 from gradgps import Detector, LocalFrame, RemaDetector, SpeedGate
-from gradgps._baselines.base import input_names
 from gradgps._baselines.channel_grad import (
-    N_RAW,
     ChannelGradDetector,
     ChannelGradModel,
-    cross_names,
+    feature_width,
+    rema_names,
 )
 from gradgps._baselines.cnn_kf import CnnKalmanDetector
 from gradgps._baselines.kalman import KalmanDetector, KalmanParams
@@ -35,7 +34,7 @@ from gradgps._baselines.rema_detector import paper_detector
 from gradgps._baselines.waved import WavedDetector, WavedModel
 from gradgps._baselines.window import WindowClassifier, WindowModel
 from gradgps._eval.bench import DETECTOR_NAMES
-from gradgps._grad.features import N_CHANNEL, FeatureParams
+from gradgps._grad.features import FeatureParams
 from gradgps._grad.gru import GRUModel, weight_shapes
 from gradgps._grad.rema import RemaParams
 from gradgps._train.channel_grad import GRU_WINDOW
@@ -80,14 +79,15 @@ def _window_model(architecture: str, inputs: str) -> WindowModel:
 def _channel_grad(threshold: float = 0.5, inputs: str = "sensor") -> ChannelGradDetector:
     """A channel GRAD as ``dataset_channel_grad`` builds it (window GRU), random weights."""
     rng = np.random.default_rng(0)
-    n = len(input_names(inputs))
-    width = n * (N_CHANNEL + N_RAW) + 2 * len(cross_names(inputs))
+    width = feature_width(inputs)
     shapes = weight_shapes(width, 8, 4, 5)
     weights = {k: rng.normal(0, 0.3, s).astype(np.float32) for k, s in shapes.items()}
     gru = GRUModel(weights, np.zeros(width), np.ones(width), mode="window", window=GRU_WINDOW)
     features = FeatureParams(speed_heading=False)
     return ChannelGradDetector(
-        ChannelGradModel(gru, threshold, features, (RemaParams(),) * n, inputs)
+        ChannelGradModel(
+            gru, threshold, features, (RemaParams(),) * len(rema_names(inputs)), inputs
+        )
     )
 
 

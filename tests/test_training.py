@@ -21,6 +21,7 @@ from gradgps._train.torch_gru import (  # noqa: E402
     _class_weights,
     _fit_scaler,
     _pack,
+    _predict_packed,
     _stream_lanes,
     _window_batch,
     _window_samples,
@@ -164,6 +165,26 @@ def test_bad_inputs_fail_clearly():
         train_model(TRAIN, [(features[:, :3], anomaly, bias)], _config())
     with pytest.raises(ConfigError, match="val_sequences: no sequences"):
         train_model(TRAIN, [], _config())
+
+
+def test_floor_f1_early_stopping_scores_epochs_at_the_floor_threshold():
+    from gradgps._result import f1_score
+    from gradgps._train.thresholds import recall_floor_threshold
+
+    with pytest.raises(ConfigError, match="needs a normal_recall_floor"):
+        train_model(TRAIN, VAL, _config(early_stopping="floor-f1"))
+    with pytest.raises(ConfigError, match="early_stopping must be"):
+        train_model(TRAIN, VAL, _config(early_stopping="auc"))
+    config = _config(early_stopping="floor-f1", normal_recall_floor=0.99, max_epochs=1)
+    model = train_model(TRAIN, VAL, config)
+    # One epoch: its validation F1 is the F1 at the threshold the floor picks, which is
+    # also the model's threshold.
+    la, _, truth, _ = _predict_packed(model.network.eval(), _pack(VAL, 8, 1), config)
+    p = torch.softmax(la, -1)[:, 1].numpy()
+    cut = recall_floor_threshold(truth == 1, p, 0.99)
+    assert model.anomaly_threshold == pytest.approx(cut)
+    assert model.history[-1].val_f1 == pytest.approx(f1_score(truth == 1, p >= cut))
+    assert model.history[-1].val_f1 != pytest.approx(f1_score(truth == 1, p >= 0.5))
 
 
 def test_scaler_ignores_non_finite_values_and_constant_features():

@@ -12,26 +12,39 @@ per channel (``speed``, [``speed_fix_mps``], ``accel_x_mps2``, ``gyro_z_dps``)
   intercept, fit error over 30 s; spread, RSI, range, last change over 5 s;
   REMA distance, width, flag, alpha), with REMA **tuned per channel** on the
   validation split (:mod:`gradgps._train.channel_grad`);
-* the raw reading and its step difference ``x[i] - x[i-1]`` (what instant,
-  constant and bias faults change; the MS-SW windows blur a one-step jump
-  on channels whose natural spread is as large as the fault);
+* the raw reading and its step difference ``x[i] - x[i-1]``, that step over
+  its causal robust spread (what instant, constant and bias faults change;
+  the MS-SW windows blur a one-step jump on channels whose natural spread is
+  as large as the fault), the reading's departure from its causal level
+  (the median of the previous 30 readings) over its robust spread, and how
+  many steps the reading has repeated exactly (a stuck sensor holds its
+  value to the last digit; a live one rarely does twice in a row);
 
-and across channels (**consistency**, what a fault on one sensor breaks):
+and across channels (**consistency**, what a fault on one sensor breaks),
+the residuals
 
 * ``d(speed)/dt - accel``: the reported speed's change against the
   measured longitudinal acceleration (mean of the two readings);
 * with the second speed source (input ``sensor-fix``): ``speed -
   speed_fix`` (reported against position-derived speed, both at the
-  half step) and ``d(speed_fix)/dt - accel``.
+  half step) and ``d(speed_fix)/dt - accel``,
 
--> every feature signed-log compressed (``sign(x) log(1 + |x|)``), the steps
-and residuals also over their causal robust spread (MAD of the previous 30
-steps) -> the same stacked GRU (32, 16) with an anomaly head and a
+each as the residual, the residual over its robust spread, its departure
+from its causal level (a slow offset between two sensors, a mounting tilt
+or a scale error, stays in the level; a fault that starts now departs from
+it), that departure over its robust spread, and that averaged over the last
+3, 10 and 20 steps (evidence that builds up over a lasting bias or drift
+while noise averages out); plus REMA (tuned per residual against the labels
+of the channels it sees, :data:`CROSS_SOURCES`) + MS-SW on the residual.
+
+-> every feature signed-log compressed (``sign(x) log(1 + |x|)``; a robust
+spread is 1.4826 × the median of ``|x|`` over the previous 30 steps) -> the
+same stacked GRU (32, 16) with an anomaly head and a
 bias-type head over ``none``, ``instant``, ``constant``, ``bias``,
 ``drift``, fed the paper's sliding window of 10 steps, trained by
 :func:`gradgps._train.channel_grad.dataset_channel_grad` (early stopping on
-validation F1, the baselines' data and budget), with the anomaly threshold
-tuned on validation F1 under a normal-recall floor.
+validation F1 at the threshold it will get, the baselines' data and budget),
+with the anomaly threshold tuned on validation F1 under a normal-recall floor.
 
 Where it differs from position GRAD: no offset tracker, time classifier or
 recovery (the protocol scores detection and type only), and batch inference
@@ -54,21 +67,42 @@ from .._grad.rema import RemaParams
 from .base import BatchBaseline, Segment, flags_frame, input_names, segments
 
 __all__ = [
+    "CROSS_SOURCES",
+    "EVIDENCE_SPANS",
+    "N_CROSS",
     "N_RAW",
     "ROBUST_SPAN",
     "SENSOR_BIAS_CLASSES",
     "ChannelGradDetector",
     "ChannelGradModel",
     "channel_features",
+    "channel_signals",
     "cross_names",
+    "feature_width",
+    "rema_names",
     "signed_log",
 ]
 
 SENSOR_BIAS_CLASSES = ("none", "instant", "constant", "bias", "drift")
-#: Raw features per channel: the reading, its step difference, and that step over its robust spread.
-N_RAW = 3
-#: Steps over which the robust spread of a step or residual is measured.
+#: Raw features per channel: the reading, its step difference, that step over its robust
+#: spread, the reading's departure from its recent level (over its robust spread), and how
+#: many steps it has been held exactly (a stuck sensor).
+N_RAW = 5
+#: Features per consistency residual: the residual, over its robust spread, its departure
+#: from its recent level (raw and over its robust spread), that departure averaged over
+#: :data:`EVIDENCE_SPANS`, then REMA + MS-SW on the residual.
+N_CROSS = 4 + 3 + N_CHANNEL
+#: Steps over which a causal level (median) and robust spread are measured.
 ROBUST_SPAN = 30
+#: Steps over which a residual's departure is averaged: evidence that builds up over a
+#: lasting fault (a bias, a drift) while noise averages out.
+EVIDENCE_SPANS = (3, 10, 20)
+#: Which channels' faults each consistency residual sees (REMA on it is tuned against them).
+CROSS_SOURCES = {
+    "dspeed_dt_minus_accel": ("speed", "accel_x_mps2"),
+    "speed_minus_speed_fix": ("speed",),
+    "dspeed_fix_dt_minus_accel": ("accel_x_mps2",),
+}
 
 
 def _filled(x: np.ndarray) -> np.ndarray:
@@ -93,6 +127,32 @@ def _robust_z(x: np.ndarray, span: int = ROBUST_SPAN) -> np.ndarray:
     return np.where(np.isfinite(z), z, 0.0)
 
 
+def _departure(x: np.ndarray, span: int = ROBUST_SPAN) -> np.ndarray:
+    """``x`` minus its causal level: the median of the previous ``span`` values (0 before three exist).
+
+    A slow offset between two sensors (a mounting tilt, a scale error) stays in
+    the level; a fault that starts now departs from it.
+    """
+    level = pd.Series(x).shift(1).rolling(span, min_periods=3).median().to_numpy()
+    d = x - level
+    return np.where(np.isfinite(d), d, 0.0)
+
+
+def _held(x: np.ndarray, cap: int = ROBUST_SPAN) -> np.ndarray:
+    """Steps the reading has repeated exactly, up to ``cap``: what a stuck sensor does."""
+    same = np.r_[False, np.diff(x) == 0.0]
+    run = np.zeros(x.size)
+    for i in np.flatnonzero(same):
+        run[i] = run[i - 1] + 1.0
+    return np.minimum(run, cap)
+
+
+def _evidence(z: np.ndarray) -> list[np.ndarray]:
+    """Causal means of ``z`` over the last :data:`EVIDENCE_SPANS` steps."""
+    s = pd.Series(z)
+    return [s.rolling(k, min_periods=1).mean().to_numpy() for k in EVIDENCE_SPANS]
+
+
 def signed_log(x: np.ndarray) -> np.ndarray:
     """``sign(x) · log(1 + |x|)``: keeps small values, tames fault-sized outliers for the scaler."""
     out: np.ndarray = np.sign(x) * np.log1p(np.abs(x))
@@ -100,10 +160,20 @@ def signed_log(x: np.ndarray) -> np.ndarray:
 
 
 def cross_names(inputs: str) -> tuple[str, ...]:
-    """Names of the cross-channel consistency features for an input kind."""
+    """Names of the cross-channel consistency residuals for an input kind."""
     if inputs == "sensor-fix":
         return ("dspeed_dt_minus_accel", "speed_minus_speed_fix", "dspeed_fix_dt_minus_accel")
     return ("dspeed_dt_minus_accel",)
+
+
+def rema_names(inputs: str) -> tuple[str, ...]:
+    """What REMA runs on, in the order of a model's ``rema`` settings: the channels, then the residuals."""
+    return (*input_names(inputs), *cross_names(inputs))
+
+
+def feature_width(inputs: str) -> int:
+    """Columns of :func:`channel_features` for an input kind."""
+    return len(input_names(inputs)) * (N_CHANNEL + N_RAW) + len(cross_names(inputs)) * N_CROSS
 
 
 def _cross(values: dict[str, np.ndarray], dt: np.ndarray, inputs: str) -> list[np.ndarray]:
@@ -119,30 +189,54 @@ def _cross(values: dict[str, np.ndarray], dt: np.ndarray, inputs: str) -> list[n
     return [np.where(np.isfinite(c), c, 0.0) for c in out]
 
 
+def channel_signals(segment: Segment, inputs: str = "sensor") -> dict[str, np.ndarray]:
+    """What REMA runs on (:func:`rema_names`): each channel (missing readings carried forward)
+    and each consistency residual (undefined ones 0)."""
+    n = len(segment.t)
+    period = float(segment.t[1] - segment.t[0]) if n > 1 and segment.t[1] > segment.t[0] else 1.0
+    names = input_names(inputs)
+    values = {name: _filled(segment.values[:, k]) for k, name in enumerate(names)}
+    dt = np.r_[period, np.diff(segment.t)]
+    dt = np.where(dt > 0, dt, np.nan)
+    cross = dict(zip(cross_names(inputs), _cross(values, dt, inputs), strict=True))
+    return {**values, **cross}
+
+
+def _ms_sw(x: np.ndarray, period: float, features: FeatureParams, rema: RemaParams) -> np.ndarray:
+    """REMA + the 11 MS-SW features of one 1-D signal."""
+    n = x.size
+    long_n, short_n = features.points(period)
+    zeros, nan = np.zeros(n), np.full(n, np.nan)
+    out: np.ndarray = features_batch_kernel(
+        x, zeros, nan, nan, period, long_n, short_n, rema.to_array(), False
+    )[:, :N_CHANNEL]
+    return out
+
+
 def channel_features(
     segment: Segment, features: FeatureParams, rema: Sequence[RemaParams], inputs: str = "sensor"
 ) -> np.ndarray:
-    """(n, C·(11 + 3) + 2·cross) features of one sensor segment, signed-log compressed (module docstring)."""
+    """(n, :func:`feature_width`) features of one sensor segment, signed-log compressed.
+
+    ``rema``: one setting per :func:`rema_names` entry (channels, then residuals).
+    """
     n = len(segment.t)
     period = float(segment.t[1] - segment.t[0]) if n > 1 and segment.t[1] > segment.t[0] else 1.0
-    long_n, short_n = features.points(period)
-    zeros, nan = np.zeros(n), np.full(n, np.nan)
-    names = input_names(inputs)
-    values = {name: _filled(segment.values[:, k]) for k, name in enumerate(names)}
+    signals = channel_signals(segment, inputs)
     parts = []
-    for k, name in enumerate(names):
-        x = values[name]
-        parts.append(
-            features_batch_kernel(
-                x, zeros, nan, nan, period, long_n, short_n, rema[k].to_array(), False
-            )[:, :N_CHANNEL]
-        )
+    for k, name in enumerate(input_names(inputs)):
+        x = signals[name]
+        parts.append(_ms_sw(x, period, features, rema[k]))
         step = _step(x)
-        parts.append(np.column_stack([x, step, _robust_z(step)]))
-    dt = np.r_[period, np.diff(segment.t)]
-    dt = np.where(dt > 0, dt, np.nan)
-    cross = _cross(values, dt, inputs)
-    parts.append(np.column_stack(cross + [_robust_z(c) for c in cross]))
+        level = _departure(x)
+        parts.append(np.column_stack([x, step, _robust_z(step), _robust_z(level), _held(x)]))
+    first = len(input_names(inputs))
+    for j, name in enumerate(cross_names(inputs)):
+        r = signals[name]
+        d = _departure(r)
+        dz = _robust_z(d)
+        parts.append(np.column_stack([r, _robust_z(r), d, dz, *_evidence(dz)]))
+        parts.append(_ms_sw(r, period, features, rema[first + j]))
     out: np.ndarray = signed_log(np.hstack(parts))
     return out
 

@@ -32,8 +32,15 @@ from typing import Any
 
 import numpy as np
 
-from .._baselines.base import input_names, segments
-from .._baselines.channel_grad import SENSOR_BIAS_CLASSES, ChannelGradModel, channel_features
+from .._baselines.base import segments
+from .._baselines.channel_grad import (
+    CROSS_SOURCES,
+    SENSOR_BIAS_CLASSES,
+    ChannelGradModel,
+    channel_features,
+    channel_signals,
+    rema_names,
+)
 from .._exceptions import ConfigError, ModelError
 from .._grad.features import FeatureParams
 from .._grad.gru import GRUModel
@@ -107,17 +114,22 @@ def _sequences(
 
 
 def _tuned_rema(val: Any, recipe: BaselineRecipe) -> tuple[tuple[RemaParams, ...], list[float]]:
+    """REMA per signal (:func:`rema_names`), tuned against the labels of the channels it sees."""
     inputs = inputs_for("sensor-grid", recipe)
     fixes, _, labelled = labelled_fixes(val, "sensor-grid", recipe.val_seed, recipe=recipe)
     segs = segments(fixes, inputs)[0]
+    signals = [channel_signals(s, inputs) for s in segs]
     chosen, scores = [], []
-    for k, name in enumerate(input_names(inputs)):
-        if name not in _LABEL:  # a clean reference channel (speed from the fixes)
+    for name in rema_names(inputs):
+        sources = [c for c in CROSS_SOURCES.get(name, (name,)) if c in _LABEL]
+        if not sources:  # a clean reference channel (speed from the fixes)
             chosen.append(RemaParams())
             scores.append(0.0)
             continue
-        column = labelled[_LABEL[name]].to_numpy(np.int64)
-        values = [np.nan_to_num(s.values[:, k]) for s in segs]
+        column = np.zeros(len(labelled), np.int64)
+        for c in sources:
+            column |= labelled[_LABEL[c]].to_numpy(np.int64)
+        values = [sig[name] for sig in signals]
         params, f1 = tune_channel_rema(values, [column[s.rows] for s in segs])
         chosen.append(params)
         scores.append(f1)
@@ -146,7 +158,7 @@ def dataset_channel_grad(
         "features": asdict(features),
         "rema_grid": [list(g) for g in REMA_GRID],
         "recall_floor": NORMAL_RECALL_FLOOR,
-        "design": "channel-grad-3",
+        "design": "channel-grad-4b",
     }
     target = baseline_dir("channel-grad", dataset, "sensor-grid", rec, data_dir, extra)
     if not (target / "config.json").is_file():
@@ -163,7 +175,8 @@ def dataset_channel_grad(
             time_budget_s=rec.time_budget_s,
             seed=rec.seed,
             progress=False,
-            early_stopping="f1",
+            early_stopping="floor-f1",
+            normal_recall_floor=NORMAL_RECALL_FLOOR,
             patience=rec.patience,
             learning_rate=rec.learning_rate,
             max_epochs=rec.max_epochs,

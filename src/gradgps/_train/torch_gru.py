@@ -73,7 +73,10 @@ class TrainConfig:
     normal_recall_floor: float = 0.0  # > 0: best validation F1 keeping normal recall >= it
     max_epochs: int = 100
     patience: int = 6
-    early_stopping: str = "loss"  # "loss" (validation loss) or "f1" (validation anomaly F1)
+    # "loss" (validation loss), "f1" (validation anomaly F1 at 0.5) or "floor-f1" (validation
+    # anomaly F1 at the threshold normal_recall_floor picks: the model is chosen by the rule
+    # it will be thresholded with)
+    early_stopping: str = "loss"
     time_budget_s: float = 180.0
     max_samples_per_epoch: int = 100_000  # window mode: windows drawn per epoch
     bias_loss_weight: float = 1.0
@@ -94,8 +97,12 @@ class TrainConfig:
             )
         if not (math.isfinite(self.grad_clip) and self.grad_clip >= 0):
             raise ConfigError(f"grad_clip must be >= 0, got {self.grad_clip!r}")
-        if self.early_stopping not in ("loss", "f1"):
-            raise ConfigError(f"early_stopping must be 'loss' or 'f1', got {self.early_stopping!r}")
+        if self.early_stopping not in ("loss", "f1", "floor-f1"):
+            raise ConfigError(
+                f"early_stopping must be 'loss', 'f1' or 'floor-f1', got {self.early_stopping!r}"
+            )
+        if self.early_stopping == "floor-f1" and self.normal_recall_floor <= 0:
+            raise ConfigError("early_stopping 'floor-f1' needs a normal_recall_floor > 0")
         if len(self.bias_classes) < 2:
             raise ConfigError("bias_classes needs 'none' plus at least one fault type")
         for name in (
@@ -618,7 +625,12 @@ def _train(
             la, lb, a_true, b_true = _predict_packed(net, val, config)
             val_loss = float(loss_fn(la, lb, torch.from_numpy(a_true), torch.from_numpy(b_true)))
             p_anomaly = torch.softmax(la, -1)[:, 1].numpy()
-            val_f1 = f1_score(a_true == 1, p_anomaly >= 0.5)
+            cut = (
+                recall_floor_threshold(a_true == 1, p_anomaly, config.normal_recall_floor)
+                if config.early_stopping == "floor-f1"
+                else 0.5
+            )
+            val_f1 = f1_score(a_true == 1, p_anomaly >= cut)
             on_anomaly = a_true == 1
             bias_acc = (
                 float(np.mean(lb.argmax(-1).numpy()[on_anomaly] == b_true[on_anomaly]))
