@@ -5,9 +5,11 @@ column kept, plus the detector's columns: ``anomaly`` (0/1), ``score``
 (0..1), ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
 ``alert`` (0/1) and ``invalid_reason`` (empty for a usable fix).
 
-CSV and Parquet input is processed ``--chunk-size`` rows at a time in bounded
-memory (:mod:`gradgps._run.chunked`; Parquet by record batches of one row group
-at a time); ``--chunk-size 0`` and the other formats read the whole file. Both read each track in row order with one rule (see
+CSV, Parquet, GPX and NMEA input is processed ``--chunk-size`` rows at a time
+in bounded memory (:mod:`gradgps._run.chunked`; Parquet by record batches of one
+row group at a time; GPX and NMEA in two streaming passes,
+:func:`gradgps._io.read.input_tables`); ``--chunk-size 0``, GeoParquet, GeoJSON
+and ROS bags read the whole file. Both read each track in row order with one rule (see
 :func:`gradgps._tracks.preprocess.stream_reasons`): a fix whose time is not
 after the previous usable fix of its track is flagged invalid, never merged,
 so every mode, ``--report`` included, gives the same rows flagged and the
@@ -82,7 +84,8 @@ __all__ = ["detect"]
     "--chunk-size",
     minimum=0,
     default=200_000,
-    help="CSV or Parquet rows per chunk (bounded memory); 0 = read the whole file at once. "
+    help="CSV, Parquet, GPX or NMEA rows per chunk (bounded memory); 0 = read the whole "
+    "file at once (memory grows with the file). "
     "Same results either way",
 )
 @column_options
@@ -105,10 +108,10 @@ def detect(
 
     Every mode gives the same answer: each track is read in row order, and a
     fix whose time is not after the previous usable fix of its track (a
-    repeated or backward timestamp) is flagged invalid, never merged. CSV
-    input is processed in chunks of --chunk-size rows (memory stays bounded
-    however large the file, unless --report/--plots/--geojson/--gpx need the
-    whole track). With --follow, INPUT is read as a live stream (e.g. 'tail
+    repeated or backward timestamp) is flagged invalid, never merged. CSV,
+    Parquet, GPX and NMEA input is processed in chunks of --chunk-size rows
+    (memory stays bounded however large the file, unless --plots/--geojson/--gpx
+    need the whole track). With --follow, INPUT is read as a live stream (e.g. 'tail
     -f log.nmea | gradgps detect --follow -') and results go to standard
     output.
     """
@@ -437,11 +440,11 @@ def _run_follow(
 
 
 def _chunkable(path: Path, fmt: str | None) -> bool:
-    """Whether ``path`` is read chunk by chunk: CSV, and Parquet that is not GeoParquet
-    (a GeoParquet file is read whole, so its output keeps the geometry column and
-    the ``geo`` metadata)."""
+    """Whether ``path`` is read chunk by chunk: CSV, GPX, NMEA, and Parquet that is not
+    GeoParquet (a GeoParquet file is read whole, so its output keeps the geometry column
+    and the ``geo`` metadata)."""
     from .._io.geoparquet import geo_metadata
     from .._io.read import resolve_format
 
     kind = resolve_format(path, fmt)
-    return kind == "csv" or (kind == "parquet" and geo_metadata(path) is None)
+    return kind in ("csv", "gpx", "nmea") or (kind == "parquet" and geo_metadata(path) is None)

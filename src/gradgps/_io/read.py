@@ -57,8 +57,8 @@ from .._tracks.track import (
 from .files import READ_ERRORS, check_readable, open_bytes, text_lines
 from .geojson import read_geojson
 from .geoparquet import geo_metadata, read_geoparquet, wkt_points, write_geoparquet
-from .gpx import read_gpx
-from .nmea import read_nmea
+from .gpx import gpx_tables, read_gpx
+from .nmea import nmea_tables, read_nmea
 from .rosbag import is_rosbag, read_rosbag
 from .times import csv_ready
 
@@ -67,6 +67,7 @@ __all__ = [
     "CsvChunks",
     "TableWriter",
     "csv_tables",
+    "input_tables",
     "iter_csv_tables",
     "load_table",
     "parquet_tables",
@@ -746,6 +747,38 @@ def _read_csv(path: Path, columns: ColumnMap | None, options: ReadOptions) -> Ta
         frame = _pandas_csv(path, layout, columns, source)
     regular = layout.lines_regular and len(frame) == layout.n_rows
     return Table(frame=frame, source=source, first_line=layout.first_line if regular else None)
+
+
+#: The formats :func:`input_tables` reads chunk by chunk (GeoParquet aside: read whole).
+CHUNKED_FORMATS: Final = ("csv", "parquet", "gpx", "nmea")
+
+
+def input_tables(
+    path: str | Path,
+    chunksize: int,
+    columns: ColumnMap | None = None,
+    options: ReadOptions | None = None,
+    fmt: str | None = None,
+) -> CsvChunks:
+    """A track file of one of :data:`CHUNKED_FORMATS` as Tables of at most ``chunksize``
+    rows: :func:`csv_tables`, :func:`parquet_tables`, or GPX and NMEA read in two
+    streaming passes (:func:`gradgps._io.gpx.gpx_tables`,
+    :func:`gradgps._io.nmea.nmea_tables`); the rows, values and column roles
+    :func:`load_table` gives for the whole file, in chunks, in bounded memory."""
+    kind = resolve_format(Path(path), fmt)
+    if kind == "parquet":
+        return parquet_tables(path, chunksize, columns, options)
+    if kind not in ("gpx", "nmea"):
+        return csv_tables(path, chunksize, columns, options)
+    path, options = _chunked_read(path, chunksize, options, kind)
+    check_readable(path)
+    reader = gpx_tables(path, chunksize) if kind == "gpx" else nmea_tables(path, chunksize)
+    cmap = reader.columns if columns is None else _override(reader.columns, columns)
+    return CsvChunks(
+        n_rows=reader.n_rows,
+        header=reader.header,
+        chunks=(replace(t, columns=cmap, options=options) for t in reader.chunks),
+    )
 
 
 def parquet_tables(

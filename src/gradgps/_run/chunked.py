@@ -1,4 +1,4 @@
-"""Detection over a CSV of any length, chunk by chunk, in bounded memory.
+"""Detection over a CSV (Parquet, GPX, NMEA) of any length, chunk by chunk, in bounded memory.
 
 ``gradgps detect`` on a big CSV must not hold the file in memory, and its
 results must not depend on where chunks happen to end. So this path uses
@@ -33,7 +33,7 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._grad.detector import MultiTrackDetector, load_grad_model
-from .._io.read import TableWriter, csv_tables, parquet_tables, resolve_format
+from .._io.read import TableWriter, input_tables
 from .._result import RESULT_DTYPES
 from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import ColumnMap, ReadOptions, to_fixes
@@ -74,8 +74,9 @@ def detect_csv_in_chunks(
     on_result: Callable[[pd.DataFrame, pd.DataFrame, pd.DataFrame], None] | None = None,
     fmt: str | None = None,
 ) -> DetectSummary:
-    """Detect faults in every row of a CSV (or Parquet file: ``fmt``, or the file's
-    extension), ``chunk_size`` rows at a time; write ``output``.
+    """Detect faults in every row of a CSV, Parquet, GPX or NMEA file (``fmt``, or as
+    :func:`gradgps._io.read.resolve_format` tells), ``chunk_size`` rows at a time;
+    write ``output``.
 
     The output (``.csv``, ``.csv.gz`` or ``.parquet``) has every input
     column, in order, then the result columns, one row per input row. It is
@@ -88,10 +89,7 @@ def detect_csv_in_chunks(
     """
     started = time.perf_counter()
     streams = MultiTrackDetector(model, threshold=threshold)
-    if resolve_format(Path(input_path), fmt) == "parquet":
-        chunks = parquet_tables(Path(input_path), chunk_size, columns, options)
-    else:
-        chunks = csv_tables(Path(input_path), chunk_size, columns, options)
+    chunks = input_tables(Path(input_path), chunk_size, columns, options, fmt)
     clash = [c for c in RESULT_DTYPES if c in chunks.header]
     if clash:
         raise InputError(
