@@ -144,17 +144,24 @@ def detect(
     from .._io.read import load_table, write_table
     from .._io.times import output_time_text
     from .._result import ResultCounts
+    from .._run.report_data import ReportCollector
     from .._tracks.input_checks import input_warnings, validated_rates
     from .._tracks.track import to_fixes
 
-    whole = any(p is not None for p in (report_path, plots_dir, geojson_path, gpx_path))
+    drawing = report_path is not None or plots_dir is not None
+    exports = geojson_path is not None or gpx_path is not None
+    chunked = chunk_size > 0 and _chunkable(input_path, fmt)
+    # The report and plots draw from a collection of bounded size (report_data), unless
+    # --geojson/--gpx keep every fix anyway or the whole file is read at once.
+    collector = ReportCollector() if drawing and chunked and not exports else None
+    whole = exports or (drawing and collector is None)
     events = EventBuilder() if (events_path or report_path or geojson_path) else None
     kept: list[tuple[pd.DataFrame, pd.DataFrame]] = []
     # The time column as the output writes it, for the report's tables (None: numbers).
     time_texts: list[Any] = []
     detector = Detector(model_dir, threshold=threshold)
     time_column: Any = None
-    if chunk_size > 0 and _chunkable(input_path, fmt):
+    if chunked:
 
         def collect(fixes: pd.DataFrame, result: pd.DataFrame, frame: pd.DataFrame) -> None:
             nonlocal time_column
@@ -165,6 +172,8 @@ def detect(
             if whole:
                 kept.append((fixes, result))
                 time_texts.append(output_time_text(frame, _time_name(fixes)))
+            if collector is not None:
+                collector.add(fixes, result, output_time_text(frame, _time_name(fixes)))
 
         summary = _detect_in_chunks(
             input_path,
@@ -219,7 +228,7 @@ def detect(
     for warning in warnings:
         # Once, on standard error: the input is outside what the model was validated on.
         click.echo(f"warning: {warning}", err=True)
-    if not whole and events is None:
+    if not whole and events is None and collector is None:
         return
     fixes_all = pd.concat([f for f, _ in kept], ignore_index=True) if whole else None
     result_all = pd.concat([r for _, r in kept], ignore_index=True) if whole else None
@@ -243,24 +252,43 @@ def detect(
         assert result_all is not None
         write_gpx(gpx_path, fixes_all, result_all)
         click.echo(f"gpx: {gpx_path} (the repaired track)")
-    if fixes_all is not None and result_all is not None and (report_path or plots_dir):
+    if drawing:
         from .report import write_report_outputs
 
-        with _steps() as step:
-            step("draw the report")
-            write_report_outputs(
-                report_path,
-                plots_dir,
-                fixes_all,
-                result_all,
-                detector,
-                elapsed,
-                str(input_path),
-                events=table_events,
-                warnings=warnings,
-                time_text=_joined(time_texts),
-                geojson=geojson,
-            )
+        thinned = None
+        drawn: Any = None
+        if collector is None:
+            drawn = (fixes_all, result_all, _joined(time_texts))
+        elif (drawn := collector.whole()) is None:
+
+            def reread() -> Iterator[pd.DataFrame]:
+                from .._io.read import input_tables
+
+                for table in input_tables(input_path, chunk_size, column_map(cols), reading, fmt):
+                    yield to_fixes(table)
+
+            with _steps() as step:
+                step("collect the busiest tracks again for the report")
+                thinned = collector.thinned(reread)
+            if thinned is not None:
+                drawn = (thinned.fixes, thinned.result, thinned.time_text)
+        if drawn is not None and drawn[0] is not None:
+            with _steps() as step:
+                step("draw the report")
+                write_report_outputs(
+                    report_path,
+                    plots_dir,
+                    drawn[0],
+                    drawn[1],
+                    detector,
+                    elapsed,
+                    str(input_path),
+                    events=table_events,
+                    warnings=warnings,
+                    time_text=drawn[2],
+                    geojson=geojson,
+                    thinned=thinned,
+                )
 
 
 @contextlib.contextmanager

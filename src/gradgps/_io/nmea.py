@@ -103,7 +103,7 @@ def nmea_checksum(body: str) -> int:
     return value
 
 
-@dataclass
+@dataclass(slots=True)
 class Epoch:
     """One instant, merged from its GGA and/or RMC sentence."""
 
