@@ -4,6 +4,7 @@ and times of the whole-file readers, and the same ``gradgps detect`` output in b
 from __future__ import annotations
 
 import calendar
+import importlib
 import math
 from pathlib import Path
 
@@ -247,3 +248,20 @@ def test_detect_streams_gpx_and_nmea_without_reading_them_whole(
     out = tmp_path / "out.csv"
     _detect([str(path), "-o", str(out), "--chunk-size", "4"])
     assert len(pd.read_csv(out)) == len(_joined(path, 4)[0])
+
+
+def test_a_big_file_read_whole_says_its_memory_grows_with_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    detect_module = importlib.import_module("gradgps._cli.detect")
+    path = _gpx(tmp_path)
+    monkeypatch.setattr(detect_module, "WHOLE_FILE_WARN_BYTES", path.stat().st_size - 1)
+    whole = _detect([str(path), "-o", str(tmp_path / "a.csv"), "--chunk-size", "0"])
+    assert "is read whole (--chunk-size 0): memory grows with the file" in whole
+    assert "leave --chunk-size at its default" in whole
+    chunked = _detect([str(path), "-o", str(tmp_path / "b.csv")])
+    assert "read whole" not in chunked
+    monkeypatch.setattr(detect_module, "WHOLE_FILE_WARN_BYTES", path.stat().st_size)
+    assert "read whole" not in _detect(
+        [str(path), "-o", str(tmp_path / "c.csv"), "--chunk-size", "0"]
+    )

@@ -31,7 +31,11 @@ from .options import READER_FLAGS, column_map, column_options, model_options, op
 if TYPE_CHECKING:
     from .._tracks.track import ColumnMap, ReadOptions
 
-__all__ = ["detect"]
+__all__ = ["WHOLE_FILE_WARN_BYTES", "detect"]
+
+#: A file read whole (``--chunk-size 0``, GeoParquet, GeoJSON, a ROS bag) larger than this
+#: gets a warning first: its memory grows with it (docs/reliability.md, "Bounded memory").
+WHOLE_FILE_WARN_BYTES = 100_000_000
 
 
 @click.command()
@@ -191,6 +195,7 @@ def detect(
         elapsed = summary.seconds
         rate = summary.rows_per_second
     else:
+        _warn_whole(input_path, chunk_size)
         with _steps() as step:
             step("read")
             table = load_table(input_path, fmt, column_map(cols), reading)
@@ -289,6 +294,26 @@ def detect(
                     geojson=geojson,
                     thinned=thinned,
                 )
+
+
+def _warn_whole(path: Path, chunk_size: int) -> None:
+    """Say, before reading, that a big file read whole needs memory in proportion to it."""
+    try:
+        size = sum(p.stat().st_size for p in (path.rglob("*") if path.is_dir() else [path]))
+    except OSError:
+        return
+    if size <= WHOLE_FILE_WARN_BYTES:
+        return
+    why, hint = (
+        ("--chunk-size 0", "leave --chunk-size at its default to keep memory bounded")
+        if chunk_size == 0
+        else ("this format is not read in chunks", "convert it to CSV or Parquet to stream it")
+    )
+    click.echo(
+        f"warning: {path} ({size / 1e6:,.0f} MB) is read whole ({why}): memory grows with "
+        "the file, about 0.65 GB per million fixes (10 times a CSV's size); " + hint,
+        err=True,
+    )
 
 
 @contextlib.contextmanager
