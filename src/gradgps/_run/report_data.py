@@ -169,18 +169,18 @@ class _Sampler:
         over = sizes[sizes > share]
         if over.empty:
             return
-        drop = np.zeros(len(self.frame), dtype=bool)
-        tracks = self.frame["track"].to_numpy(object)
+        keep = np.ones(len(self.frame), dtype=bool)
         ordinal = self.frame["ordinal"].to_numpy(np.int64)
+        positions = self.frame.groupby("track", sort=False).indices
         for track, n in over.items():
-            mine = tracks == track
+            mine = positions[track]
             stride = self.stride[track]
             while n > share:
                 stride *= 2
-                n = int((mine & (ordinal % stride == 0)).sum())
+                n = int((ordinal[mine] % stride == 0).sum())
             self.stride[track] = stride
-            drop |= mine & (ordinal % stride != 0)
-        self.frame = self.frame.loc[~drop]
+            keep[mine[ordinal[mine] % stride != 0]] = False
+        self.frame = self.frame.loc[keep]
 
 
 class _Thinning:
