@@ -172,3 +172,10 @@ def test_the_collection_stays_bounded_however_long_the_run(monkeypatch: pytest.M
         steps = np.diff(part["ordinal"].to_numpy())
         assert steps.size > 50
         assert len(set(steps.tolist())) == 1
+
+
+def test_an_empty_parquet_file_gets_an_empty_report(tmp_path: Path) -> None:
+    path = tmp_path / "empty.parquet"
+    pd.DataFrame({c: pd.Series(dtype=float) for c in ("t", "lat", "lon")}).to_parquet(path)
+    page = _report(path, tmp_path / "empty.html")
+    assert "<td>input rows</td><td>0</td>" in page

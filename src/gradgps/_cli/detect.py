@@ -114,7 +114,7 @@ def detect(
     fix whose time is not after the previous usable fix of its track (a
     repeated or backward timestamp) is flagged invalid, never merged. CSV,
     Parquet, GPX and NMEA input is processed in chunks of --chunk-size rows
-    (memory stays bounded however large the file, unless --plots/--geojson/--gpx
+    (memory stays bounded however large the file, unless --geojson/--gpx
     need the whole track). With --follow, INPUT is read as a live stream (e.g. 'tail
     -f log.nmea | gradgps detect --follow -') and results go to standard
     output.
@@ -264,6 +264,10 @@ def detect(
         drawn: Any = None
         if collector is None:
             drawn = (fixes_all, result_all, _joined(time_texts))
+        elif collector.rows == 0:  # no chunk at all (an empty Parquet file): an empty report
+            from .._run.chunked import no_fixes
+
+            drawn = (no_fixes(), detector.detect_fixes(no_fixes()), None)
         elif (drawn := collector.whole()) is None:
 
             def reread() -> Iterator[pd.DataFrame]:

@@ -38,7 +38,7 @@ from .._result import RESULT_DTYPES
 from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import ColumnMap, ReadOptions, to_fixes
 
-__all__ = ["DetectSummary", "detect_csv_in_chunks"]
+__all__ = ["DetectSummary", "detect_csv_in_chunks", "no_fixes"]
 
 
 @dataclass(frozen=True)
@@ -129,7 +129,7 @@ def detect_csv_in_chunks(
                 on_chunk(len(result))
         if writer is not None and not writer.started:  # no chunk: still write our columns
             empty = pd.DataFrame([], columns=list(chunks.header), dtype=object)
-            writer.write(pd.concat([empty, streams.update_fixes(_no_fixes())], axis=1))
+            writer.write(pd.concat([empty, streams.update_fixes(no_fixes())], axis=1))
     return DetectSummary(
         rows=rows,
         anomalies=int(counts[0]),
@@ -141,7 +141,8 @@ def detect_csv_in_chunks(
     )
 
 
-def _no_fixes() -> pd.DataFrame:
+def no_fixes() -> pd.DataFrame:
+    """Canonical fixes of no rows (the columns every result is made from)."""
     return pd.DataFrame(
         {
             "track": pd.Series(dtype=object),
