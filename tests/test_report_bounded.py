@@ -179,3 +179,9 @@ def test_an_empty_parquet_file_gets_an_empty_report(tmp_path: Path) -> None:
     pd.DataFrame({c: pd.Series(dtype=float) for c in ("t", "lat", "lon")}).to_parquet(path)
     page = _report(path, tmp_path / "empty.html")
     assert "<td>input rows</td><td>0</td>" in page
+
+
+def test_the_sample_keeps_as_many_flagged_fixes_per_track_as_the_view_draws() -> None:
+    from gradgps._run.explore import MAX_DOTS
+
+    assert report_data.TRACK_DOTS == MAX_DOTS

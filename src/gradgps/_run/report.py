@@ -43,7 +43,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -56,9 +56,7 @@ from .._result import ResultCounts
 from .._tracks.geo import LocalFrame
 from .._tracks.preprocess import Prepared
 from .explore import SCRIPT, embedded_geojson, track_explorer
-
-if TYPE_CHECKING:
-    from .report_data import Thinned
+from .report_data import MAX_TABLE_ROWS, SAMPLE_ROWS, TRACK_ROWS, Thinned
 
 __all__ = ["ChannelBounds", "ReportInputs", "figures", "rema_bounds", "write_plots", "write_report"]
 
@@ -71,8 +69,6 @@ TIME_MARKERS = {"transient": "o", "intermittent": "s", "permanent": "^", "none":
 MAX_CHANNEL_SEGMENTS = 3
 #: Lines are decimated to at most this many vertices (markers are never dropped).
 MAX_LINE_POINTS = 20_000
-#: Rows of the anomaly table.
-MAX_TABLE_ROWS = 100
 
 
 @dataclass(frozen=True)
@@ -637,8 +633,6 @@ def render_html(inputs: ReportInputs) -> str:
 
 def thinned_note(thinned: Thinned) -> str:
     """What a thinned report draws from (one sentence for the page)."""
-    from .report_data import SAMPLE_ROWS, TRACK_ROWS
-
     return (
         f"This run has {thinned.totals.counts.rows:,} rows: the counts and tables are exact; "
         "the track figure, the track view and the embedded GeoJSON are drawn from an "

@@ -8,11 +8,11 @@ must not need the whole result in memory either (issue 18). A
   drawn from the whole result (the same file as before this module);
 * past that it *thins*: it keeps exact counts (everything the summary, the
   legends and the track view's captions say), the first
-  :data:`~gradgps._run.report.MAX_TABLE_ROWS` anomalous fixes (the anomaly
+  :data:`MAX_TABLE_ROWS` anomalous fixes (the anomaly
   table), and per track an evenly spread sample of the usable fixes (every
   k-th, k doubling as the track grows: at most :data:`TRACK_ROWS` per track and
   about :data:`SAMPLE_ROWS` in all) and of its flagged fixes (at most
-  :data:`~gradgps._run.explore.MAX_DOTS` per track, about :data:`DOT_ROWS` in
+  :data:`TRACK_DOTS` per track, about :data:`DOT_ROWS` in
   all), each with its row number and its line's run number (a new run where
   usable fixes are more than :data:`gradgps._io.export.LINE_GAP_S` apart, as
   the GeoJSON cuts lines), plus one byte per row (usable, flagged) for the
@@ -46,13 +46,17 @@ __all__ = [
     "CHANNEL_TRACKS",
     "DOT_ROWS",
     "EXACT_ROWS",
+    "MAX_TABLE_ROWS",
     "SAMPLE_ROWS",
+    "TRACK_DOTS",
     "TRACK_ROWS",
     "ReportCollector",
     "ReportTotals",
     "Thinned",
 ]
 
+#: Rows of the report's anomaly table: the first this many anomalous fixes, kept exactly.
+MAX_TABLE_ROWS = 100
 #: Rows kept whole: up to this many, the report is drawn from the whole result.
 EXACT_ROWS = 250_000
 #: Usable fixes sampled for the lines, per track and over all tracks (at least
@@ -60,7 +64,9 @@ EXACT_ROWS = 250_000
 TRACK_ROWS = 4_000
 SAMPLE_ROWS = 200_000
 MIN_TRACK_ROWS = 64
-#: Flagged fixes sampled for the markers over all tracks (per track: ``explore.MAX_DOTS``).
+#: Flagged fixes sampled for the markers, per track (as many as the track view draws,
+#: :data:`gradgps._run.explore.MAX_DOTS`) and over all tracks.
+TRACK_DOTS = 5_000
 DOT_ROWS = 100_000
 #: The channel figures of a thinned report: the first this many usable fixes of each of
 #: the this many tracks with the most flagged fixes, read again from the input.
@@ -330,13 +336,10 @@ class ReportCollector:
     """
 
     def __init__(self, exact_rows: int | None = None) -> None:
-        from .explore import MAX_DOTS
-        from .report import MAX_TABLE_ROWS
-
         self.exact_rows = EXACT_ROWS if exact_rows is None else exact_rows
         self.rows = 0
         self._kept: list[tuple[pd.DataFrame, pd.DataFrame, Any]] | None = []
-        self._thinning = _Thinning(MAX_DOTS, MAX_TABLE_ROWS)
+        self._thinning = _Thinning(TRACK_DOTS, MAX_TABLE_ROWS)
 
     def add(self, fixes: pd.DataFrame, result: pd.DataFrame, time_text: Any) -> None:
         self.rows += len(fixes)
