@@ -265,3 +265,57 @@ def test_a_big_file_read_whole_says_its_memory_grows_with_it(
     assert "read whole" not in _detect(
         [str(path), "-o", str(tmp_path / "c.csv"), "--chunk-size", "0"]
     )
+
+
+def _traced_peak_mb(read: object) -> float:
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        read()  # type: ignore[operator]
+        return tracemalloc.get_traced_memory()[1] / 1e6
+    finally:
+        tracemalloc.stop()
+
+
+def test_an_nmea_log_without_line_breaks_is_read_in_pieces_with_the_same_epochs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    lines = _nmea(tmp_path).read_text(encoding="ascii").splitlines()
+    path = tmp_path / "one_line.nmea"
+    path.write_text("junk before" + "".join(lines), encoding="ascii")  # no line breaks at all
+    whole = read_nmea(path)
+    assert len(whole.frame) == 30
+    monkeypatch.setattr("gradgps._io.nmea._PIECE_BYTES", 37)
+    pieces = read_nmea(path)
+    pd.testing.assert_frame_equal(pieces.frame, whole.frame)
+    assert (pieces.rejected, pieces.notes) == (whole.rejected, whole.notes)
+    assert len(input_tables(path, 4).chunks.__next__().frame) == 4
+
+
+def test_a_huge_nmea_line_or_gpx_text_is_never_held_whole(tmp_path: Path) -> None:
+    good = _nmea(tmp_path).read_text(encoding="ascii")
+    nmea = tmp_path / "huge_line.nmea"
+    nmea.write_text("x" * 30_000_000 + "\r\n" + good, encoding="ascii")
+    assert _traced_peak_mb(lambda: read_nmea(nmea)) < 10
+    assert len(read_nmea(nmea).frame) == 30
+    gpx = tmp_path / "huge_desc.gpx"
+    desc = "<metadata><desc>" + "d" * 30_000_000 + "</desc></metadata>"
+    gpx.write_text(
+        f"<gpx>{desc}<trk><trkseg>{_point(48.1, 11.5, '2024-05-01T10:00:00Z')}"
+        "</trkseg></trk></gpx>",
+        encoding="utf-8",
+    )
+    assert _traced_peak_mb(lambda: read_gpx(gpx)) < 10
+    assert len(read_gpx(gpx).frame) == 1
+
+
+def test_a_gpx_name_or_value_longer_than_1_mib_is_an_error(tmp_path: Path) -> None:
+    for where in (
+        "<name>{}</name>",
+        "<trkseg><trkpt lat='1' lon='2'><ele>{}</ele></trkpt></trkseg>",
+    ):
+        path = tmp_path / "long.gpx"
+        path.write_text(f"<gpx><trk>{where.format('7' * 1_100_000)}</trk></gpx>", encoding="utf-8")
+        with pytest.raises(InputError, match="holds more than 1,048,576 characters"):
+            read_gpx(path)

@@ -55,6 +55,9 @@ _VALUE_TAGS: Final = {
     "sat": "satellites",
 }
 _OPTIONAL: Final = ("speed", "course", "hdop", "satellites")
+#: Longest element text kept (a longer track name, time or value is an error; any other
+#: text, a description, is not read beyond it).
+MAX_TEXT_CHARS: Final = 1 << 20
 #: ``<fix>``: the receiver's fix type (none, 2d, 3d, dgps, pps), kept as text.
 _FIX: Final = "fix"
 
@@ -85,6 +88,7 @@ class _Collector:
     point: dict[str, str] | None = None
     point_line: int = 0
     text: list[str] = field(default_factory=list)
+    text_chars: int = 0  # of the current element's text, kept up to MAX_TEXT_CHARS
     other_points: int = 0
     points: int = 0
 
@@ -93,6 +97,7 @@ class _Collector:
         parent = self.stack[-1] if self.stack else ""
         self.stack.append(name)
         self.text = []
+        self.text_chars = 0
         if name == "trk":
             self.track_index += 1
             self.segment_index = -1
@@ -116,7 +121,19 @@ class _Collector:
         self.stack.pop()
         parent = self.stack[-1] if self.stack else ""
         text = "".join(self.text).strip()
+        too_long = self.text_chars > MAX_TEXT_CHARS
         self.text = []
+        self.text_chars = 0
+        used = (name == "name" and parent == "trk") or (
+            self.point is not None and (name in ("time", _FIX) or name in _VALUE_TAGS)
+        )
+        if too_long and used:
+            raise InputError(
+                f"<{name}> holds more than {MAX_TEXT_CHARS:,} characters",
+                source=self.source,
+                line=self.parser.CurrentLineNumber,
+                hint="no GPX name, time or value is that long: is this the right file?",
+            )
         if name == "name" and parent == "trk":
             self.track_name = text if text not in self.names_seen else f"{text} #{self.track_index}"
             self.names_seen.add(self.track_name)
@@ -130,7 +147,11 @@ class _Collector:
                 self.point.setdefault(key, text)
 
     def characters(self, data: str) -> None:
-        self.text.append(data)
+        # Kept up to MAX_TEXT_CHARS: a huge text (a description, hostile input) never
+        # sits in memory whole; the reader refuses one it would have to use.
+        if self.text_chars <= MAX_TEXT_CHARS:
+            self.text.append(data[: MAX_TEXT_CHARS + 1 - self.text_chars])
+        self.text_chars += len(data)
 
     def _add_point(self, point: dict[str, str]) -> None:
         line = self.point_line

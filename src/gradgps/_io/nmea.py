@@ -91,6 +91,11 @@ class Malformed(Exception):
     """A field that cannot be what the sentence type says it is (internal)."""
 
 
+#: Bytes of a line read at a time (a longer line is read in pieces, its sentences kept whole).
+_PIECE_BYTES = 1 << 20
+#: Most characters kept of a sentence spread over pieces (any longer one is rejected as too long).
+_OPEN_CHARS = 1 << 20
+
 #: Longest sentence accepted (the standard's limit is 82; some receivers exceed it a little).
 MAX_SENTENCE_CHARS = 200
 
@@ -309,14 +314,34 @@ def _epoch_lists(path: Path, chunk_epochs: int | None) -> Iterator[tuple[list[Ep
     log = _LogReader()
     n_lines = 0
     handed = 0
+    in_line = False  # the last block read ended inside a line
+    open_text: str | None = None  # the line's text after its last "$" so far
     with open_bytes(path) as raw:
         try:
-            for raw_line in raw:
-                n_lines += 1
+            # A line is read at most _PIECE_BYTES at a time, so a log without line
+            # breaks (or a hostile 1 GB line) never sits in memory whole.
+            for block in iter(lambda: raw.readline(_PIECE_BYTES), b""):
+                if not in_line:
+                    n_lines += 1
+                    open_text = None
                 # Several sentences may share a line (a cut-off one followed
                 # by the next); text before the first "$" is a logger's prefix.
-                for piece in raw_line.decode("ascii", errors="replace").split("$")[1:]:
-                    log.add(piece, n_lines)
+                head, *rest = block.decode("ascii", errors="replace").split("$")
+                complete: list[str] = []
+                if open_text is not None:
+                    # Bounded: a "$" and then a gigabyte without one is no sentence.
+                    open_text = (open_text + head)[:_OPEN_CHARS]
+                if rest:
+                    if open_text is not None:
+                        complete.append(open_text)
+                    complete.extend(rest[:-1])
+                    open_text = rest[-1]
+                in_line = not block.endswith(b"\n")
+                if not in_line and open_text is not None:
+                    complete.append(open_text)
+                    open_text = None
+                for sentence in complete:
+                    log.add(sentence, n_lines)
                 if chunk_epochs is not None and len(log.epochs) > chunk_epochs:
                     done = log.epochs[:-1]
                     log.epochs = log.epochs[-1:]
@@ -324,6 +349,8 @@ def _epoch_lists(path: Path, chunk_epochs: int | None) -> Iterator[tuple[list[Ep
                     yield done, log
         except READ_ERRORS as exc:
             raise damaged(exc, source) from None
+    if open_text is not None:  # the last line, without a line break
+        log.add(open_text, n_lines)
     if log.rejected > MAX_NOTES:
         log.notes.append(f"... and {log.rejected - MAX_NOTES} more rejected sentences")
     if not handed and not log.epochs:
