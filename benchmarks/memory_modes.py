@@ -2,6 +2,7 @@
 
     python benchmarks/memory_modes.py --json benchmarks/results/memory_modes.json
         [--sizes-mb 10 50 100] [--only MODE ...]
+    python benchmarks/memory_modes.py --refit benchmarks/results/memory_modes.json
 
 For each size a fleet log of about that many megabytes of CSV is built from
 simulated drives (``gradgps.simulate_fleet``: 100 drives at 1 Hz, repeated
@@ -26,7 +27,9 @@ the compiled kernels) is measured by the same child on a 10-row file. For each
 mode a least-squares line through (input MB, peak MB) gives the growth per MB
 of input, and its extrapolation to a 1 GB input of that format (an
 extrapolation: 2-core shared machine, nothing above a few hundred MB is run
-here). Machine, load and command go into the JSON.
+here); so does the line through the two largest sizes alone, which is the
+one that tells for a bounded mode (its peak stops growing once a chunk, 200,000
+rows by default, is full, so a line through a smaller size overstates it). Machine, load and command go into the JSON.
 """
 
 from __future__ import annotations
@@ -169,11 +172,20 @@ def _fit(rows: list[dict[str, object]]) -> dict[str, float] | None:
     peak = np.array([float(str(r["peak_rss_mb"])) for r in done])
     slope, intercept = np.polyfit(mb, peak, 1)
     per_fix = np.polyfit(fixes / 1e6, peak, 1)[0]
+    # A bounded mode's peak stops growing once a chunk is full: a line through all sizes
+    # (the smallest below one chunk) overstates its growth; the two largest sizes tell.
+    order = np.argsort(mb)
+    a, b = order[-2], order[-1]
+    tail = (peak[b] - peak[a]) / (mb[b] - mb[a]) if mb[b] > mb[a] else float("nan")
     return {
         "mb_per_input_mb": round(float(slope), 3),
         "mb_per_million_fixes": round(float(per_fix), 1),
         "intercept_mb": round(float(intercept), 1),
         "extrapolated_peak_mb_at_1000_mb_input": round(float(intercept + 1000 * slope)),
+        "mb_per_input_mb_between_two_largest": round(float(tail), 3),
+        "extrapolated_peak_mb_at_1000_mb_input_from_two_largest": round(
+            float(peak[b] + (1000 - mb[b]) * tail)
+        ),
     }
 
 
@@ -200,7 +212,19 @@ def main() -> None:
     parser.add_argument("--sizes-mb", type=float, nargs="+", default=[10.0, 50.0, 100.0])
     parser.add_argument("--only", nargs="*", default=[], help="modes to run (default: all)")
     parser.add_argument("--note", default="", help="stored in the JSON (e.g. which code ran)")
+    parser.add_argument(
+        "--refit", type=Path, help="recompute the growth lines of a results JSON, in place"
+    )
     opts = parser.parse_args()
+    if opts.refit is not None:
+        done = json.loads(opts.refit.read_text())
+        found = {str(r["mode"]) for r in done["results"]}
+        done["growth"] = {
+            m: _fit([r for r in done["results"] if r["mode"] == m]) for m in MODES if m in found
+        }
+        opts.refit.write_text(json.dumps(done, indent=2) + "\n")
+        print(json.dumps(done["growth"], indent=2))
+        return
     modes = [m for m in MODES if not opts.only or m in opts.only]
     rows: list[dict[str, object]] = []
     load_before = os.getloadavg()[0]

@@ -34,7 +34,9 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=15.0)
     args = parser.parse_args()
     det = Detector(args.model)
-    print(f"simulator seed {args.seed}, {args.tracks} drives x {args.minutes:g} min, positions only")
+    print(
+        f"simulator seed {args.seed}, {args.tracks} drives x {args.minutes:g} min, positions only"
+    )
     print("| rate | fixes | clean false alarms | anomaly F1 | normal recall |")
     print("|---|---|---|---|---|")
     for rate in RATES_HZ:

@@ -24,6 +24,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TypeVar
 
+import numpy as np
+import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -32,6 +34,7 @@ from _track_strategies import expected_reasons, messy_tracks
 from gradgps import GradGPSError, iter_csv_tables, read_table, to_fixes
 from gradgps._grad.detector import Detector, MultiTrackDetector
 from gradgps._io.nmea import nmea_checksum
+from gradgps._io.read import resolve_format, table_chunks
 from gradgps._run.chunked import detect_csv_in_chunks
 
 T = TypeVar("T")
@@ -321,12 +324,33 @@ def test_fuzz_csv_bytes(tmp_path: Path, data: bytes) -> None:
     _survives_chunked(path, output)
 
 
+def _same_in_chunks(path: Path) -> None:
+    """GPX and NMEA read in chunks of 3 rows (issue 18): a gradgps error exactly where the
+    whole-file reader gives one (perhaps another of the file's errors: the chunks check
+    values chunk by chunk), else the whole-file table, row for row."""
+    if resolve_format(path) not in ("gpx", "nmea"):  # mutated into CSV: typed per chunk
+        return
+    whole = _gradgps_error(lambda: read_table(path))
+    chunks = _gradgps_error(lambda: list(table_chunks(path, 3)))
+    if isinstance(whole, GradGPSError):
+        assert isinstance(chunks, GradGPSError), "read whole: error; read in chunks: none"
+        return
+    assert not isinstance(chunks, GradGPSError), str(chunks)
+    frame = pd.concat([t.frame for t in chunks], ignore_index=True)
+    pd.testing.assert_frame_equal(frame, whole.frame)
+    assert whole.times is not None
+    np.testing.assert_array_equal(
+        np.concatenate([np.asarray(t.times) for t in chunks]), whole.times
+    )
+
+
 @fuzz
 @given(data=_mutated(_gpx_document()))
 def test_fuzz_gpx_bytes(tmp_path: Path, data: bytes) -> None:
     path = tmp_path / "in.gpx"
     path.write_bytes(data)
     _survives(path)
+    _same_in_chunks(path)
 
 
 @fuzz
@@ -335,6 +359,7 @@ def test_fuzz_nmea_bytes(tmp_path: Path, data: bytes) -> None:
     path = tmp_path / "in.nmea"
     path.write_bytes(data)
     _survives(path)
+    _same_in_chunks(path)
 
 
 @fuzz

@@ -5,9 +5,11 @@ column kept, plus the detector's columns: ``anomaly`` (0/1), ``score``
 (0..1), ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
 ``alert`` (0/1) and ``invalid_reason`` (empty for a usable fix).
 
-CSV and Parquet input is processed ``--chunk-size`` rows at a time in bounded
-memory (:mod:`gradgps._run.chunked`; Parquet by record batches of one row group
-at a time); ``--chunk-size 0`` and the other formats read the whole file. Both read each track in row order with one rule (see
+CSV, Parquet, GPX and NMEA input is processed ``--chunk-size`` rows at a time
+in bounded memory (:mod:`gradgps._run.chunked`; Parquet by record batches of one
+row group at a time; GPX and NMEA in two streaming passes,
+:func:`gradgps._io.read.table_chunks`); ``--chunk-size 0``, GeoParquet, GeoJSON
+and ROS bags read the whole file. Both read each track in row order with one rule (see
 :func:`gradgps._tracks.preprocess.stream_reasons`): a fix whose time is not
 after the previous usable fix of its track is flagged invalid, never merged,
 so every mode, ``--report`` included, gives the same rows flagged and the
@@ -29,7 +31,11 @@ from .options import READER_FLAGS, column_map, column_options, model_options, op
 if TYPE_CHECKING:
     from .._run.settings import RunSettings
 
-__all__ = ["detect"]
+__all__ = ["WHOLE_FILE_WARN_BYTES", "detect"]
+
+#: A file read whole (``--chunk-size 0``, GeoParquet, GeoJSON, a ROS bag) larger than this
+#: gets a warning first: its memory grows with it (docs/reliability.md, "Bounded memory").
+WHOLE_FILE_WARN_BYTES = 100_000_000
 
 
 @click.command()
@@ -82,7 +88,8 @@ __all__ = ["detect"]
     "--chunk-size",
     minimum=0,
     default=200_000,
-    help="CSV or Parquet rows per chunk (bounded memory); 0 = read the whole file at once. "
+    help="CSV, Parquet, GPX or NMEA rows per chunk (bounded memory); 0 = read the whole "
+    "file at once (memory grows with the file). "
     "Same results either way",
 )
 @column_options
@@ -105,10 +112,10 @@ def detect(
 
     Every mode gives the same answer: each track is read in row order, and a
     fix whose time is not after the previous usable fix of its track (a
-    repeated or backward timestamp) is flagged invalid, never merged. CSV
-    input is processed in chunks of --chunk-size rows (memory stays bounded
-    however large the file, unless --report/--plots/--geojson/--gpx need the
-    whole track). With --follow, INPUT is read as a live stream (e.g. 'tail
+    repeated or backward timestamp) is flagged invalid, never merged. CSV,
+    Parquet, GPX and NMEA input is processed in chunks of --chunk-size rows
+    (memory stays bounded however large the file, unless --geojson/--gpx
+    need the whole track). With --follow, INPUT is read as a live stream (e.g. 'tail
     -f log.nmea | gradgps detect --follow -') and results go to standard
     output.
     """
@@ -144,17 +151,24 @@ def detect(
     from .._io.read import chunkable, load_table, write_table
     from .._io.times import output_time_text
     from .._result import ResultCounts
+    from .._run.report_data import ReportCollector
     from .._tracks.input_checks import input_warnings, validated_rates
     from .._tracks.track import to_fixes
 
-    whole = any(p is not None for p in (report_path, plots_dir, geojson_path, gpx_path))
+    drawing = report_path is not None or plots_dir is not None
+    exports = geojson_path is not None or gpx_path is not None
+    chunked = chunk_size > 0 and chunkable(input_path, settings.fmt)
+    # The report and plots draw from a collection of bounded size (report_data), unless
+    # --geojson/--gpx keep every fix anyway or the whole file is read at once.
+    collector = ReportCollector() if drawing and chunked and not exports else None
+    whole = exports or (drawing and collector is None)
     events = EventBuilder() if (events_path or report_path or geojson_path) else None
     kept: list[tuple[pd.DataFrame, pd.DataFrame]] = []
     # The time column as the output writes it, for the report's tables (None: numbers).
     time_texts: list[Any] = []
     detector = Detector(model_dir, threshold=threshold)
     time_column: Any = None
-    if chunk_size > 0 and chunkable(input_path, settings.fmt):
+    if chunked:
 
         def collect(fixes: pd.DataFrame, result: pd.DataFrame, frame: pd.DataFrame) -> None:
             nonlocal time_column
@@ -165,6 +179,8 @@ def detect(
             if whole:
                 kept.append((fixes, result))
                 time_texts.append(output_time_text(frame, _time_name(fixes)))
+            if collector is not None:
+                collector.add(fixes, result, output_time_text(frame, _time_name(fixes)))
 
         summary = _detect_in_chunks(input_path, output, settings, chunk_size, collect)
         counts = ResultCounts(summary.rows, summary.anomalies, summary.invalid, summary.alerts)
@@ -172,6 +188,7 @@ def detect(
         elapsed = summary.seconds
         rate = summary.rows_per_second
     else:
+        _warn_whole(input_path, chunk_size)
         with _steps() as step:
             step("read")
             table = load_table(input_path, settings.fmt, settings.columns, settings.options)
@@ -209,7 +226,7 @@ def detect(
     for warning in warnings:
         # Once, on standard error: the input is outside what the model was validated on.
         click.echo(f"warning: {warning}", err=True)
-    if not whole and events is None:
+    if not whole and events is None and collector is None:
         return
     fixes_all = pd.concat([f for f, _ in kept], ignore_index=True) if whole else None
     result_all = pd.concat([r for _, r in kept], ignore_index=True) if whole else None
@@ -233,24 +250,69 @@ def detect(
         assert result_all is not None
         write_gpx(gpx_path, fixes_all, result_all)
         click.echo(f"gpx: {gpx_path} (the repaired track)")
-    if fixes_all is not None and result_all is not None and (report_path or plots_dir):
+    if drawing:
         from .report import write_report_outputs
 
-        with _steps() as step:
-            step("draw the report")
-            write_report_outputs(
-                report_path,
-                plots_dir,
-                fixes_all,
-                result_all,
-                detector,
-                elapsed,
-                str(input_path),
-                events=table_events,
-                warnings=warnings,
-                time_text=_joined(time_texts),
-                geojson=geojson,
-            )
+        thinned = None
+        drawn: Any = None
+        if collector is None:
+            drawn = (fixes_all, result_all, _joined(time_texts))
+        elif collector.rows == 0:  # no chunk at all (an empty Parquet file): an empty report
+            from .._run.chunked import no_fixes
+
+            drawn = (no_fixes(), detector.detect_fixes(no_fixes()), None)
+        elif (drawn := collector.whole()) is None:
+
+            def reread() -> Iterator[pd.DataFrame]:
+                from .._io.read import table_chunks
+
+                for table in table_chunks(
+                    input_path, chunk_size, settings.columns, settings.options, settings.fmt
+                ):
+                    yield to_fixes(table)
+
+            with _steps() as step:
+                step("collect the busiest tracks again for the report")
+                thinned = collector.thinned(reread)
+            if thinned is not None:
+                drawn = (thinned.fixes, thinned.result, thinned.time_text)
+        if drawn is not None and drawn[0] is not None:
+            with _steps() as step:
+                step("draw the report")
+                write_report_outputs(
+                    report_path,
+                    plots_dir,
+                    drawn[0],
+                    drawn[1],
+                    detector,
+                    elapsed,
+                    str(input_path),
+                    events=table_events,
+                    warnings=warnings,
+                    time_text=drawn[2],
+                    geojson=geojson,
+                    thinned=thinned,
+                )
+
+
+def _warn_whole(path: Path, chunk_size: int) -> None:
+    """Say, before reading, that a big file read whole needs memory in proportion to it."""
+    try:
+        size = sum(p.stat().st_size for p in (path.rglob("*") if path.is_dir() else [path]))
+    except OSError:
+        return
+    if size <= WHOLE_FILE_WARN_BYTES:
+        return
+    why, hint = (
+        ("--chunk-size 0", "leave --chunk-size at its default to keep memory bounded")
+        if chunk_size == 0
+        else ("this format is not read in chunks", "convert it to CSV or Parquet to stream it")
+    )
+    click.echo(
+        f"warning: {path} ({size / 1e6:,.0f} MB) is read whole ({why}): memory grows with "
+        "the file, about 0.65 GB per million fixes (10 times a CSV's size); " + hint,
+        err=True,
+    )
 
 
 @contextlib.contextmanager

@@ -24,6 +24,7 @@ def write_report_outputs(
     warnings: Sequence[str] = (),
     time_text: Any = None,
     geojson: Any = None,
+    thinned: Any = None,
 ) -> None:
     """Write the HTML report and/or the PNG figures and say where they went."""
     if report_path is None and plots_dir is None:
@@ -48,6 +49,7 @@ def write_report_outputs(
         warnings=list(warnings),
         time_text=time_text,
         geojson=geojson,
+        thinned=thinned,
     )
     if report_path is not None:
         path = write_report(inputs, report_path)

@@ -118,8 +118,15 @@ def _iso(t: float) -> str | None:
     return iso_utc_one(t)
 
 
-def _lines(fixes: pd.DataFrame, result: pd.DataFrame) -> list[tuple[str, np.ndarray]]:
-    """Per track and time-contiguous run of usable fixes: (track, row positions)."""
+def _lines(
+    fixes: pd.DataFrame, result: pd.DataFrame, parts: np.ndarray | None = None
+) -> list[tuple[str, np.ndarray]]:
+    """Per track and time-contiguous run of usable fixes: (track, row positions).
+
+    ``parts``: each row's run number within its track, where the rows are a thinned
+    sample of a longer result (:mod:`gradgps._run.report_data`) whose time gaps are
+    no longer the track's; ``None`` cuts where usable fixes are more than
+    :data:`LINE_GAP_S` apart."""
     lat_c = result["lat_clean"].to_numpy(np.float64)
     usable = (
         (result["invalid_reason"].to_numpy() == "")
@@ -132,23 +139,37 @@ def _lines(fixes: pd.DataFrame, result: pd.DataFrame) -> list[tuple[str, np.ndar
     out: list[tuple[str, np.ndarray]] = []
     for track in pd.unique(tracks[usable]):
         rows = np.flatnonzero(usable & (tracks == track))
-        cuts = np.flatnonzero(np.diff(t[rows]) > LINE_GAP_S) + 1
+        if parts is None:
+            cuts = np.flatnonzero(np.diff(t[rows]) > LINE_GAP_S) + 1
+        else:
+            cuts = np.flatnonzero(np.diff(parts[rows]) != 0) + 1
         out.extend((str(track), part) for part in np.split(rows, cuts))
     return out
 
 
 def geojson_document(
-    fixes: pd.DataFrame, result: pd.DataFrame, events: pd.DataFrame | None = None
+    fixes: pd.DataFrame,
+    result: pd.DataFrame,
+    events: pd.DataFrame | None = None,
+    *,
+    rows: np.ndarray | None = None,
+    parts: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """The GeoJSON FeatureCollection (see the module docstring) as a dict."""
+    """The GeoJSON FeatureCollection (see the module docstring) as a dict.
+
+    ``rows`` and ``parts``: where ``fixes``/``result`` are a thinned sample of a
+    run (the report of a long one, :mod:`gradgps._run.report_data`), each row's
+    input row number (sorted) and its line's run number within its track.
+    """
+    numbers = np.arange(len(fixes)) if rows is None else np.asarray(rows, dtype=np.int64)
     lat = fixes["lat"].to_numpy(np.float64)
     lon = _wrap(fixes["lon"].to_numpy(np.float64))
     t = fixes["t"].to_numpy(np.float64)
     lat_c = result["lat_clean"].to_numpy(np.float64)
     lon_c = _wrap(result["lon_clean"].to_numpy(np.float64))
     features: list[dict[str, Any]] = []
-    for track, rows in _lines(fixes, result):
-        coords = [[float(lon_c[i]), float(lat_c[i])] for i in rows]
+    for track, line in _lines(fixes, result, parts):
+        coords = [[float(lon_c[i]), float(lat_c[i])] for i in line]
         features.append(
             {
                 "type": "Feature",
@@ -157,8 +178,8 @@ def geojson_document(
                     "kind": "repaired track",
                     "track": track,
                     "fixes": len(coords),
-                    "start": _iso(t[rows[0]]),
-                    "end": _iso(t[rows[-1]]),
+                    "start": _iso(t[line[0]]),
+                    "end": _iso(t[line[-1]]),
                 },
             }
         )
@@ -180,7 +201,7 @@ def geojson_document(
                 "geometry": {"type": "Point", "coordinates": [float(lon[i]), float(lat[i])]},
                 "properties": {
                     "kind": "flagged fix",
-                    "row": i,
+                    "row": int(numbers[i]),
                     "track": str(tracks[i]),
                     "t": _num(t[i]),
                     "time": _iso(t[i]),
@@ -196,17 +217,19 @@ def geojson_document(
     if events is not None:
         records: list[dict[Any, Any]] = events.to_dict("records")
         for ev in records:
-            rows = np.arange(int(ev["first_row"]), int(ev["last_row"]) + 1)
-            rows = rows[(rows >= 0) & (rows < len(tracks))]
-            rows = rows[
-                (tracks[rows] == ev["track"])
-                & (result["anomaly"].to_numpy()[rows] == 1)
-                & (result["invalid_reason"].to_numpy()[rows] == "")
-                & np.isfinite(lat[rows])
-                & (np.abs(lat[rows]) <= 90.0)
-                & np.isfinite(lon[rows])
+            first, last = np.searchsorted(numbers, [int(ev["first_row"]), int(ev["last_row"])])
+            if last < len(numbers) and numbers[last] == int(ev["last_row"]):
+                last += 1
+            within = np.arange(first, last)
+            within = within[
+                (tracks[within] == ev["track"])
+                & (result["anomaly"].to_numpy()[within] == 1)
+                & (result["invalid_reason"].to_numpy()[within] == "")
+                & np.isfinite(lat[within])
+                & (np.abs(lat[within]) <= 90.0)
+                & np.isfinite(lon[within])
             ]
-            coords = [[float(lon[i]), float(lat[i])] for i in rows]
+            coords = [[float(lon[i]), float(lat[i])] for i in within]
             props = {
                 "kind": "event",
                 "track": str(ev["track"]),

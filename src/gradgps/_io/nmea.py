@@ -44,6 +44,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
@@ -52,7 +53,7 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import InputError
-from .._tracks.track import ColumnMap, Table, day_rollovers
+from .._tracks.track import ColumnMap, Table, day_rollovers, rolled_over
 from .files import READ_ERRORS, damaged, open_bytes
 from .times import iso_utc, time_of_day_utc
 
@@ -62,8 +63,10 @@ __all__ = [
     "STALE_DATE_S",
     "Epoch",
     "Malformed",
+    "NmeaChunks",
     "epoch_times",
     "nmea_checksum",
+    "nmea_tables",
     "parse_gga",
     "parse_rmc",
     "read_nmea",
@@ -87,6 +90,11 @@ class Malformed(Exception):
     """A field that cannot be what the sentence type says it is (internal)."""
 
 
+#: Bytes of a line read at a time (a longer line is read in pieces, its sentences kept whole).
+_PIECE_BYTES = 1 << 20
+#: Most characters kept of a sentence spread over pieces (any longer one is rejected as too long).
+_OPEN_CHARS = 1 << 20
+
 #: Longest sentence accepted (the standard's limit is 82; some receivers exceed it a little).
 MAX_SENTENCE_CHARS = 200
 
@@ -99,7 +107,7 @@ def nmea_checksum(body: str) -> int:
     return value
 
 
-@dataclass
+@dataclass(slots=True)
 class Epoch:
     """One instant, merged from its GGA and/or RMC sentence."""
 
@@ -296,6 +304,121 @@ class _LogReader:
             self.epochs.append(epoch)
 
 
+def _epoch_lists(path: Path, chunk_epochs: int | None) -> Iterator[tuple[list[Epoch], _LogReader]]:
+    """The epochs of a log, in file order, ``chunk_epochs`` at a time (``None``: all at
+    once), each with the reader (its rejected count and notes so far). An epoch is
+    handed out only once the next one has begun, as a later sentence may still merge
+    into it. Raises for a log without epochs."""
+    source = str(path)
+    log = _LogReader()
+    n_lines = 0
+    handed = 0
+    in_line = False  # the last block read ended inside a line
+    open_text: str | None = None  # the line's text after its last "$" so far
+    with open_bytes(path) as raw:
+        try:
+            # A line is read at most _PIECE_BYTES at a time, so a log without line
+            # breaks (or a hostile 1 GB line) never sits in memory whole.
+            for block in iter(lambda: raw.readline(_PIECE_BYTES), b""):
+                if not in_line:
+                    n_lines += 1
+                    open_text = None
+                # Several sentences may share a line (a cut-off one followed
+                # by the next); text before the first "$" is a logger's prefix.
+                head, *rest = block.decode("ascii", errors="replace").split("$")
+                complete: list[str] = []
+                if open_text is not None:
+                    # Bounded: a "$" and then a gigabyte without one is no sentence.
+                    open_text = (open_text + head)[:_OPEN_CHARS]
+                if rest:
+                    if open_text is not None:
+                        complete.append(open_text)
+                    complete.extend(rest[:-1])
+                    open_text = rest[-1]
+                in_line = not block.endswith(b"\n")
+                if not in_line and open_text is not None:
+                    complete.append(open_text)
+                    open_text = None
+                for sentence in complete:
+                    log.add(sentence, n_lines)
+                if chunk_epochs is not None and len(log.epochs) > chunk_epochs:
+                    done = log.epochs[:-1]
+                    log.epochs = log.epochs[-1:]
+                    handed += len(done)
+                    yield done, log
+        except READ_ERRORS as exc:
+            raise damaged(exc, source) from None
+    if open_text is not None:  # the last line, without a line break
+        log.add(open_text, n_lines)
+    if log.rejected > MAX_NOTES:
+        log.notes.append(f"... and {log.rejected - MAX_NOTES} more rejected sentences")
+    if not handed and not log.epochs:
+        if n_lines == 0:
+            raise InputError(
+                "empty file", source=source, hint="an NMEA log has one $..*hh sentence per line"
+            )
+        detail = f"; {log.rejected} rejected, first: {log.notes[0]}" if log.rejected else ""
+        raise InputError(
+            f"no usable GGA or RMC sentences in {n_lines} lines{detail}",
+            source=source,
+            hint="is this an NMEA 0183 log? otherwise pass the right format",
+        )
+    if log.epochs:
+        yield log.epochs, log
+
+
+@dataclass(frozen=True)
+class _Kinds:
+    """Which sentence types and verdicts a log holds: the optional columns it gets."""
+
+    rmc: bool = False
+    gga: bool = False
+    no_fix: bool = False
+    dated: bool = False
+
+    @classmethod
+    def of(cls, epochs: list[Epoch]) -> _Kinds:
+        return cls(
+            rmc=any(e.has_rmc for e in epochs),
+            gga=any(e.has_gga for e in epochs),
+            no_fix=any(e.no_fix for e in epochs),
+            dated=any(not math.isnan(e.midnight) for e in epochs),
+        )
+
+    def __or__(self, other: _Kinds) -> _Kinds:
+        return _Kinds(
+            self.rmc or other.rmc,
+            self.gga or other.gga,
+            self.no_fix or other.no_fix,
+            self.dated or other.dated,
+        )
+
+    def columns(self) -> ColumnMap:
+        return ColumnMap(
+            time="time",
+            lat="lat",
+            lon="lon",
+            track="",
+            speed="speed" if self.rmc else "",
+            heading="course" if self.rmc else "",
+            alt="alt" if self.gga else "",
+            hdop="hdop" if self.gga else "",
+            fix_quality="fix_quality" if self.gga or self.no_fix else "",
+            satellites="satellites" if self.gga else "",
+        )
+
+    def names(self) -> tuple[str, ...]:
+        """The columns of a table of such a log, in order."""
+        return tuple(str(c) for c in _frame([], np.zeros(0), self).columns)
+
+
+def _notes(log: _LogReader, kinds: _Kinds) -> list[str]:
+    notes = list(log.notes)
+    if not kinds.dated:
+        notes.append("no RMC date in the log: times are times of day (UTC), without a date")
+    return notes
+
+
 def read_nmea(path: str | Path) -> Table:
     """Read an NMEA 0183 log (optionally ``.gz``) into a Table; see the module docstring.
 
@@ -306,56 +429,172 @@ def read_nmea(path: str | Path) -> Table:
     ``line``, the file line of the epoch's first sentence.
     """
     path = Path(path)
-    source = str(path)
-    log = _LogReader()
-    n_lines = 0
-    with open_bytes(path) as raw:
-        try:
-            for raw_line in raw:
-                n_lines += 1
-                # Several sentences may share a line (a cut-off one followed
-                # by the next); text before the first "$" is a logger's prefix.
-                for piece in raw_line.decode("ascii", errors="replace").split("$")[1:]:
-                    log.add(piece, n_lines)
-        except READ_ERRORS as exc:
-            raise damaged(exc, source) from None
-    epochs, notes, rejected = log.epochs, log.notes, log.rejected
-    if rejected > MAX_NOTES:
-        notes.append(f"... and {rejected - MAX_NOTES} more rejected sentences")
-    if not epochs:
-        if n_lines == 0:
-            raise InputError(
-                "empty file", source=source, hint="an NMEA log has one $..*hh sentence per line"
-            )
-        detail = f"; {rejected} rejected, first: {notes[0]}" if rejected else ""
-        raise InputError(
-            f"no usable GGA or RMC sentences in {n_lines} lines{detail}",
-            source=source,
-            hint="is this an NMEA 0183 log? otherwise pass the right format",
-        )
-    frame, seconds, time_note = _frame(epochs)
-    if time_note:
-        notes.append(time_note)
-    columns = ColumnMap(
-        time="time",
-        lat="lat",
-        lon="lon",
-        track="",
-        speed="speed" if "speed" in frame.columns else "",
-        heading="course" if "course" in frame.columns else "",
-        alt="alt" if "alt" in frame.columns else "",
-        hdop="hdop" if "hdop" in frame.columns else "",
-        fix_quality="fix_quality" if "fix_quality" in frame.columns else "",
-        satellites="satellites" if "satellites" in frame.columns else "",
-    )
+    ((epochs, log),) = _epoch_lists(path, None)
+    kinds = _Kinds.of(epochs)
+    tod = np.array([e.tod for e in epochs])
+    midnight = np.array([e.midnight for e in epochs])
+    seconds = epoch_times(tod, midnight)
     return Table(
-        frame=frame,
-        source=source,
-        columns=columns,
-        rejected=rejected,
-        notes=notes,
+        frame=_frame(epochs, seconds, kinds),
+        source=str(path),
+        columns=kinds.columns(),
+        rejected=log.rejected,
+        notes=_notes(log, kinds),
         times=seconds,
     )
+
+
+@dataclass(frozen=True)
+class NmeaChunks:
+    """An NMEA log as Tables of at most ``chunksize`` epochs (:func:`nmea_tables`)."""
+
+    n_rows: int
+    header: tuple[str, ...]
+    columns: ColumnMap
+    chunks: Iterator[Table]
+
+
+def nmea_tables(path: str | Path, chunksize: int) -> NmeaChunks:
+    """An NMEA log as Tables of at most ``chunksize`` epochs, in two streaming passes, so
+    memory is bounded by the chunk, not by the log.
+
+    The first pass parses every sentence and learns what only the whole log
+    tells: the sentence types (the optional columns), whether any RMC gives a
+    date (the form of the time column), the rejected sentences, and each dated
+    epoch's offset from time of day to unix time (:class:`_Offsets`: the stale
+    date rule looks one dated epoch ahead, and epochs before the first dated one
+    take its date). The second pass yields the Tables: the rows, columns, values
+    and times :func:`read_nmea` gives for the whole log, in chunks.
+    """
+    path = Path(path)
+    source = str(path)
+    kinds = _Kinds()
+    offsets = _Offsets()
+    n_rows = 0
+    log = _LogReader()
+    for epochs, reader in _epoch_lists(path, chunksize):
+        log = reader
+        kinds = kinds | _Kinds.of(epochs)
+        offsets.add(epochs)
+        n_rows += len(epochs)
+    offsets.finish()
+    rejected, notes = log.rejected, _notes(log, kinds)
+
+    def chunks() -> Iterator[Table]:
+        clock = _Clock(offsets)
+        offset = 0
+        for epochs, _ in _epoch_lists(path, chunksize):
+            seconds = clock.times(epochs)
+            yield Table(
+                frame=_frame(epochs, seconds, kinds),
+                source=source,
+                columns=kinds.columns(),
+                rejected=rejected,
+                notes=notes,
+                times=seconds,
+                row_offset=offset,
+            )
+            offset += len(epochs)
+
+    return NmeaChunks(n_rows, kinds.names(), kinds.columns(), chunks())
+
+
+class _Days:
+    """The running day count of :func:`epoch_times` (:func:`day_rollovers`, one epoch at a
+    time): a time of day falling by more than half a day is a midnight rollover
+    (:func:`rolled_over`)."""
+
+    def __init__(self) -> None:
+        self.days = 0
+        self.previous = math.nan
+
+    def step(self, value: float) -> tuple[float, int]:
+        """``(continuous seconds, rollovers)`` of one epoch's time of day (NaN: NaN, 0)."""
+        if math.isnan(value):
+            return math.nan, 0
+        if rolled_over(self.previous, value):
+            self.days += 1
+        self.previous = value
+        return value + self.days * _DAY, self.days
+
+
+class _Offsets:
+    """Pass one of :func:`nmea_tables`: the final offset of every dated epoch, as runs.
+
+    The offsets are those of :func:`epoch_times` (the same comparisons, one dated epoch
+    of look-ahead), kept as ``(first dated epoch, offset)`` runs: a log's offset changes
+    only when its dates disagree with its times of day, so a log holds a handful.
+    """
+
+    def __init__(self) -> None:
+        self.days = _Days()
+        # The dated epoch waiting for the next one: (tod, rollovers, raw offset).
+        self.pending: tuple[float, int, float] | None = None
+        self.before: tuple[int, float, bool] | None = None  # last final: rollovers, offset, stale
+        self.count = 0
+        self.starts: list[int] = []
+        self.values: list[float] = []
+
+    def add(self, epochs: list[Epoch]) -> None:
+        for e in epochs:
+            continuous, rollovers = self.days.step(e.tod)
+            if math.isnan(e.midnight) or math.isnan(continuous):
+                continue
+            current = (e.tod, rollovers, e.midnight - rollovers * _DAY)
+            if self.pending is not None:
+                self._settle(current)
+            self.pending = current
+
+    def finish(self) -> None:
+        if self.pending is not None:
+            self._settle(None)
+
+    def _settle(self, following: tuple[float, int, float] | None) -> None:
+        assert self.pending is not None
+        tod, rollovers, offset = self.pending
+        stale = False
+        if tod < STALE_DATE_S:
+            before = self.before
+            rolled = before is not None and (before[0] < rollovers or before[2])
+            if (rolled and before is not None and offset == before[1] - _DAY) or (
+                following is not None
+                and following[0] < STALE_DATE_S
+                and following[1] == rollovers
+                and offset == following[2] - _DAY
+            ):
+                offset += _DAY
+                stale = True
+        self.before = (rollovers, offset, stale)
+        if not self.values or self.values[-1] != offset:
+            self.starts.append(self.count)
+            self.values.append(offset)
+        self.count += 1
+        self.pending = None
+
+
+class _Clock:
+    """Pass two of :func:`nmea_tables`: each epoch's seconds, as :func:`epoch_times`."""
+
+    def __init__(self, offsets: _Offsets) -> None:
+        self.days = _Days()
+        self.starts, self.values = offsets.starts, offsets.values
+        self.dated = -1  # dated epochs seen, minus one
+        self.run = 0
+
+    def times(self, epochs: list[Epoch]) -> np.ndarray:
+        out = np.full(len(epochs), np.nan)
+        if not self.values:  # no date anywhere: seconds of day, rollovers added
+            for i, e in enumerate(epochs):
+                out[i] = self.days.step(e.tod)[0]
+            return out
+        for i, e in enumerate(epochs):
+            continuous, _ = self.days.step(e.tod)
+            if not math.isnan(e.midnight) and not math.isnan(continuous):
+                self.dated += 1
+                while self.run + 1 < len(self.starts) and self.starts[self.run + 1] <= self.dated:
+                    self.run += 1
+            out[i] = continuous + self.values[self.run]
+        return out
 
 
 def epoch_times(tod: np.ndarray, midnight: np.ndarray) -> np.ndarray:
@@ -404,33 +643,27 @@ def epoch_times(tod: np.ndarray, midnight: np.ndarray) -> np.ndarray:
     return np.asarray(continuous + offset.to_numpy(), dtype=np.float64)
 
 
-def _frame(epochs: list[Epoch]) -> tuple[pd.DataFrame, np.ndarray, str | None]:
-    tod = np.array([e.tod for e in epochs])
-    midnight = np.array([e.midnight for e in epochs])
-    time = epoch_times(tod, midnight)
-    dated = bool(np.isfinite(midnight).any())
-    no_fix = np.array([e.no_fix for e in epochs])
+def _frame(epochs: list[Epoch], time: np.ndarray, kinds: _Kinds) -> pd.DataFrame:
+    """The rows of ``epochs`` (times ``time``) with the columns a log of ``kinds`` has."""
+    no_fix = np.array([e.no_fix for e in epochs], dtype=bool)
     columns: dict[str, object] = {
-        "time": iso_utc(time) if dated else time_of_day_utc(time),
-        "lat": np.where(no_fix, np.nan, [e.lat for e in epochs]),
-        "lon": np.where(no_fix, np.nan, [e.lon for e in epochs]),
+        "time": iso_utc(time) if kinds.dated else time_of_day_utc(time),
+        "lat": np.where(no_fix, np.nan, np.array([e.lat for e in epochs], dtype=np.float64)),
+        "lon": np.where(no_fix, np.nan, np.array([e.lon for e in epochs], dtype=np.float64)),
     }
-    if any(e.has_rmc for e in epochs):
-        columns["speed"] = np.array([e.speed for e in epochs])
-        columns["course"] = np.array([e.course for e in epochs])
-    if any(e.has_gga for e in epochs):
-        columns["alt"] = np.array([e.alt for e in epochs])
-        columns["hdop"] = np.array([e.hdop for e in epochs])
-    if any(e.has_gga for e in epochs) or no_fix.any():
+    if kinds.rmc:
+        columns["speed"] = np.array([e.speed for e in epochs], dtype=np.float64)
+        columns["course"] = np.array([e.course for e in epochs], dtype=np.float64)
+    if kinds.gga:
+        columns["alt"] = np.array([e.alt for e in epochs], dtype=np.float64)
+        columns["hdop"] = np.array([e.hdop for e in epochs], dtype=np.float64)
+    if kinds.gga or kinds.no_fix:
         # The receiver's own verdict: GGA's quality, 0 for any epoch it calls no fix
         # (RMC status V or mode N too), so every mode reads one column for it.
         columns["fix_quality"] = pd.array(
             [0 if e.no_fix else e.quality for e in epochs], dtype="Int64"
         )
-    if any(e.has_gga for e in epochs):
+    if kinds.gga:
         columns["satellites"] = pd.array([e.satellites for e in epochs], dtype="Int64")
     columns["line"] = np.array([e.line for e in epochs], dtype=np.int64)
-    note = None
-    if not dated:
-        note = "no RMC date in the log: times are times of day (UTC), without a date"
-    return pd.DataFrame(columns), time, note
+    return pd.DataFrame(columns)

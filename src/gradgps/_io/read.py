@@ -57,8 +57,8 @@ from .._tracks.track import (
 from .files import READ_ERRORS, check_readable, open_bytes, text_lines
 from .geojson import read_geojson
 from .geoparquet import geo_metadata, read_geoparquet, wkt_points, write_geoparquet
-from .gpx import read_gpx
-from .nmea import read_nmea
+from .gpx import gpx_tables, read_gpx
+from .nmea import nmea_tables, read_nmea
 from .rosbag import is_rosbag, read_rosbag
 from .times import csv_ready
 
@@ -785,12 +785,18 @@ def _parquet_tables(
     return CsvChunks(n_rows=n_rows, header=tuple(schema.names), chunks=chunks())
 
 
+#: The formats :func:`table_chunks` reads chunk by chunk (GeoParquet aside: read whole).
+CHUNKED_FORMATS: Final = ("csv", "parquet", "gpx", "nmea")
+
+
 def chunkable(path: str | Path, fmt: str | None = None) -> bool:
-    """Whether ``path`` is read chunk by chunk (:func:`table_chunks`): CSV, and Parquet that
-    is not GeoParquet (a GeoParquet file is read whole, by :func:`load_table`, so its
-    output keeps the geometry column and the ``geo`` metadata)."""
+    """Whether ``path`` is read chunk by chunk (:func:`table_chunks`): CSV, GPX, NMEA, and
+    Parquet that is not GeoParquet (a GeoParquet file is read whole, by :func:`load_table`,
+    so its output keeps the geometry column and the ``geo`` metadata)."""
     kind = resolve_format(path, fmt)
-    return kind == "csv" or (kind == "parquet" and geo_metadata(Path(path)) is None)
+    return kind in ("csv", "gpx", "nmea") or (
+        kind == "parquet" and geo_metadata(Path(path)) is None
+    )
 
 
 def table_chunks(
@@ -800,14 +806,27 @@ def table_chunks(
     options: ReadOptions | None = None,
     fmt: str | None = None,
 ) -> CsvChunks:
-    """A CSV or Parquet file (``fmt``, or as :func:`resolve_format` finds it; anything but
-    Parquet is read as CSV) as a stream of Tables of at most ``chunksize`` rows: a CSV as
-    :func:`iter_csv_tables` describes, a Parquet file a row group at a time. ``options``:
-    the reader options as one object (see :func:`load_table`)."""
-    kind = "parquet" if resolve_format(path, fmt) == "parquet" else "csv"
+    """A track file of one of :data:`CHUNKED_FORMATS` (``fmt``, or as :func:`resolve_format`
+    finds it; any other format is read as CSV) as a stream of Tables of at most
+    ``chunksize`` rows: a CSV as :func:`iter_csv_tables` describes, a Parquet file a row
+    group at a time, GPX and NMEA in two streaming passes
+    (:func:`gradgps._io.gpx.gpx_tables`, :func:`gradgps._io.nmea.nmea_tables`); the rows,
+    values and column roles :func:`load_table` gives for the whole file, in chunks, in
+    bounded memory. ``options``: the reader options as one object (see :func:`load_table`)."""
+    found = resolve_format(path, fmt)
+    kind = found if found in CHUNKED_FORMATS else "csv"
     path, options = _chunked_read(path, chunksize, options, kind)
     if kind == "parquet":
         return _parquet_tables(path, chunksize, columns or ColumnMap(), options)
+    if kind in ("gpx", "nmea"):
+        check_readable(path)
+        reader = gpx_tables(path, chunksize) if kind == "gpx" else nmea_tables(path, chunksize)
+        cmap = reader.columns if columns is None else _override(reader.columns, columns)
+        return CsvChunks(
+            n_rows=reader.n_rows,
+            header=reader.header,
+            chunks=(replace(t, columns=cmap, options=options) for t in reader.chunks),
+        )
     layout = _scan_csv(path, options)
     return CsvChunks(
         n_rows=layout.n_rows,
@@ -846,7 +865,7 @@ def _arrow_to_pandas(table: Any) -> pd.DataFrame:
 def _chunked_read(
     path: str | Path, chunksize: int, options: ReadOptions | None, kind: str
 ) -> tuple[Path, ReadOptions]:
-    """Check a chunked reader's arguments once (CSV and Parquet alike),
+    """Check a chunked reader's arguments once (every chunked format alike),
     including, as :func:`load_table` does, that every option given applies to ``kind``."""
     if isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1:
         raise ConfigError(f"chunksize must be a positive integer, got {chunksize!r}")

@@ -1,4 +1,4 @@
-"""Detection over a CSV of any length, chunk by chunk, in bounded memory.
+"""Detection over a CSV (Parquet, GPX, NMEA) of any length, chunk by chunk, in bounded memory.
 
 ``gradgps detect`` on a big CSV must not hold the file in memory, and its
 results must not depend on where chunks happen to end. So this path uses
@@ -39,7 +39,7 @@ from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import to_fixes
 from .settings import DEFAULT_SETTINGS, RunSettings
 
-__all__ = ["DetectSummary", "detect_csv_in_chunks"]
+__all__ = ["DetectSummary", "detect_csv_in_chunks", "no_fixes"]
 
 
 @dataclass(frozen=True)
@@ -71,9 +71,9 @@ def detect_csv_in_chunks(
     on_chunk: Callable[[int], None] | None = None,
     on_result: Callable[[pd.DataFrame, pd.DataFrame, pd.DataFrame], None] | None = None,
 ) -> DetectSummary:
-    """Detect faults in every row of a CSV (or Parquet file: ``settings.fmt``, or as
-    :func:`gradgps._io.read.resolve_format` finds it), ``chunk_size`` rows at a time, with
-    the detector and reading of ``settings``; write ``output``.
+    """Detect faults in every row of a CSV, Parquet, GPX or NMEA file (``settings.fmt``, or
+    as :func:`gradgps._io.read.resolve_format` finds it), ``chunk_size`` rows at a time,
+    with the detector and reading of ``settings``; write ``output``.
 
     The output (``.csv``, ``.csv.gz`` or ``.parquet``) has every input
     column, in order, then the result columns, one row per input row. It is
@@ -127,7 +127,7 @@ def detect_csv_in_chunks(
                 on_chunk(len(result))
         if writer is not None and not writer.started:  # no chunk: still write our columns
             empty = pd.DataFrame([], columns=list(chunks.header), dtype=object)
-            writer.write(pd.concat([empty, streams.update_fixes(_no_fixes())], axis=1))
+            writer.write(pd.concat([empty, streams.update_fixes(no_fixes())], axis=1))
     return DetectSummary(
         rows=rows,
         anomalies=int(counts[0]),
@@ -139,7 +139,8 @@ def detect_csv_in_chunks(
     )
 
 
-def _no_fixes() -> pd.DataFrame:
+def no_fixes() -> pd.DataFrame:
+    """Canonical fixes of no rows (the columns every result is made from)."""
     return pd.DataFrame(
         {
             "track": pd.Series(dtype=object),

@@ -150,19 +150,21 @@ def thin_document(doc: dict[str, Any]) -> dict[str, Any]:
     return {**doc, "features": out}
 
 
-def embedded_geojson(doc: dict[str, Any]) -> tuple[str, str]:
+def embedded_geojson(doc: dict[str, Any], *, thinned: bool = False) -> tuple[str, str]:
     """The ``<script type="application/geo+json" id="geojson">`` element and a sentence on it.
 
     Its text is :func:`gradgps._io.export.geojson_text` of ``doc`` (of
     :func:`thin_document` beyond :data:`MAX_EMBEDDED_CHARS`), with ``<``,
     ``>`` and ``&`` written as JSON escapes: they can only occur inside JSON
     strings (a track id, a label), where ``\\u003c`` means the same, and a
-    ``</script>`` in a track id can then never end the element.
+    ``</script>`` in a track id can then never end the element. ``thinned``: ``doc``
+    is already built from a thinned sample (:mod:`gradgps._run.report_data`).
     """
     text = geojson_text(doc)
-    thinned = len(text) > MAX_EMBEDDED_CHARS
-    if thinned:
+    if len(text) > MAX_EMBEDDED_CHARS:
         text = geojson_text(thin_document(doc))
+        thinned = True
+    if thinned:
         note = (
             "The repaired lines and flagged fixes are drawn from a thinned copy of the "
             f"GeoJSON embedded in this page (at most {MAX_LINE_VERTICES:,} line vertices and "
@@ -178,7 +180,13 @@ def embedded_geojson(doc: dict[str, Any]) -> tuple[str, str]:
     return f"<script type='application/geo+json' id='geojson'{attr}>{safe}</script>", note
 
 
-def _track_svg(name: str, k: int, fixes: pd.DataFrame, result: pd.DataFrame) -> str:
+def _track_svg(
+    name: str,
+    k: int,
+    fixes: pd.DataFrame,
+    result: pd.DataFrame,
+    counts: tuple[int, int] | None = None,
+) -> str:
     lat = fixes["lat"].to_numpy(np.float64)
     lon = fixes["lon"].to_numpy(np.float64)
     lat_c = result["lat_clean"].to_numpy(np.float64)
@@ -195,7 +203,8 @@ def _track_svg(name: str, k: int, fixes: pd.DataFrame, result: pd.DataFrame) -> 
     pad = 0.04 * span
     view = f"{x0 - pad:.1f} {-y1 - pad:.1f} {x1 - x0 + 2 * pad:.1f} {y1 - y0 + 2 * pad:.1f}"
     radius = span / 250.0
-    flagged = int((result["anomaly"].to_numpy() == 1).sum())
+    usable = len(fixes) if counts is None else counts[0]
+    flagged = int((result["anomaly"].to_numpy() == 1).sum()) if counts is None else counts[1]
     hidden = "" if k == 0 else " hidden"
     return (
         f"<div class='track-view' data-track='{html.escape(name)}'{hidden}>"
@@ -205,15 +214,22 @@ def _track_svg(name: str, k: int, fixes: pd.DataFrame, result: pd.DataFrame) -> 
         f"aria-label='track {html.escape(name)}'>"
         f"<polyline class='raw' points='{_path(east, -north)}' fill='none' stroke='#999' "
         "stroke-width='1' vector-effect='non-scaling-stroke'/>"
-        f"</svg><p class='muted'>track {html.escape(name)}: {len(fixes):,} usable fixes, "
+        f"</svg><p class='muted'>track {html.escape(name)}: {usable:,} usable fixes, "
         f"{flagged:,} flagged (dots; hover for the verdict)</p></div>"
     )
 
 
-def track_explorer(fixes: pd.DataFrame, result: pd.DataFrame, note: str = "") -> str:
+def track_explorer(
+    fixes: pd.DataFrame,
+    result: pd.DataFrame,
+    note: str = "",
+    counts: dict[str, tuple[int, int]] | None = None,
+) -> str:
     """The explorable view (see the module docstring) as an HTML fragment; '' when nothing to draw.
 
-    ``note`` (from :func:`embedded_geojson`) says what the script draws from.
+    ``note`` (from :func:`embedded_geojson`) says what the script draws from;
+    ``counts``: per track, its usable and flagged fixes, where ``fixes`` is a thinned
+    sample of the run (:mod:`gradgps._run.report_data`).
     """
     usable = (result["invalid_reason"].to_numpy() == "") & np.isfinite(
         fixes["lat"].to_numpy(np.float64)
@@ -226,7 +242,8 @@ def track_explorer(fixes: pd.DataFrame, result: pd.DataFrame, note: str = "") ->
     options = []
     for k, name in enumerate(names):
         rows = np.flatnonzero(usable & (tracks == name))
-        views.append(_track_svg(name, k, fixes.iloc[rows], result.iloc[rows]))
+        shown = None if counts is None else counts.get(name, (rows.size, 0))
+        views.append(_track_svg(name, k, fixes.iloc[rows], result.iloc[rows], shown))
         options.append(f"<option value='{html.escape(name)}'>{html.escape(name)}</option>")
     more = (
         f" (the first {MAX_TRACKS} of {len(pd.unique(tracks[usable])):,})"

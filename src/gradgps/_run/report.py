@@ -56,6 +56,7 @@ from .._result import ResultCounts
 from .._tracks.geo import LocalFrame
 from .._tracks.preprocess import Prepared
 from .explore import SCRIPT, embedded_geojson, track_explorer
+from .report_data import MAX_TABLE_ROWS, SAMPLE_ROWS, TRACK_ROWS, Thinned
 
 __all__ = ["ChannelBounds", "ReportInputs", "figures", "rema_bounds", "write_plots", "write_report"]
 
@@ -68,8 +69,6 @@ TIME_MARKERS = {"transient": "o", "intermittent": "s", "permanent": "^", "none":
 MAX_CHANNEL_SEGMENTS = 3
 #: Lines are decimated to at most this many vertices (markers are never dropped).
 MAX_LINE_POINTS = 20_000
-#: Rows of the anomaly table.
-MAX_TABLE_ROWS = 100
 
 
 @dataclass(frozen=True)
@@ -110,6 +109,9 @@ class ReportInputs:
     #: The run's GeoJSON (:func:`gradgps._io.export.geojson_document`), when the caller built
     #: it already (``detect --geojson`` writes the same one); built from the above when None.
     geojson: dict[str, Any] | None = None
+    #: A long run's thinned data (:mod:`gradgps._run.report_data`): then ``fixes``,
+    #: ``result`` and ``time_text`` are its sample and the counts come from its totals.
+    thinned: Thinned | None = None
 
 
 def rema_bounds(
@@ -194,6 +196,11 @@ def _track_figure(inputs: ReportInputs) -> Any:
     fig, axes = plt.subplots(
         1, 2, figsize=(13, height), sharex=True, sharey=True, layout="constrained"
     )
+    totals = inputs.thinned.totals if inputs.thinned is not None else None
+    shown = {
+        "as received": int(valid.sum()) if totals is None else totals.drawn,
+        "recovered": int(clean_ok.sum()) if totals is None else totals.recovered,
+    }
     for ax, (e, nn, ok, name) in zip(
         axes,
         ((east, north, valid, "as received"), (east_c, north_c, clean_ok, "recovered")),
@@ -203,7 +210,7 @@ def _track_figure(inputs: ReportInputs) -> Any:
             idx = np.flatnonzero(ok & (tracks == track))
             keep = idx[_decimate(idx.size, MAX_LINE_POINTS // max(1, len(pd.unique(tracks))))]
             ax.plot(e[keep], nn[keep], color="#888888", lw=0.7, zorder=1)
-        ax.set_title(f"{name} ({int(ok.sum()):,} fixes)")
+        ax.set_title(f"{name} ({shown[name]:,} fixes)")
         ax.set_xlabel("east (m)")
         ax.set_aspect("equal", adjustable="box")
         ax.grid(True, lw=0.3, alpha=0.5)
@@ -212,6 +219,7 @@ def _track_figure(inputs: ReportInputs) -> Any:
     for b in sorted(set(bias[anomaly])):
         for tt in sorted(set(time_type[anomaly & (bias == b)])):
             sel = anomaly & (bias == b) & (time_type == tt)
+            count = int(sel.sum()) if totals is None else totals.markers.get((b, tt), 0)
             ax.scatter(
                 east[sel],
                 north[sel],
@@ -220,7 +228,7 @@ def _track_figure(inputs: ReportInputs) -> Any:
                 marker=TIME_MARKERS.get(tt, "D"),
                 linewidths=0.8,
                 zorder=3,
-                label=f"{b} / {tt} ({int(sel.sum()):,})",
+                label=f"{b} / {tt} ({count:,})",
             )
     if anomaly.any():
         ax.legend(title="bias / time type", fontsize=8, loc="best", framealpha=0.85)
@@ -231,7 +239,7 @@ def _track_figure(inputs: ReportInputs) -> Any:
         s=6,
         c="#2ca02c",
         zorder=3,
-        label=f"repaired fixes ({int(repaired.sum()):,})",
+        label=f"repaired fixes ({int(repaired.sum()) if totals is None else totals.repaired:,})",
     )
     if repaired.any():
         axes[1].legend(fontsize=8, loc="best", framealpha=0.85)
@@ -302,18 +310,22 @@ def figures(inputs: ReportInputs) -> list[tuple[str, str, Any]]:
     import matplotlib
 
     matplotlib.use("Agg")  # no display needed, and no GUI toolkit imported
+    fixes, result = inputs.fixes, inputs.result
+    thinned = inputs.thinned
+    if thinned is not None:
+        # The channels need every fix of a segment: those read again for the busiest tracks.
+        fixes, result = thinned.channel or (fixes.iloc[:0], result.iloc[:0])
     # The rows the detector used, exactly: nothing merged, nothing sorted.
-    usable = np.flatnonzero(inputs.result["invalid_reason"].to_numpy() == "")
-    prepared = grad_points(
-        inputs.fixes.iloc[usable].reset_index(drop=True), inputs.params.max_gap_s
-    )
-    flags = _point_flags(prepared, inputs.result.iloc[usable].reset_index(drop=True))
+    usable = np.flatnonzero(result["invalid_reason"].to_numpy() == "")
+    prepared = grad_points(fixes.iloc[usable].reset_index(drop=True), inputs.params.max_gap_s)
+    flags = _point_flags(prepared, result.iloc[usable].reset_index(drop=True))
     per_segment = pd.Series(flags).groupby(prepared.points["segment"].to_numpy()).sum()
     sizes = prepared.points.groupby("segment").size()
     ranked = sorted(per_segment.index, key=lambda s: (-int(per_segment[s]), -int(sizes[s]), s))
     chosen = ranked[:MAX_CHANNEL_SEGMENTS]
     out: list[tuple[str, str, Any]] = []
-    if len(prepared.points):
+    # A thinned report draws its track from the sample, not from the channels' fixes.
+    if (not inputs.fixes.empty) if thinned is not None else bool(len(prepared.points)):
         out.append(
             (
                 "track",
@@ -327,7 +339,8 @@ def figures(inputs: ReportInputs) -> list[tuple[str, str, Any]]:
             (
                 f"channels_segment{bounds.segment}",
                 f"Track {bounds.track}, segment {bounds.segment}: distance from the REMA "
-                "prediction per channel, REMA bounds, flagged fixes (symmetric log scale).",
+                "prediction per channel, REMA bounds, flagged fixes (symmetric log scale)."
+                + (f" {thinned.channel_note}" if thinned is not None else ""),
                 _channel_figure(bounds),
             )
         )
@@ -362,21 +375,31 @@ def write_plots(inputs: ReportInputs, folder: str | Path) -> list[Path]:
 def summary_rows(inputs: ReportInputs) -> list[tuple[str, str]]:
     """The summary table: what a reader asks first, as (label, value) text pairs."""
     result = inputs.result
-    n = len(result)
     invalid = result["invalid_reason"].to_numpy() != ""
     anomaly = (result["anomaly"].to_numpy() == 1) & ~invalid
-    totals = ResultCounts.of(result)
+    thinned = inputs.thinned.totals if inputs.thinned is not None else None
+    if thinned is None:
+        totals = ResultCounts.of(result)
+        tracks, usable, flagged = inputs.fixes["track"].nunique(), int((~invalid).sum()), None
+        reasons = result.loc[invalid, "invalid_reason"].value_counts()
+        by_type = {c: result.loc[anomaly, c].value_counts() for c in ("bias_type", "time_type")}
+    else:
+        totals = thinned.counts
+        tracks, usable, flagged = len(thinned.tracks), thinned.usable, thinned.flagged
+        reasons = thinned.reason_counts()
+        by_type = {"bias_type": thinned.bias_counts(), "time_type": thinned.time_counts()}
+    n = totals.rows
     rows = [
         ("input rows", f"{n:,}"),
-        ("tracks", f"{inputs.fixes['track'].nunique():,}"),
-        ("usable fixes", f"{int((~invalid).sum()):,}"),
+        ("tracks", f"{tracks:,}"),
+        ("usable fixes", f"{usable:,}"),
         (
             "anomalies (anomaly=1 in the CSV)",
             f"{totals.anomalies:,} ({100.0 * totals.anomalies / max(1, n):.1f} %): "
-            f"{int(anomaly.sum()):,} flagged by the detector, {totals.invalid:,} invalid fixes",
+            f"{int(anomaly.sum()) if flagged is None else flagged:,} flagged by the detector, "
+            f"{totals.invalid:,} invalid fixes",
         ),
     ]
-    reasons = result.loc[invalid, "invalid_reason"].value_counts()
     if len(reasons):
         rows.append(
             ("invalid fixes by reason", ", ".join(f"{k}: {int(v):,}" for k, v in reasons.items()))
@@ -384,7 +407,7 @@ def summary_rows(inputs: ReportInputs) -> list[tuple[str, str]]:
     if inputs.events is not None:
         rows.append(("fault events", f"{len(inputs.events):,}"))
     for column, label in (("bias_type", "by bias type"), ("time_type", "by time type")):
-        counts = result.loc[anomaly, column].value_counts()
+        counts = by_type[column]
         rows.append((label, ", ".join(f"{k}: {int(v):,}" for k, v in counts.items()) or "none"))
     rows.append(("alerts (permanent faults)", f"{totals.alerts:,}"))
     if math.isfinite(inputs.elapsed_s) and inputs.elapsed_s > 0:
@@ -438,11 +461,13 @@ def _anomaly_rows(inputs: ReportInputs) -> tuple[list[str], list[list[str]], int
     sel = np.flatnonzero(
         (result["anomaly"].to_numpy() == 1) & (result["invalid_reason"].to_numpy() == "")
     )
+    numbers = inputs.thinned.rows if inputs.thinned is not None else None
+    total = int(sel.size) if inputs.thinned is None else inputs.thinned.totals.flagged
     rows = []
     for i in sel[:MAX_TABLE_ROWS]:
         rows.append(
             [
-                str(i),
+                str(i if numbers is None else int(numbers[i])),
                 str(fixes["track"].iloc[i]),
                 _row_time(inputs, i),
                 f"{fixes['lat'].iloc[i]:.6f}",
@@ -466,7 +491,7 @@ def _anomaly_rows(inputs: ReportInputs) -> tuple[list[str], list[list[str]], int
         "lat clean",
         "lon clean",
     ]
-    return header, rows, int(sel.size)
+    return header, rows, total
 
 
 def _row_time(inputs: ReportInputs, i: int) -> str:
@@ -547,12 +572,22 @@ def render_html(inputs: ReportInputs) -> str:
         parts.append(f"<p class='muted'>input: {html.escape(inputs.source)}</p>")
     parts.append("<h2 id='summary'>Summary</h2>")
     parts.append(_table(None, summary_rows(inputs)))
+    thinned = inputs.thinned
+    if thinned is not None:
+        parts.append(f"<p class='muted'>{html.escape(thinned_note(thinned))}</p>")
     doc = inputs.geojson
-    if doc is None:
+    if doc is None and thinned is not None:
+        doc = geojson_document(
+            inputs.fixes, inputs.result, inputs.events, rows=thinned.rows, parts=thinned.parts
+        )
+    elif doc is None:
         doc = geojson_document(inputs.fixes, inputs.result, inputs.events)
-    block, note = embedded_geojson(doc)
+    block, note = embedded_geojson(doc, thinned=thinned is not None)
     parts.append(block)
-    explorer = track_explorer(inputs.fixes, inputs.result, note)
+    counts = None
+    if thinned is not None:
+        counts = {k: (v[0], v[1]) for k, v in thinned.totals.per_track.items()}
+    explorer = track_explorer(inputs.fixes, inputs.result, note, counts=counts)
     if explorer:
         parts.append("<h2 id='explore'>Tracks, one at a time</h2>")
         parts.append(explorer)
@@ -594,6 +629,17 @@ def render_html(inputs: ReportInputs) -> str:
         f"file.</p><script>{SCRIPT}</script></body></html>"
     )
     return "".join(parts)
+
+
+def thinned_note(thinned: Thinned) -> str:
+    """What a thinned report draws from (one sentence for the page)."""
+    return (
+        f"This run has {thinned.totals.counts.rows:,} rows: the counts and tables are exact; "
+        "the track figure, the track view and the embedded GeoJSON are drawn from an "
+        f"evenly spread sample of the usable fixes ({len(thinned.fixes):,} rows: at most "
+        f"{TRACK_ROWS:,} per track and about {SAMPLE_ROWS:,} in all, plus flagged fixes), "
+        "so memory stays bounded; gradgps detect --geojson writes every fix."
+    )
 
 
 def write_report(inputs: ReportInputs, path: str | Path) -> Path:
