@@ -40,10 +40,10 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._tracks.track import ColumnMap, Table, datetime_seconds
-from .files import READ_ERRORS, open_bytes
+from .files import READ_ERRORS, StreamedChunks, open_bytes
 from .times import iso_utc
 
-__all__ = ["GpxChunks", "gpx_tables", "read_gpx"]
+__all__ = ["gpx_tables", "read_gpx"]
 
 # Element local name -> output column, for the optional per-point values.
 _VALUE_TAGS: Final = {
@@ -312,17 +312,7 @@ def read_gpx(path: str | Path) -> Table:
     return _table(rows, _times(rows["time"], lines, source), _used(rows), source)
 
 
-@dataclass(frozen=True)
-class GpxChunks:
-    """A GPX file as Tables of at most ``chunksize`` points (:func:`gpx_tables`)."""
-
-    n_rows: int
-    header: tuple[str, ...]
-    columns: ColumnMap
-    chunks: Iterator[Table]
-
-
-def gpx_tables(path: str | Path, chunksize: int) -> GpxChunks:
+def gpx_tables(path: str | Path, chunksize: int) -> StreamedChunks:
     """The track points of a GPX file as Tables of at most ``chunksize`` points, in two
     streaming passes, so memory is bounded by the chunk, not by the file.
 
@@ -350,7 +340,7 @@ def gpx_tables(path: str | Path, chunksize: int) -> GpxChunks:
             yield _table(rows, times, used, source, offset)
             offset += len(lines)
 
-    return GpxChunks(n_rows, _column_names(used), _column_map(used), chunks())
+    return StreamedChunks(n_rows, _column_names(used), _column_map(used), chunks())
 
 
 def _times(

@@ -54,7 +54,7 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._tracks.track import ColumnMap, Table, day_rollovers, rolled_over
-from .files import READ_ERRORS, damaged, open_bytes
+from .files import READ_ERRORS, StreamedChunks, damaged, open_bytes
 from .times import iso_utc, time_of_day_utc
 
 __all__ = [
@@ -63,7 +63,6 @@ __all__ = [
     "STALE_DATE_S",
     "Epoch",
     "Malformed",
-    "NmeaChunks",
     "epoch_times",
     "nmea_checksum",
     "nmea_tables",
@@ -444,17 +443,7 @@ def read_nmea(path: str | Path) -> Table:
     )
 
 
-@dataclass(frozen=True)
-class NmeaChunks:
-    """An NMEA log as Tables of at most ``chunksize`` epochs (:func:`nmea_tables`)."""
-
-    n_rows: int
-    header: tuple[str, ...]
-    columns: ColumnMap
-    chunks: Iterator[Table]
-
-
-def nmea_tables(path: str | Path, chunksize: int) -> NmeaChunks:
+def nmea_tables(path: str | Path, chunksize: int) -> StreamedChunks:
     """An NMEA log as Tables of at most ``chunksize`` epochs, in two streaming passes, so
     memory is bounded by the chunk, not by the log.
 
@@ -496,7 +485,7 @@ def nmea_tables(path: str | Path, chunksize: int) -> NmeaChunks:
             )
             offset += len(epochs)
 
-    return NmeaChunks(n_rows, kinds.names(), kinds.columns(), chunks())
+    return StreamedChunks(n_rows, kinds.names(), kinds.columns(), chunks())
 
 
 class _Days:
