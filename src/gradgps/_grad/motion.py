@@ -72,6 +72,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._exceptions import ConfigError
+from .vehicle import CAR_MAX_ACCEL
 
 __all__ = [
     "MOTION_FEATURES",
@@ -187,7 +188,7 @@ class MotionParams:
     max_run_s: float = 10.0
     max_turn: float = 1.0
     initial_scale: float = 5.0
-    max_accel: float = 6.0
+    max_accel: float = CAR_MAX_ACCEL
     maneuver_accel: float = 2.0
 
     def checked(self) -> MotionParams:

@@ -93,9 +93,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._exceptions import ConfigError
+from .vehicle import CAR_MAX_ACCEL, CAR_MAX_SPEED
 
 __all__ = [
-    "CAR_MAX_SPEED",
     "OFFSET_FEATURES",
     "OffsetParams",
     "offset_features",
@@ -161,12 +161,10 @@ N_OFFSET_PARAMS = 9
     S_QUN,
 ) = range(23)
 N_OFFSET_STATE = 23
-# m/s: the fastest a car drives. Unexplained steps off the prediction by the
-# same amount are read as a wrong predicted velocity only when the fixes' own
-# step is a speed a car can have: a stationary receiver's noise run of 0, +23,
-# +47 m at 5 Hz agrees with itself step to step at 120 m/s, and that is no
-# velocity to learn.
-CAR_MAX_SPEED = 70.0
+# Unexplained steps off the prediction by the same amount are read as a wrong
+# predicted velocity only when the fixes' own step is a speed a car can have
+# (CAR_MAX_SPEED): a stationary receiver's noise run of 0, +23, +47 m at 5 Hz
+# agrees with itself step to step at 120 m/s, and that is no velocity to learn.
 # Unexplained steps in a row, each missing the prediction by the same amount, that
 # make a velocity error: three fixes after the last explained one moving
 # consistently among themselves (two steps of a noise run agree by chance).
@@ -201,7 +199,7 @@ class OffsetParams:
     max_fault_s: float = 100.0
     bias_alpha: float = 0.1
     trust_clean_s: float = 10.0
-    accel_allowance: float = 6.0
+    accel_allowance: float = CAR_MAX_ACCEL
 
     def to_array(self) -> FloatArray:
         if not (

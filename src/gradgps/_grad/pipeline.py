@@ -81,7 +81,6 @@ from .motion import (
     motion_velocity,
 )
 from .offset import (
-    CAR_MAX_SPEED,
     N_OFFSET_FEATURES,
     N_OFFSET_PARAMS,
     N_OFFSET_STATE,
@@ -92,6 +91,7 @@ from .offset import (
 from .recovery import N_RECOVERY_STATE, RecoveryParams, recovery_step
 from .rema import N_OUT, O_EMA, O_LOWER, O_UPPER, RemaParams
 from .time_classifier import N_TIME_STATE, T_GAP, TimeParams, time_step
+from .vehicle import CAR_MAX_SPEED
 
 __all__ = [
     "N_POINT_OUT",
