@@ -37,19 +37,20 @@ other) and per point:
   bias only outside a suspected fault;
 * three unexplained steps in a row that miss the prediction by the same
   amount (within ``threshold_m``), at a speed a car can drive, are a
-  *velocity error*, not a fault: a jump is one step off, after which its points move
-  like the real track, while a wrong predicted velocity (the estimate a
-  segment's first step set from a fix that was off, or one learnt from noise
-  steps that happened to look explained) misses every step by the same amount.
-  The third step undoes what the run did to the offset and corrects the
-  constant-velocity estimate by the miss; without this, the tracker added
-  the same miss to the offset every step and held the sum on clean fixes for
-  ``max_fault_s``. Only where the tracker predicts with its own estimate:
-  a reported velocity (or the motion model's, which the pipeline passes
-  only while that model follows the fixes) has the bias for its steady
-  errors, and a bias pushed by a whole miss stayed wrong once that velocity
-  was right again (the bias learns outside faults only) and held a phantom
-  offset at the next stop (fresh simulated drives at 0.5 Hz);
+  *velocity error*, not a fault: a jump is one step off, after which its
+  points move like the real track, while a wrong predicted velocity (the
+  estimate a segment's first step set from a fix that was off, or one
+  learnt from noise steps that happened to look explained) misses every
+  step by the same amount. The third step undoes what the run did to the
+  offset and corrects the constant-velocity estimate by the miss; without
+  this, the tracker added the same miss to the offset every step and held
+  the sum on clean fixes for ``max_fault_s``. Only where the tracker
+  predicts with its own estimate: a reported velocity (or the motion
+  model's, which the pipeline passes only for fixes that model predicted)
+  has the bias for its steady errors, and a bias pushed by a whole miss
+  stayed wrong once that velocity was right again (the bias learns outside
+  faults only) and held a phantom offset at the next stop (fresh simulated
+  drives at 0.5 Hz);
 * the *clean-track estimate* is dead-reckoned with the predicted steps and
   re-anchored on the fix after every explained step outside a suspected
   fault (not on the unexplained step that seems to end one: that fix may be
@@ -161,13 +162,11 @@ N_OFFSET_PARAMS = 9
     S_QUN,
 ) = range(23)
 N_OFFSET_STATE = 23
-# Unexplained steps off the prediction by the same amount are read as a wrong
-# predicted velocity only when the fixes' own step is a speed a car can have
-# (CAR_MAX_SPEED): a stationary receiver's noise run of 0, +23, +47 m at 5 Hz
-# agrees with itself step to step at 120 m/s, and that is no velocity to learn.
 # Unexplained steps in a row, each missing the prediction by the same amount, that
 # make a velocity error: three fixes after the last explained one moving
-# consistently among themselves (two steps of a noise run agree by chance).
+# consistently among themselves (two steps of a noise run agree by chance). Each
+# step must be one a car can drive (CAR_MAX_SPEED): a stationary receiver's noise
+# run of 0, +23, +47 m at 5 Hz agrees with itself at 120 m/s, no velocity to learn.
 _VELOCITY_ERROR_STEPS = 3
 # How far (a fraction of the released offset) a step may miss undoing it and still
 # count as the released fault's end: the held offset has leaked by up to

@@ -239,11 +239,11 @@ def _features_point(
     never re-acquire after a long jump on a positions-only file (issue 13).
     The offset tracker takes it only for a fix the model predicted (within its
     gate), at a speed a car drives: a fix it rejected, or re-acquired after
-    rejecting, says its velocity is unconfirmed (a first step from a fix 30 m
-    off starts it at 300 m/s at 10 Hz) (after a noise run it may be 10-30 m/s wrong for seconds),
-    and dead reckoning with it made the tracker add the same miss to the
-    offset every step; the tracker then predicts with its own estimate from
-    the steps it explained.
+    rejecting, says its velocity is unconfirmed (after a noise run it may be
+    10-30 m/s wrong for seconds; a first step from a fix 30 m off starts it
+    at 300 m/s at 10 Hz), and dead reckoning with it made the tracker add the
+    same miss to the offset every step; the tracker then predicts with its
+    own estimate from the steps it explained.
     The speed and heading used are left in ``off_out[_SH : _SH + 2]`` for the
     recovery in :func:`_decide_point`.
     """
