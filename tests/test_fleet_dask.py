@@ -174,3 +174,28 @@ def test_a_partition_runs_serially_without_touching_numba_threads(
     summary = detect_partition(parts[0], str(tmp_path / "out"))
     assert numba.get_num_threads() == before
     assert summary is not None
+
+
+@pytest.mark.parametrize("chunk_size", [1, 7, 10_000])
+def test_a_partition_in_chunks_equals_batch_detection_of_its_files_joined(
+    fleet: pd.DataFrame, tmp_path: Path, chunk_size: int
+) -> None:
+    """Issue 18: a task reads its vehicle's files in chunks (memory of one chunk), with the
+    detectors carried over chunk and file boundaries: the results of the files joined and
+    detected whole, as tasks did before, row for row."""
+    from gradgps import Detector
+    from gradgps._io.read import load_table
+    from gradgps._run.fleet_dask import detect_partition
+    from gradgps._tracks.track import to_fixes
+
+    _write_fleet(fleet, tmp_path / "in")
+    split = next(p for p in find_partitions(tmp_path / "in") if len(p.files) == 2)
+    (tmp_path / "out").mkdir()
+    summary = detect_partition(split, str(tmp_path / "out"), chunk_size=chunk_size)
+    fixes = pd.concat([to_fixes(load_table(f)) for f in split.files], ignore_index=True)
+    want = Detector().detect(fixes).reset_index(drop=True)
+    got = pd.concat(
+        [pd.read_parquet(tmp_path / "out" / r) for r in split.outputs], ignore_index=True
+    )
+    assert summary.rows == len(want) == len(got)
+    pd.testing.assert_frame_equal(got[RESULT_COLUMNS], want[RESULT_COLUMNS], check_dtype=False)

@@ -40,6 +40,13 @@ __all__ = ["detect_fleet"]
     minimum=1,
     help="local cluster size in single-thread worker processes (default: one per CPU)",
 )
+@option(
+    "--chunk-size",
+    minimum=1,
+    default=200_000,
+    help="rows per chunk: each vehicle's files are read one after the other, this many "
+    "rows at a time (a worker's memory is one chunk, whatever the vehicle's size)",
+)
 @model_options
 @column_options
 def detect_fleet(
@@ -47,6 +54,7 @@ def detect_fleet(
     output_dir: Path,
     scheduler: str | None,
     workers: int | None,
+    chunk_size: int,
     model_dir: Path | None,
     threshold: float | None,
     fmt: str | None,
@@ -84,6 +92,7 @@ def detect_fleet(
             output_dir,
             client,
             settings=settings,
+            chunk_size=chunk_size,
             on_start=lambda n: progress.update(task, total=n),
             on_partition=lambda _: progress.advance(task),
         )

@@ -70,6 +70,7 @@ def detect_csv_in_chunks(
     on_start: Callable[[int], None] | None = None,
     on_chunk: Callable[[int], None] | None = None,
     on_result: Callable[[pd.DataFrame, pd.DataFrame, pd.DataFrame], None] | None = None,
+    streams: MultiTrackDetector | None = None,
 ) -> DetectSummary:
     """Detect faults in every row of a CSV, Parquet, GPX or NMEA file (``settings.fmt``, or
     as :func:`gradgps._io.read.resolve_format` finds it), ``chunk_size`` rows at a time,
@@ -82,9 +83,13 @@ def detect_csv_in_chunks(
     ``on_chunk(rows)`` after each chunk (for progress bars), ``on_result(fixes,
     result, frame)`` with each chunk's canonical fixes, result and input rows
     (for events, a report or exports). ``output`` ``None`` writes no table.
+    ``streams``: the per-track detectors to continue (a vehicle whose fixes are split
+    over several files, :func:`gradgps._run.fleet_dask.detect_partition`); ``None``:
+    fresh ones, from ``settings``.
     """
     started = time.perf_counter()
-    streams = MultiTrackDetector(settings.model, threshold=settings.threshold)
+    if streams is None:
+        streams = MultiTrackDetector(settings.model, threshold=settings.threshold)
     chunks = table_chunks(
         Path(input_path), chunk_size, settings.columns, settings.options, settings.fmt
     )

@@ -14,8 +14,10 @@ Why one task per vehicle and not a Dask DataFrame: GRAD is a sequential
 filter over each vehicle's fixes in time order, so a vehicle must be
 processed whole, by one task. The data is already partitioned that way, so
 a ``groupby`` (a full shuffle of terabytes) would only move rows to where
-they already are. Each task reads its own files, runs
-:meth:`gradgps.Detector.detect` and writes its own output files; the only
+they already are. Each task reads its own files one after the other, in
+chunks, with streaming detectors that carry over from chunk to chunk and file
+to file (memory of one chunk, whatever the vehicle's size), and writes its
+own output files; the only
 thing that travels back to the client is a row count. The output mirrors
 the input: the same relative paths, each output file holding its input
 file's rows (every input column kept, in the same order) followed by the
@@ -26,10 +28,10 @@ place, so a crashed or cancelled run never leaves a truncated file under a
 real name (and :func:`find_partitions` skips hidden names when the output is
 read back as a fleet).
 
-Threads: :func:`detect_partition` runs ``Detector.detect`` with its default
-``threads=1``, the *serial* batch kernel (a separate compiled function from
-the parallel one, see :mod:`gradgps._grad.pipeline`), so it needs no lock
-and leaves numba's thread setting alone; tasks in threads of one worker run
+Threads: :func:`detect_partition` runs streaming detectors, whose compiled
+step is serial (never the parallel batch kernel, see
+:mod:`gradgps._grad.pipeline`), so it needs no lock and leaves numba's
+thread setting alone; tasks in threads of one worker run
 side by side. Parallelism comes from Dask *processes* (``LocalCluster`` with
 one thread per worker, or ``dask worker --nthreads 1`` on a real cluster).
 """
@@ -44,8 +46,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import unquote
-
-import pandas as pd
 
 from .._exceptions import ConfigError, InputError
 from .settings import DEFAULT_SETTINGS, RunSettings
@@ -184,53 +184,40 @@ def find_partitions(input_dir: str | os.PathLike[str]) -> list[VehiclePartition]
 
 
 def detect_partition(
-    partition: VehiclePartition, output_dir: str, settings: RunSettings = DEFAULT_SETTINGS
+    partition: VehiclePartition,
+    output_dir: str,
+    settings: RunSettings = DEFAULT_SETTINGS,
+    chunk_size: int = 200_000,
 ) -> PartitionSummary:
     """Run the detector on one vehicle's files and write its output files (one Dask task).
 
-    The files are joined (rows in file order) and detected as one table,
-    then the output is cut back into one file per input file. ``settings``:
-    the detector and how the files are read.
+    The files are read one after the other, ``chunk_size`` rows at a time
+    (:func:`gradgps._run.chunked.detect_csv_in_chunks`), with one set of per-track
+    detectors carried from chunk to chunk and file to file: the results of the files
+    joined and detected as one table, in the memory of one chunk (issue 18: a task
+    used to hold its vehicle's every file and batch features at once). Each output
+    file holds its input file's rows. ``settings``: the detector and how the files
+    are read.
     """
-    from .._grad.detector import Detector
-    from .._io.read import load_table, write_table
-    from .._tracks.track import to_fixes
+    from .._grad.detector import MultiTrackDetector
+    from .chunked import detect_csv_in_chunks
 
-    tables = [
-        load_table(path, settings.fmt, settings.columns, settings.options)
-        for path in partition.files
-    ]
-    # to_fixes per file, so an error names the file and row it is about.
-    fixes = pd.concat([to_fixes(t) for t in tables], ignore_index=True)
-    detector = Detector(settings.model, threshold=settings.threshold)
-    result = detector.detect(fixes).reset_index(drop=True)
-    start = 0
-    for table, relative in zip(tables, partition.outputs, strict=True):
-        frame = table.frame.reset_index(drop=True)
-        clash = [c for c in result.columns if c in frame.columns]
-        if clash:
-            raise InputError(
-                f"already has columns {clash}",
-                source=table.source,
-                hint="rename them before detection",
-            )
-        part = result.iloc[start : start + len(frame)].reset_index(drop=True)
-        start += len(frame)
+    streams = MultiTrackDetector(settings.model, threshold=settings.threshold)
+    counts = [0, 0, 0, 0]
+    for path, relative in zip(partition.files, partition.outputs, strict=True):
         target = Path(output_dir) / relative
         target.parent.mkdir(parents=True, exist_ok=True)
         partial = target.parent / f".partial-{uuid.uuid4().hex}-{target.name}"
         try:
-            write_table(pd.concat([frame, part], axis=1), partial)
+            done = detect_csv_in_chunks(
+                path, partial, settings=settings, chunk_size=chunk_size, streams=streams
+            )
             partial.replace(target)
         finally:
             partial.unlink(missing_ok=True)
-    return PartitionSummary(
-        vehicle=partition.vehicle,
-        rows=len(result),
-        anomalies=int(result["anomaly"].sum()),
-        invalid=int((result["invalid_reason"] != "").sum()),
-        alerts=int(result["alert"].sum()),
-    )
+        for k, n in enumerate((done.rows, done.anomalies, done.invalid, done.alerts)):
+            counts[k] += n
+    return PartitionSummary(partition.vehicle, *counts)
 
 
 def _check_output_dir(input_dir: Path, output_dir: Path) -> None:
@@ -258,10 +245,12 @@ def detect_fleet(
     settings: RunSettings = DEFAULT_SETTINGS,
     on_partition: Callable[[PartitionSummary], None] | None = None,
     on_start: Callable[[int], None] | None = None,
+    chunk_size: int = 200_000,
 ) -> FleetSummary:
     """Detect every vehicle of ``input_dir`` on ``client``'s cluster with the detector and
     reading of ``settings``; write ``output_dir``.
 
+    ``chunk_size``: rows per chunk of each task (:func:`detect_partition`).
     ``on_start(n_vehicles)`` is called once the partitions are known and
     ``on_partition(summary)`` after each vehicle (progress bars). The first
     failing vehicle's error is raised here and the remaining tasks are
@@ -286,6 +275,7 @@ def detect_fleet(
         partitions,
         output_dir=str(target.resolve()),
         settings=task_settings,
+        chunk_size=chunk_size,
         pure=False,
     )
     summaries: list[PartitionSummary] = []
