@@ -228,12 +228,13 @@ def geojson_document(
 
 def _flagged(result: pd.DataFrame, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
     """Flagged usable fixes with a position to draw (as received: ``lat``, wrapped ``lon``)."""
-    return (
+    flagged: np.ndarray = (
         (result["anomaly"].to_numpy() == 1)
         & (result["invalid_reason"].to_numpy() == "")
         & (np.abs(lat) <= 90.0)
         & np.isfinite(lon)
     )
+    return flagged
 
 
 def flagged_features(
