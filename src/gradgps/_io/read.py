@@ -322,6 +322,7 @@ class TableWriter:
         self._parquet: Any = None
         self._working = self.partial  # the Parquet file being written (changes when widened)
         self._rewrites = 0
+        self._geo: bytes | None = None  # the ``geo`` metadata of a GeoParquet output
 
     def __enter__(self) -> TableWriter:
         return self
@@ -339,8 +340,17 @@ class TableWriter:
         """Whether a frame (perhaps an empty one, fixing the columns) was written."""
         return self._columns is not None
 
-    def write(self, frame: pd.DataFrame) -> None:
-        """Append ``frame``'s rows (without its index)."""
+    def write(self, frame: pd.DataFrame, geometry: GeoPoints | None = None) -> None:
+        """Append ``frame``'s rows (without its index). ``geometry``: the chunk's points of
+        a GeoParquet input (``Table.geometry``), whose column ``frame`` holds as WKB: written
+        as :func:`write_table` writes them (WKT in a CSV; a Parquet output keeps the WKB and
+        gets the input's ``geo`` metadata)."""
+        if geometry is not None and geometry.column in frame.columns:
+            if self.kind == "csv":
+                frame = frame.copy()
+                frame[geometry.column] = wkt_points(geometry.x, geometry.y)
+            elif self._geo is None:
+                self._geo = geometry.metadata
         columns = [str(c) for c in frame.columns]
         if self._columns is None:
             self._columns = columns
@@ -402,7 +412,10 @@ class TableWriter:
                     ) from None
             arrays.append(array)
             types.append(target)
-        schema = pa.schema([pa.field(n, t) for n, t in zip(names, types, strict=True)])
+        schema = pa.schema(
+            [pa.field(n, t) for n, t in zip(names, types, strict=True)],
+            metadata=None if self._geo is None else {b"geo": self._geo},
+        )
         if old is None:
             self._parquet = pq.ParquetWriter(self._working, schema)
         elif not schema.equals(old):
@@ -756,8 +769,10 @@ def _parquet_tables(
         n_rows = int(file.metadata.num_rows)
     except (ValueError, OSError, TypeError) as exc:
         raise _unreadable_parquet(exc, source) from None
+    geo = geo_metadata(path)
     if stored_index:
-        whole = replace(_read_parquet(path), columns=columns, options=options)
+        whole = _read_parquet(path)
+        whole = replace(whole, columns=_override(whole.columns, columns), options=options)
         return CsvChunks(
             n_rows=len(whole.frame), header=tuple(whole.frame.columns), chunks=iter([whole])
         )
@@ -773,30 +788,27 @@ def _parquet_tables(
                 frame = _arrow_to_pandas(pa.Table.from_batches([batch], schema=schema))
             except (ValueError, OSError, TypeError) as exc:
                 raise _unreadable_parquet(exc, source) from None
-            yield Table(
-                frame=frame.reset_index(drop=True),
-                source=source,
-                columns=columns,
-                row_offset=offset,
-                options=options,
-            )
+            frame = frame.reset_index(drop=True)
+            if geo is None:
+                yield Table(
+                    frame=frame, source=source, columns=columns, row_offset=offset, options=options
+                )
+            else:  # GeoParquet: each chunk's points decoded as the whole file's would be
+                table = read_geoparquet(path, frame, geo, row_offset=offset)
+                yield replace(table, columns=_override(table.columns, columns), options=options)
             offset += len(frame)
 
     return CsvChunks(n_rows=n_rows, header=tuple(schema.names), chunks=chunks())
 
 
-#: The formats :func:`table_chunks` reads chunk by chunk (GeoParquet aside: read whole).
+#: The formats :func:`table_chunks` reads chunk by chunk (GeoParquet included).
 CHUNKED_FORMATS: Final = ("csv", "parquet", "gpx", "nmea")
 
 
 def chunkable(path: str | Path, fmt: str | None = None) -> bool:
-    """Whether ``path`` is read chunk by chunk (:func:`table_chunks`): CSV, GPX, NMEA, and
-    Parquet that is not GeoParquet (a GeoParquet file is read whole, by :func:`load_table`,
-    so its output keeps the geometry column and the ``geo`` metadata)."""
-    kind = resolve_format(path, fmt)
-    return kind in ("csv", "gpx", "nmea") or (
-        kind == "parquet" and geo_metadata(Path(path)) is None
-    )
+    """Whether ``path`` is read chunk by chunk (:func:`table_chunks`): CSV, Parquet
+    (GeoParquet too, its points decoded chunk by chunk), GPX and NMEA."""
+    return resolve_format(path, fmt) in CHUNKED_FORMATS
 
 
 def table_chunks(

@@ -125,7 +125,7 @@ def detect_csv_in_chunks(
                 out = pd.concat(
                     [table.frame.reset_index(drop=True), result.reset_index(drop=True)], axis=1
                 )
-                writer.write(out)
+                writer.write(out, geometry=table.geometry)
             if on_result is not None:
                 on_result(fixes, result, table.frame)
             if on_chunk is not None:
