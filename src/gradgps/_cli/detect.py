@@ -412,16 +412,24 @@ def _detect_in_chunks(
         done = progress.tasks[0].completed
         progress.update(task, rate=f"{done / elapsed:,.0f}" if elapsed > 0 else "-")
 
-    with progress:
+    def start(total: int) -> None:
+        # Shown once the file's structure is checked: a file refused before (a damaged
+        # bag, a CSV without a header) gets its one error line and no empty bar.
+        progress.update(task, total=total)
+        progress.start()
+
+    try:
         return detect_csv_in_chunks(
             input_path,
             output,
             settings=settings,
             chunk_size=chunk_size,
-            on_start=lambda total: progress.update(task, total=total),
+            on_start=start,
             on_chunk=advance,
             on_result=on_result,
         )
+    finally:
+        progress.stop()
 
 
 def _run_follow(input_path: Path, output: Path | None, settings: RunSettings) -> None:
