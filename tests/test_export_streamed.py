@@ -15,7 +15,7 @@ from gradgps._io.export import _lines, geojson_document, geojson_text, iso_or_no
 from gradgps._io.export_streamed import StreamedExports
 
 
-def _run(seed: int, n: int = 400) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _run(seed: int, n: int = 400, flagged: float = 0.3) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Three interleaved tracks (one named with non-ASCII and XML characters): gaps over a
     minute, steps across the antimeridian, invalid rows, missing repairs and labels, runs
     of flagged fixes, a lone usable fix between gaps."""
@@ -30,7 +30,7 @@ def _run(seed: int, n: int = 400) -> tuple[pd.DataFrame, pd.DataFrame]:
     lon = 179.9 + 0.2 * rng.random(n)
     lon = np.where(lon > 180.0, lon - 360.0, lon)
     lat = 48.0 + rng.random(n)
-    anomaly = (rng.random(n) < 0.3).astype(np.int64)
+    anomaly = (rng.random(n) < flagged).astype(np.int64)
     invalid = np.where(rng.random(n) < 0.05, "latitude missing or not finite", "")
     lat_c = np.where(rng.random(n) < 0.03, np.nan, lat + 1e-5)
     lon_c = lon + rng.normal(0.0, 1e-4, n)
@@ -148,3 +148,38 @@ def test_detect_writes_the_same_geojson_and_gpx_in_chunks_as_whole(tmp_path: Pat
         texts.append((geo.read_bytes(), gpx.read_bytes()))
     assert texts[0] == texts[1]
     assert texts[0][0].count(b'"kind":"event"') > 2
+
+
+def _export_peak_mb(tmp_path: Path, chunks: int, rows: int) -> float:
+    """Traced peak of writing --geojson and --gpx for ``chunks`` chunks of ``rows`` rows (the
+    chunks made again for the traced run; the event table, which the run keeps anyway,
+    made before)."""
+    import tracemalloc
+
+    def chunk(k: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+        fixes, result = _run(k, n=rows, flagged=0.01)
+        fixes["t"] += 1e6 * k  # later chunks later in time, lines go on
+        return fixes, result
+
+    builder = EventBuilder()
+    for k in range(chunks):
+        builder.add(*chunk(k))
+    events = builder.events()
+    tracemalloc.start()
+    try:
+        with StreamedExports(tmp_path / "o.geojson", tmp_path / "o.gpx") as exports:
+            for k in range(chunks):
+                exports.add(*chunk(k))
+            exports.finish(events)
+        return tracemalloc.get_traced_memory()[1] / 1e6
+    finally:
+        tracemalloc.stop()
+
+
+def test_the_exports_memory_does_not_grow_with_the_run(tmp_path: Path) -> None:
+    """Issue 18: --geojson/--gpx kept every fix and result of the run; now a run six times
+    longer needs about the memory of one chunk (what grows with it: an index entry per
+    track and chunk, and some hundred bytes per fault event, 1 % of the fixes here)."""
+    short = _export_peak_mb(tmp_path, 2, 2_000)
+    long = _export_peak_mb(tmp_path, 12, 2_000)
+    assert long < 1.3 * short + 0.5, (short, long)

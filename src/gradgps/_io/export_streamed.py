@@ -195,33 +195,38 @@ class StreamedExports:
         track's flagged fixes from ``first_row`` to ``last_row``, read from the spool a track
         at a time (the texts wait in a temporary file, so memory holds one event's points)."""
         assert self._flagged is not None
-        records: list[dict[Any, Any]] = events.to_dict("records")
-        where = np.zeros((len(records), 2), np.int64)
+        # Column arrays, one event's record built when it is written (a dict per event
+        # would be a kilobyte each).
+        columns = {c: events[c].to_numpy() for c in events.columns}
+        first_rows = events["first_row"].to_numpy(np.int64)
+        last_rows = events["last_row"].to_numpy(np.int64)
+        where = np.zeros((len(events), 2), np.int64)
         with _scratch(self._directory) as texts:
 
             def done(k: int, coords: list[list[float]]) -> None:
-                data = json.dumps(event_feature(records[k], coords), **_JSON).encode()  # type: ignore[arg-type]
+                record = {c: values[k] for c, values in columns.items()}
+                data = json.dumps(event_feature(record, coords), **_JSON).encode()  # type: ignore[arg-type]
                 where[k] = texts.tell(), len(data)
                 texts.write(data)
 
             by_track: dict[Any, list[int]] = {}
-            for k, ev in enumerate(records):
-                by_track.setdefault(ev["track"], []).append(k)
+            for k, track in enumerate(columns["track"].tolist()):
+                by_track.setdefault(track, []).append(k)
             for track, ks in by_track.items():
-                ks.sort(key=lambda k: int(records[k]["first_row"]))
+                ks.sort(key=lambda k: int(first_rows[k]))
                 coords: dict[int, list[list[float]]] = {}
                 waiting = iter(ks)
                 pending = next(waiting, None)
                 for block in self._flagged.read(track):
                     rows = block[:, 0]
-                    while pending is not None and int(records[pending]["first_row"]) <= rows[-1]:
+                    while pending is not None and int(first_rows[pending]) <= rows[-1]:
                         coords[pending] = []
                         pending = next(waiting, None)
                     for k in list(coords):
-                        lo = np.searchsorted(rows, int(records[k]["first_row"]), side="left")
-                        hi = np.searchsorted(rows, int(records[k]["last_row"]), side="right")
+                        lo = np.searchsorted(rows, int(first_rows[k]), side="left")
+                        hi = np.searchsorted(rows, int(last_rows[k]), side="right")
                         coords[k].extend(block[lo:hi, 1:3].tolist())
-                        if int(records[k]["last_row"]) <= rows[-1]:
+                        if int(last_rows[k]) <= rows[-1]:
                             done(k, coords.pop(k))
                 for k in list(coords):
                     done(k, coords.pop(k))
