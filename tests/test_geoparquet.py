@@ -75,13 +75,19 @@ def test_geoparquet_to_csv_writes_the_geometry_as_wkt(tmp_path: Path) -> None:
     assert frame["time"].iloc[0] == "2026-11-23T10:00:00Z"
 
 
-def test_geoparquet_with_lines_names_the_row(tmp_path: Path) -> None:
+@pytest.mark.parametrize("chunked", [False, True])
+def test_geoparquet_with_lines_names_the_row(tmp_path: Path, chunked: bool) -> None:
+    """Read whole or in chunks of 10 (issue 18), a line names its row in the file."""
+    from gradgps._io.read import table_chunks
+
     geometry = list(gpd.points_from_xy(LON, LAT))
-    geometry[4] = shapely.LineString([(11.5, 48.1), (11.6, 48.2)])
+    geometry[24] = shapely.LineString([(11.5, 48.1), (11.6, 48.2)])
     frame = gpd.GeoDataFrame({"t": np.arange(30.0)}, geometry=geometry, crs="EPSG:4326")
     frame.to_parquet(tmp_path / "lines.parquet")
-    with pytest.raises(InputError, match=r"row 5.*geometry|geometry.*row 5") as info:
-        read_fixes(tmp_path / "lines.parquet")
+    path = tmp_path / "lines.parquet"
+    read = (lambda: list(table_chunks(path, 10))) if chunked else (lambda: read_fixes(path))
+    with pytest.raises(InputError, match=r"row 25.*geometry|geometry.*row 25") as info:
+        read()
     assert "a LineString, not a Point" in str(info.value)
 
 
@@ -110,16 +116,3 @@ def test_geoparquet_is_read_in_chunks_with_the_whole_file_results(
     back = gpd.read_parquet(chunked)
     assert back.crs == gpd.read_parquet(path).crs
     assert back["lat_clean"].to_numpy() == pytest.approx(LAT, abs=1e-5)
-
-
-def test_a_line_in_a_later_chunk_names_its_row(tmp_path: Path) -> None:
-    from gradgps._io.read import table_chunks
-
-    geometry = list(gpd.points_from_xy(LON, LAT))
-    geometry[24] = shapely.LineString([(11.5, 48.1), (11.6, 48.2)])
-    frame = gpd.GeoDataFrame({"t": np.arange(30.0)}, geometry=geometry, crs="EPSG:4326")
-    frame.to_parquet(tmp_path / "lines.parquet")
-    with pytest.raises(InputError, match=r"row 25") as info:
-        for _ in table_chunks(tmp_path / "lines.parquet", 10):
-            pass
-    assert "a LineString, not a Point" in str(info.value)

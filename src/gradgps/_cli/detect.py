@@ -5,11 +5,13 @@ column kept, plus the detector's columns: ``anomaly`` (0/1), ``score``
 (0..1), ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
 ``alert`` (0/1) and ``invalid_reason`` (empty for a usable fix).
 
-CSV, Parquet, GPX and NMEA input is processed ``--chunk-size`` rows at a time
-in bounded memory (:mod:`gradgps._run.chunked`; Parquet by record batches of one
-row group at a time; GPX and NMEA in two streaming passes,
-:func:`gradgps._io.read.table_chunks`); ``--chunk-size 0``, GeoParquet, GeoJSON
-and ROS bags read the whole file. Both read each track in row order with one rule (see
+CSV, Parquet (GeoParquet too), GPX, NMEA and ROS bag input is processed
+``--chunk-size`` rows at a time in bounded memory (:mod:`gradgps._run.chunked`;
+Parquet by record batches of one row group at a time; GPX, NMEA and ROS bags in
+two streaming passes, :func:`gradgps._io.read.table_chunks`), and ``--geojson``
+and ``--gpx`` are written as results come
+(:class:`gradgps._io.export_streamed.StreamedExports`); ``--chunk-size 0`` and
+GeoJSON input read the whole file. Both read each track in row order with one rule (see
 :func:`gradgps._tracks.preprocess.stream_reasons`): a fix whose time is not
 after the previous usable fix of its track is flagged invalid, never merged,
 so every mode, ``--report`` included, gives the same rows flagged and the
@@ -33,7 +35,7 @@ if TYPE_CHECKING:
 
 __all__ = ["WHOLE_FILE_WARN_BYTES", "detect"]
 
-#: A file read whole (``--chunk-size 0``, GeoParquet, GeoJSON, a ROS bag) larger than this
+#: A file read whole (``--chunk-size 0``, GeoJSON) larger than this
 #: gets a warning first: its memory grows with it (docs/reliability.md, "Bounded memory").
 WHOLE_FILE_WARN_BYTES = 100_000_000
 
@@ -88,7 +90,8 @@ WHOLE_FILE_WARN_BYTES = 100_000_000
     "--chunk-size",
     minimum=0,
     default=200_000,
-    help="CSV, Parquet, GPX or NMEA rows per chunk (bounded memory); 0 = read the whole "
+    help="rows per chunk of CSV, Parquet, GPX, NMEA or ROS bag input (bounded memory); "
+    "0 = read the whole "
     "file at once (memory grows with the file). "
     "Same results either way",
 )
@@ -113,7 +116,7 @@ def detect(
     Every mode gives the same answer: each track is read in row order, and a
     fix whose time is not after the previous usable fix of its track (a
     repeated or backward timestamp) is flagged invalid, never merged. CSV,
-    Parquet, GPX and NMEA input is processed in chunks of --chunk-size rows
+    Parquet, GPX, NMEA and ROS bag input is processed in chunks of --chunk-size rows
     (memory stays bounded however large the file, --report, --geojson and
     --gpx included). With --follow, INPUT is read as a live stream (e.g. 'tail
     -f log.nmea | gradgps detect --follow -') and results go to standard
@@ -303,7 +306,7 @@ def _warn_whole(path: Path, chunk_size: int) -> None:
     why, hint = (
         ("--chunk-size 0", "leave --chunk-size at its default to keep memory bounded")
         if chunk_size == 0
-        else ("this format is not read in chunks", "convert it to CSV or Parquet to stream it")
+        else ("GeoJSON is not read in chunks", "convert it to CSV or Parquet to stream it")
     )
     click.echo(
         f"warning: {path} ({size / 1e6:,.0f} MB) is read whole ({why}): memory grows with "
