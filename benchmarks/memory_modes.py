@@ -289,10 +289,56 @@ def _input_of(mode: str) -> str:
     return "csv" if mode == "detect-fleet" else mode.split()[0]
 
 
+# Runs children for this process, started before any input is built (see _Launcher).
+_LAUNCHER = """
+import json, sys
+from memory_hostile import run_child
+for line in sys.stdin:
+    args, child = json.loads(line)
+    print(json.dumps(run_child(args, child)), flush=True)
+"""
+
+
+class _Launcher:
+    """A small process, started before any input is built, that starts the measured children.
+
+    detect-fleet's peak is read as ``ru_maxrss`` of the children (its Dask worker
+    processes, which ``VmHWM`` of the CLI's process does not see), and Linux carries a
+    process's ``ru_maxrss`` over into the children it forks and execs: started from this
+    process, holding the inputs it built (a gigabyte at 100 MB of CSV), the figure would
+    be this process's peak (it was: 1,039 MB at 1.56 M fixes, where the worker peaked
+    at 473 MB at 781,200 fixes, sampled). The launcher's own peak is the floor instead.
+    """
+
+    def __init__(self) -> None:
+        self._proc = subprocess.Popen(
+            [sys.executable, "-c", _LAUNCHER],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            cwd=Path(__file__).parent,
+        )
+
+    def run(self, args: list[str], child: str) -> dict[str, object]:
+        assert self._proc.stdin is not None
+        assert self._proc.stdout is not None
+        self._proc.stdin.write(json.dumps([args, child]) + "\n")
+        self._proc.stdin.flush()
+        done: dict[str, object] = json.loads(self._proc.stdout.readline())
+        return done
+
+
+_launcher: _Launcher | None = None
+
+
 def _run(args: list[str]) -> dict[str, object]:
     # The child's own peak (VmHWM), not ru_maxrss, which carries the parent's size; for
-    # detect-fleet, whose work is done in Dask worker processes, ru_maxrss of the children.
-    return run_child(args, _CHILD if args[0] == "detect-fleet" else VMHWM_CHILD)
+    # detect-fleet, whose work is done in Dask worker processes, ru_maxrss of the children,
+    # started from the launcher.
+    if args[0] != "detect-fleet":
+        return run_child(args, VMHWM_CHILD)
+    assert _launcher is not None
+    return _launcher.run(args, _CHILD)
 
 
 def _fit(rows: list[dict[str, object]]) -> dict[str, float] | None:
@@ -359,6 +405,8 @@ def main() -> None:
         print(json.dumps(done["growth"], indent=2))
         return
     modes = [m for m in MODES if not opts.only or m in opts.only]
+    global _launcher
+    _launcher = _Launcher()
     rows: list[dict[str, object]] = []
     load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="gradgps-memmodes-") as tmp:
