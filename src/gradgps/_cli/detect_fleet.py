@@ -70,6 +70,7 @@ def detect_fleet(
     )
 
     from .._grad.detector import load_grad_model
+    from .._run.chunked import detect_partition
     from .._run.fleet_dask import dask_client
     from .._run.fleet_dask import detect_fleet as run_on_cluster
     from .._run.settings import RunSettings
@@ -91,6 +92,7 @@ def detect_fleet(
             input_dir,
             output_dir,
             client,
+            task=detect_partition,
             settings=settings,
             chunk_size=chunk_size,
             on_start=lambda n: progress.update(task, total=n),

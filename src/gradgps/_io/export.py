@@ -17,12 +17,15 @@ label is ``null``, never ``NaN``), longitudes wrapped into [-180, 180], and a
 line that crosses the antimeridian cut there into a MultiLineString (3.1.9),
 or geojson.io and QGIS draw it the long way round the globe. Unusable fixes
 have no trustworthy position and are left out (they are in the CSV with
-their reason). Both files are written atomically.
+their reason).
 
-The HTML report (``--report``) embeds the same document, built by
-:func:`geojson_document` and serialised by :func:`geojson_text`, and draws
-its repaired lines and flagged fixes; ``detect`` builds it once for both, so
-the file and the report cannot disagree.
+The files are written by :mod:`gradgps._io.export_streamed` as results come, in
+bounded memory, with the text :func:`geojson_text` gives for
+:func:`geojson_document` of the whole result (and the GPX of :data:`GPX_HEADER`,
+:func:`gpx_point` and :data:`GPX_FOOTER`): the pieces here are shared by both. The
+HTML report (``--report``) embeds :func:`geojson_document` of what it draws (the
+whole result, or past 250,000 rows its thinned sample) and draws its repaired
+lines and flagged fixes.
 """
 
 from __future__ import annotations
@@ -30,9 +33,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import os
 from collections.abc import Iterator, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -53,22 +54,10 @@ __all__ = [
     "iso_or_none",
     "usable_repairs",
     "wrap_lon",
-    "write_geojson",
-    "write_geojson_document",
-    "write_gpx",
 ]
 
 #: A repaired track is split where two usable fixes are further apart in time than this.
 LINE_GAP_S = 60.0
-
-
-def _atomic_write(path: str | os.PathLike[str], text: str) -> Path:
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    partial = out.with_name(out.name + ".partial")
-    partial.write_text(text, encoding="utf-8")
-    partial.replace(out)
-    return out
 
 
 def _num(value: Any) -> float | None:
@@ -296,31 +285,9 @@ def event_feature(ev: dict[Any, Any], coords: list[list[float]]) -> dict[str, An
     return {"type": "Feature", "geometry": _geometry(coords), "properties": props}
 
 
-def write_geojson(
-    path: str | os.PathLike[str],
-    fixes: pd.DataFrame,
-    result: pd.DataFrame,
-    events: pd.DataFrame | None = None,
-) -> Path:
-    """Write :func:`geojson_document` to ``path`` (strict JSON, atomically), as ``--geojson``
-    does (:class:`gradgps._io.export_streamed.StreamedExports`, the same text)."""
-    from .export_streamed import StreamedExports
-
-    out = Path(path)
-    with StreamedExports(out, None) as exports:
-        exports.add(fixes, result)
-        exports.finish(events)
-    return out
-
-
 def geojson_text(doc: dict[str, Any]) -> str:
     """The document as strict, compact JSON: the exact text of the ``--geojson`` file."""
     return json.dumps(doc, allow_nan=False, separators=(",", ":"))
-
-
-def write_geojson_document(path: str | os.PathLike[str], doc: dict[str, Any]) -> Path:
-    """Write a built :func:`geojson_document` to ``path`` as :func:`geojson_text` (atomically)."""
-    return _atomic_write(path, geojson_text(doc))
 
 
 #: The start and end of the GPX file of the repaired tracks.
@@ -336,16 +303,3 @@ def gpx_point(t: float, lat: float, lon: float) -> str:
     when = iso_or_none(t)
     time_el = f"<time>{when}</time>" if when is not None else ""
     return f'<trkpt lat="{lat:.8f}" lon="{lon:.8f}">{time_el}</trkpt>\n'
-
-
-def write_gpx(path: str | os.PathLike[str], fixes: pd.DataFrame, result: pd.DataFrame) -> Path:
-    """The repaired track as GPX 1.1: one ``trk`` per track, one ``trkseg`` per run of usable
-    fixes at most :data:`LINE_GAP_S` apart (written atomically, as ``--gpx`` does:
-    :class:`gradgps._io.export_streamed.StreamedExports`)."""
-    from .export_streamed import StreamedExports
-
-    out = Path(path)
-    with StreamedExports(None, out) as exports:
-        exports.add(fixes, result)
-        exports.finish(None)
-    return out

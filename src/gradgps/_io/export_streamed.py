@@ -44,7 +44,7 @@ from .export import (
     usable_repairs,
 )
 
-__all__ = ["StreamedExports"]
+__all__ = ["StreamedExports", "write_geojson", "write_gpx"]
 
 _JSON = {"allow_nan": False, "separators": (",", ":")}
 
@@ -341,3 +341,28 @@ def _atomically(path: Path, write: Any) -> None:
         os.replace(partial, path)
     finally:
         partial.unlink(missing_ok=True)
+
+
+def write_geojson(
+    path: str | os.PathLike[str],
+    fixes: pd.DataFrame,
+    result: pd.DataFrame,
+    events: pd.DataFrame | None = None,
+) -> Path:
+    """Write the GeoJSON of a whole result (the text of :func:`gradgps._io.export.geojson_text`
+    for :func:`~gradgps._io.export.geojson_document`), atomically, as ``--geojson`` does."""
+    out = Path(path)
+    with StreamedExports(out, None) as exports:
+        exports.add(fixes, result)
+        exports.finish(events)
+    return out
+
+
+def write_gpx(path: str | os.PathLike[str], fixes: pd.DataFrame, result: pd.DataFrame) -> Path:
+    """The repaired track of a whole result as GPX 1.1: one ``trk`` per track, one ``trkseg``
+    per run of usable fixes at most :data:`LINE_GAP_S` apart (atomically, as ``--gpx``)."""
+    out = Path(path)
+    with StreamedExports(None, out) as exports:
+        exports.add(fixes, result)
+        exports.finish(None)
+    return out

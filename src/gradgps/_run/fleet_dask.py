@@ -28,8 +28,8 @@ place, so a crashed or cancelled run never leaves a truncated file under a
 real name (and :func:`find_partitions` skips hidden names when the output is
 read back as a fleet).
 
-Threads: :func:`detect_partition` runs streaming detectors, whose compiled
-step is serial (never the parallel batch kernel, see
+Threads: a task (:func:`gradgps._run.chunked.detect_partition`) runs
+streaming detectors, whose compiled step is serial (never the parallel batch kernel, see
 :mod:`gradgps._grad.pipeline`), so it needs no lock and leaves numba's
 thread setting alone; tasks in threads of one worker run
 side by side. Parallelism comes from Dask *processes* (``LocalCluster`` with
@@ -39,7 +39,6 @@ one thread per worker, or ``dask worker --nthreads 1`` on a real cluster).
 from __future__ import annotations
 
 import os
-import uuid
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
@@ -59,7 +58,6 @@ __all__ = [
     "VehiclePartition",
     "dask_client",
     "detect_fleet",
-    "detect_partition",
     "find_partitions",
 ]
 
@@ -183,43 +181,6 @@ def find_partitions(input_dir: str | os.PathLike[str]) -> list[VehiclePartition]
     return [found[v] for v in sorted(found)]
 
 
-def detect_partition(
-    partition: VehiclePartition,
-    output_dir: str,
-    settings: RunSettings = DEFAULT_SETTINGS,
-    chunk_size: int = 200_000,
-) -> PartitionSummary:
-    """Run the detector on one vehicle's files and write its output files (one Dask task).
-
-    The files are read one after the other, ``chunk_size`` rows at a time
-    (:func:`gradgps._run.chunked.detect_csv_in_chunks`), with one set of per-track
-    detectors carried from chunk to chunk and file to file: the results of the files
-    joined and detected as one table, in the memory of one chunk (issue 18: a task
-    used to hold its vehicle's every file and batch features at once). Each output
-    file holds its input file's rows. ``settings``: the detector and how the files
-    are read.
-    """
-    from .._grad.detector import MultiTrackDetector
-    from .chunked import detect_csv_in_chunks
-
-    streams = MultiTrackDetector(settings.model, threshold=settings.threshold)
-    counts = [0, 0, 0, 0]
-    for path, relative in zip(partition.files, partition.outputs, strict=True):
-        target = Path(output_dir) / relative
-        target.parent.mkdir(parents=True, exist_ok=True)
-        partial = target.parent / f".partial-{uuid.uuid4().hex}-{target.name}"
-        try:
-            done = detect_csv_in_chunks(
-                path, partial, settings=settings, chunk_size=chunk_size, streams=streams
-            )
-            partial.replace(target)
-        finally:
-            partial.unlink(missing_ok=True)
-        for k, n in enumerate((done.rows, done.anomalies, done.invalid, done.alerts)):
-            counts[k] += n
-    return PartitionSummary(partition.vehicle, *counts)
-
-
 def _check_output_dir(input_dir: Path, output_dir: Path) -> None:
     if output_dir.exists():
         if not output_dir.is_dir():
@@ -242,6 +203,7 @@ def detect_fleet(
     output_dir: str | os.PathLike[str],
     client: Client,
     *,
+    task: Callable[..., PartitionSummary],
     settings: RunSettings = DEFAULT_SETTINGS,
     on_partition: Callable[[PartitionSummary], None] | None = None,
     on_start: Callable[[int], None] | None = None,
@@ -250,7 +212,10 @@ def detect_fleet(
     """Detect every vehicle of ``input_dir`` on ``client``'s cluster with the detector and
     reading of ``settings``; write ``output_dir``.
 
-    ``chunk_size``: rows per chunk of each task (:func:`detect_partition`).
+    ``task(partition, output_dir, settings, chunk_size)`` detects one vehicle
+    (:func:`gradgps._run.chunked.detect_partition`; passed in, so that this module
+    imports nothing of the detector and the CLI's import chains stay within nine
+    modules, ``tests/test_layers.py``); ``chunk_size``: rows per chunk of each task.
     ``on_start(n_vehicles)`` is called once the partitions are known and
     ``on_partition(summary)`` after each vehicle (progress bars). The first
     failing vehicle's error is raised here and the remaining tasks are
@@ -271,7 +236,7 @@ def detect_fleet(
     model = settings.model
     task_settings = replace(settings, model=None if model is None else str(Path(model).resolve()))
     futures = client.map(
-        detect_partition,
+        task,
         partitions,
         output_dir=str(target.resolve()),
         settings=task_settings,
