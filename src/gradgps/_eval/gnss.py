@@ -25,7 +25,9 @@ truth to score against), for every bias type (``noise``, ``jump``,
   type that truly are; the detector's type of a row is its ``bias_type``,
   except a fix it refused because the receiver reported no fix, whose type is
   ``outage``. ``None`` where the detector never names the type (the shipped
-  model's bias head knows none, noise, jump and freeze only).
+  model's bias head knows none, noise, jump and freeze only; ``drift`` comes
+  from the drift witness, :mod:`gradgps._grad.drift`, where the input has
+  speed and heading).
 
 For ``drift`` also per found episode the offset of the position from the
 truth at its first flagged fix (``label_offset_m``, metres) and the delay
