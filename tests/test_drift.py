@@ -136,7 +136,8 @@ def test_saved_settings_read_back() -> None:
     params = PipelineParams()
     assert PipelineParams.from_dict(params.to_dict()) == params
     older = {k: v for k, v in params.to_dict().items() if k != "drift"}
-    assert PipelineParams.from_dict(older).drift == DriftParams()  # saved before the witness
+    assert PipelineParams.from_dict(older).drift is None  # off unless a model names it
+    assert PipelineParams.from_dict({**older, "drift": {}}).drift == DriftParams()
     assert PipelineParams.from_dict({**older, "drift": None}).drift is None
 
 
