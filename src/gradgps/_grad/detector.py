@@ -91,6 +91,7 @@ from .._tracks.track import ColumnKeywords, ColumnMap, check_keywords, datetime_
 from .core import N_CORE_PARAMS, _layout
 from .defaults import FRAME_RADIUS_M, MIN_STEP_S, grad_points
 from .events import fault_events
+from .lanes import LANES, lanes_step, new_lane_work
 from .model_io import CONFIG_FILE, WEIGHTS_FILE, gru_model, load_model
 from .motion import N_MOTION_STATE
 from .offset import N_OFFSET_STATE
@@ -1028,8 +1029,18 @@ def _fleet_kernel(
 ) -> int:
     """Fixes ``todo`` (batch positions, in order) of vehicles ``slots``: the common case and
     invalid fixes scored here, into ``out``/``code``; a vehicle's first rare fix and all its
-    later ones are listed in ``deferred`` (returns how many)."""
+    later ones are listed in ``deferred`` (returns how many).
+
+    Common-case fixes are gathered into blocks of up to :data:`LANES` vehicles, each
+    vehicle at most once per block, and each block is scored by one :func:`lanes_step`
+    (a vehicle's next fix waits for its block to be scored)."""
     blocked = np.zeros(seg.size, np.bool_)
+    in_block = np.zeros(seg.size, np.bool_)
+    lanes = work[1].shape[0]
+    block_slots = np.empty(lanes, np.int64)
+    block_rows = np.empty(lanes, np.int64)
+    dt = np.empty(t.size)
+    n_block = 0
     n_def = 0
     for j in range(todo.size):
         i = todo[j]
@@ -1043,33 +1054,108 @@ def _fleet_kernel(
         if c != 0:
             code[i] = c
             continue
-        dt = t[i] - last_t[s]
+        dt[i] = t[i] - last_t[s]
         if (
             seg[s] <= PERIOD_STEPS
-            or dt > max_gap_s
+            or dt[i] > max_gap_s
             or far_apart_scalar(lat0[s], lon0[s], lat[i], lon[i], FRAME_RADIUS_M)
         ):
             blocked[s] = True
             deferred[n_def] = i
             n_def += 1
             continue
-        a = s_off[s]
-        grad_step(
-            Ps[s],
-            Ss[a : a + s_len[s]],
-            Hs[s],
-            gp,
-            work,
-            dt,
-            lat[i],
-            lon[i],
-            speed[i],
-            heading[i],
-            out[i],
-        )
+        if in_block[s] or n_block == lanes:
+            _score_block(
+                Ps,
+                Ss,
+                s_off,
+                s_len,
+                Hs,
+                gp,
+                work,
+                block_slots,
+                block_rows,
+                n_block,
+                dt,
+                lat,
+                lon,
+                speed,
+                heading,
+                out,
+                in_block,
+            )
+            n_block = 0
+        block_slots[n_block] = s
+        block_rows[n_block] = i
+        in_block[s] = True
+        n_block += 1
         seg[s] += 1
         last_t[s] = t[i]
+    _score_block(
+        Ps,
+        Ss,
+        s_off,
+        s_len,
+        Hs,
+        gp,
+        work,
+        block_slots,
+        block_rows,
+        n_block,
+        dt,
+        lat,
+        lon,
+        speed,
+        heading,
+        out,
+        in_block,
+    )
     return n_def
+
+
+@numba.njit(cache=True)
+def _score_block(
+    Ps: FloatArray,
+    Ss: FloatArray,
+    s_off: NDArray[np.int64],
+    s_len: NDArray[np.int64],
+    Hs: Any,
+    gp: Any,
+    work: Any,
+    block_slots: NDArray[np.int64],
+    block_rows: NDArray[np.int64],
+    n: int,
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    out: FloatArray,
+    in_block: NDArray[np.bool_],
+) -> None:
+    """Score one block of :func:`_fleet_kernel` and mark its vehicles free again."""
+    if n == 0:
+        return
+    lanes_step(
+        Ps,
+        Ss,
+        s_off,
+        s_len,
+        Hs,
+        gp,
+        work,
+        block_slots,
+        block_rows,
+        n,
+        dt,
+        lat,
+        lon,
+        speed,
+        heading,
+        out,
+    )
+    for v in range(n):
+        in_block[block_slots[v]] = False
 
 
 @dataclass(frozen=True)
@@ -1194,6 +1280,7 @@ class FleetDetector:
         P0 = m.params.array(1.0, LocalFrame(0.0, 0.0), m.dims)
         self._n_p = int(P0.size)
         self._work = new_work(P0)
+        self._lane_work = new_lane_work(P0, LANES)
         self._bias_names = np.array([*m.bias_classes, "none"], dtype=object)
         self._time_names = np.array([*TIME_TYPES, "none"], dtype=object)
         self._reasons = np.array(REASONS, dtype=object)
@@ -1447,7 +1534,7 @@ class FleetDetector:
                     self._lat0,
                     self._lon0,
                     self._gp,
-                    self._work,
+                    self._lane_work,
                     self._max_gap,
                     slots,
                     t_f,

@@ -322,12 +322,32 @@ def _decide_point(
     out: FloatArray,
 ) -> None:
     """GRU on ``x`` -> threshold -> time type -> recovery -> clean position in degrees."""
+    _recurrent_step(gp, dims, x, H, scratch)
+    _heads(gp, dims, H, scratch, gru_out)
+    _verdict(P, S, dims, gru_out, core_out, rec_out, east, north, speed, heading, out)
+
+
+@numba.njit(cache=True)
+def _verdict(
+    P: FloatArray,
+    S: FloatArray,
+    dims: Any,
+    gru_out: Any,
+    core_out: FloatArray,
+    rec_out: FloatArray,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+    out: FloatArray,
+) -> None:
+    """The network's outputs ``gru_out`` -> threshold -> time type -> recovery -> clean
+    position in degrees (the part of :func:`_decide_point` after the GRU, shared with the
+    many-stream step of :mod:`gradgps._grad.lanes`)."""
     rest = P[N_CORE_PARAMS:]
     core_size = S.size - _N_TAIL_STATE
     ts = core_size + N_OFFSET_STATE
     rs = ts + N_TIME_STATE
-    _recurrent_step(gp, dims, x, H, scratch)
-    _heads(gp, dims, H, scratch, gru_out)
     score = float(gru_out[0])
     flag = 1.0 if score >= rest[_THR] else 0.0
     best = 0
