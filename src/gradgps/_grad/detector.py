@@ -84,6 +84,7 @@ from .._result import (
     result_frame,
     results_frame,
     shown,
+    usable_point,
 )
 from .._tracks.geo import LocalFrame, far_apart_scalar
 from .._tracks.preprocess import stream_reasons
@@ -96,6 +97,7 @@ from .model_io import CONFIG_FILE, WEIGHTS_FILE, gru_model, load_model
 from .motion import N_MOTION_STATE
 from .offset import N_OFFSET_STATE
 from .pipeline import (
+    _N_OFF_OUT,
     _N_TAIL_STATE,
     N_POINT_OUT,
     O_ALERT,
@@ -462,13 +464,29 @@ class Detector:
         self._P = m.params.array(period, self._frame, m.dims)
         self._S = new_state(self._P)
         self._H = np.zeros(int(m.dims[1] + m.dims[2]), np.float32)
-        self._work = new_work(self._P)
+        self._make_work()
+
+    def _make_work(self) -> None:
+        """The segment's work arrays (:func:`new_work`) and outputs, as views into two
+        buffers that :func:`_stream_fix` carves the same way (few arrays to pass)."""
+        assert self._P is not None
+        work = new_work(self._P)
+        self._w64 = np.concatenate([*work[1:4], np.zeros(N_POINT_OUT)])
+        self._w32 = np.concatenate(work[4:])
+        views = []
+        for buffer, parts in ((self._w64, work[1:4]), (self._w32, work[4:])):
+            at = 0
+            for part in parts:
+                views.append(buffer[at : at + part.size])
+                at += part.size
+        self._work = (work[0], *views)
+        self._out = self._w64[-N_POINT_OUT:]
 
     def _step(self, dt: float, lat: float, lon: float, speed: float, heading: float) -> None:
         assert self._P is not None
         assert self._S is not None
         if self._work is None:  # restored by set_state: made on the first step
-            self._work = new_work(self._P)
+            self._make_work()
         grad_step(
             self._P,
             self._S,
@@ -510,7 +528,42 @@ class Detector:
         ``channels`` (other sensor readings) are accepted for interface
         compatibility and ignored by the position model.
         """
-        t_f, lat_f, lon_f = _time_number(t), as_number(lat), as_number(lon)
+        t_f = t if type(t) is float else _time_number(t)
+        lat_f, lon_f = as_number(lat), as_number(lon)
+        if (
+            self._seg_count > PERIOD_STEPS  # the period is final, no warm-up kept
+            and self._work is not None
+            and fix_quality is None
+            and satellites is None
+        ):
+            # The common case in one compiled call; it declines (-1) whatever needs the
+            # segment rule below (a gap, a far jump) before touching the state.
+            frame, P, S, last_t = self._frame, self._P, self._S, self._last_t
+            assert frame is not None and P is not None and S is not None and last_t is not None
+            code = _stream_fix(
+                P,
+                S,
+                self._H,
+                self.model_.gru_params,
+                self._work[0],
+                self._w64,
+                self._w32,
+                t_f,
+                lat_f,
+                lon_f,
+                reading(speed),
+                reading(heading),
+                last_t,
+                frame.lat0,
+                frame.lon0,
+                self.model_.params.max_gap_s,
+            )
+            if code > 0:
+                return PointResult.invalid(REASONS[code])
+            if code == 0:
+                self._seg_count += 1
+                self._last_t = t_f
+                return self._point()
         reason = fix_reason(
             t_f,
             lat_f,
@@ -535,16 +588,19 @@ class Detector:
         )
         self._seg_count = 1 if restarted else self._seg_count + 1
         self._last_t = t_f
-        o = self._out
-        flag = int(o[O_FLAG])
-        return PointResult(
-            anomaly=flag,
-            score=float(o[O_SCORE]),
-            bias_type=self.model_.bias_classes[int(o[O_BIAS])],
-            time_type=TIME_TYPES[int(o[O_TIME])],
-            lat_clean=float(o[O_LAT]),
-            lon_clean=float(o[O_LON]),
-            alert=int(o[O_ALERT]),
+        return self._point()
+
+    def _point(self) -> PointResult:
+        """The verdict the last step wrote into ``self._out``."""
+        flag, score, bias, kind, lat_c, lon_c, alert = self._out.tolist()
+        return usable_point(
+            int(flag),
+            score,
+            self.model_.bias_classes[int(bias)],
+            TIME_TYPES[int(kind)],
+            lat_c,
+            lon_c,
+            int(alert),
         )
 
     def get_state(self) -> dict[str, Any]:
@@ -998,6 +1054,56 @@ def _reason_code(
             return 9
         if t - last_t < _MIN_STEP:
             return 10
+    return 0
+
+
+@numba.njit(cache=True)
+def _stream_fix(
+    P: FloatArray,
+    S: FloatArray,
+    H: Any,
+    gp: Any,
+    dims: NDArray[np.int64],
+    w64: FloatArray,
+    w32: Any,
+    t: float,
+    lat: float,
+    lon: float,
+    speed: float,
+    heading: float,
+    last_t: float,
+    lat0: float,
+    lon0: float,
+    max_gap_s: float,
+) -> int:
+    """:meth:`Detector.update`'s common case (a segment whose period is final, no receiver
+    fields) in one compiled call: :func:`_reason_code` of the fix (returned when it is
+    invalid), -1 without touching the state when the segment rule must decide (a gap
+    over ``max_gap_s``, a fix beyond :data:`FRAME_RADIUS_M`), else :func:`grad_step` with
+    the work arrays carved from ``w64``/``w32`` as :meth:`Detector._make_work` lays them
+    out (outputs in the last :data:`N_POINT_OUT` of ``w64``) and 0.
+
+    Fewer, flat arguments than ``grad_step``'s: numba unboxes every array of a call
+    (about 70 ns each), and the work tuple held seven."""
+    c = _reason_code(t, lat, lon, False, last_t, 0)
+    if c != 0:
+        return c
+    dt = t - last_t
+    if dt > max_gap_s or far_apart_scalar(lat0, lon0, lat, lon, FRAME_RADIUS_M):
+        return -1
+    n_core = w64.size - _N_OFF_OUT - 3 - N_POINT_OUT
+    n_x = dims[0]
+    n_scratch = w32.size - n_x - 1 - dims[3]
+    work = (
+        dims,
+        w64[:n_core],
+        w64[n_core : n_core + _N_OFF_OUT],
+        w64[n_core + _N_OFF_OUT : n_core + _N_OFF_OUT + 3],
+        w32[:n_x],
+        w32[n_x : n_x + n_scratch],
+        w32[n_x + n_scratch :],
+    )
+    grad_step(P, S, H, gp, work, dt, lat, lon, speed, heading, w64[w64.size - N_POINT_OUT :])
     return 0
 
 
