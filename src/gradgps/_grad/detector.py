@@ -539,7 +539,10 @@ class Detector:
             # The common case in one compiled call; it declines (-1) whatever needs the
             # segment rule below (a gap, a far jump) before touching the state.
             frame, P, S, last_t = self._frame, self._P, self._S, self._last_t
-            assert frame is not None and P is not None and S is not None and last_t is not None
+            assert frame is not None
+            assert P is not None
+            assert S is not None
+            assert last_t is not None
             code = _stream_fix(
                 P,
                 S,
@@ -1146,6 +1149,24 @@ def _fleet_kernel(
     block_slots = np.empty(lanes, np.int64)
     block_rows = np.empty(lanes, np.int64)
     dt = np.empty(t.size)
+    # lanes_step's arguments but the block's size
+    block = (
+        Ps,
+        Ss,
+        s_off,
+        s_len,
+        Hs,
+        gp,
+        work,
+        block_slots,
+        block_rows,
+        dt,
+        lat,
+        lon,
+        speed,
+        heading,
+        out,
+    )
     n_block = 0
     n_def = 0
     for j in range(todo.size):
@@ -1171,25 +1192,7 @@ def _fleet_kernel(
             n_def += 1
             continue
         if in_block[s] or n_block == lanes:
-            _score_block(
-                Ps,
-                Ss,
-                s_off,
-                s_len,
-                Hs,
-                gp,
-                work,
-                block_slots,
-                block_rows,
-                n_block,
-                dt,
-                lat,
-                lon,
-                speed,
-                heading,
-                out,
-                in_block,
-            )
+            _score_block(block, n_block, in_block)
             n_block = 0
         block_slots[n_block] = s
         block_rows[n_block] = i
@@ -1197,71 +1200,22 @@ def _fleet_kernel(
         n_block += 1
         seg[s] += 1
         last_t[s] = t[i]
-    _score_block(
-        Ps,
-        Ss,
-        s_off,
-        s_len,
-        Hs,
-        gp,
-        work,
-        block_slots,
-        block_rows,
-        n_block,
-        dt,
-        lat,
-        lon,
-        speed,
-        heading,
-        out,
-        in_block,
-    )
+    _score_block(block, n_block, in_block)
     return n_def
 
 
 @numba.njit(cache=True)
-def _score_block(
-    Ps: FloatArray,
-    Ss: FloatArray,
-    s_off: NDArray[np.int64],
-    s_len: NDArray[np.int64],
-    Hs: Any,
-    gp: Any,
-    work: Any,
-    block_slots: NDArray[np.int64],
-    block_rows: NDArray[np.int64],
-    n: int,
-    dt: FloatArray,
-    lat: FloatArray,
-    lon: FloatArray,
-    speed: FloatArray,
-    heading: FloatArray,
-    out: FloatArray,
-    in_block: NDArray[np.bool_],
-) -> None:
-    """Score one block of :func:`_fleet_kernel` and mark its vehicles free again."""
+def _score_block(block: Any, n: int, in_block: NDArray[np.bool_]) -> None:
+    """Score the first ``n`` fixes of one block of :func:`_fleet_kernel` (``block``:
+    :func:`lanes_step`'s arguments but ``n``) and mark its vehicles free again."""
     if n == 0:
         return
+    Ps, Ss, s_off, s_len, Hs, gp, work, slots, rows, dt, lat, lon, speed, heading, out = block
     lanes_step(
-        Ps,
-        Ss,
-        s_off,
-        s_len,
-        Hs,
-        gp,
-        work,
-        block_slots,
-        block_rows,
-        n,
-        dt,
-        lat,
-        lon,
-        speed,
-        heading,
-        out,
+        Ps, Ss, s_off, s_len, Hs, gp, work, slots, rows, n, dt, lat, lon, speed, heading, out
     )
     for v in range(n):
-        in_block[block_slots[v]] = False
+        in_block[slots[v]] = False
 
 
 @dataclass(frozen=True)
