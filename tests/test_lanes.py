@@ -1,4 +1,4 @@
-"""lanes_step (many streams in one step) gives grad_step's numbers bit for bit.
+"""pipeline.lanes_step (many streams in one step) gives grad_step's numbers bit for bit.
 
 Streams of different sampling periods (different parameters), with and without
 speed and heading, with jumps and NaN readings, stepped together in blocks of
@@ -13,8 +13,14 @@ import numpy as np
 import pytest
 
 from gradgps._grad.detector import load_grad_model
-from gradgps._grad.lanes import lanes_step, new_lane_work
-from gradgps._grad.pipeline import N_POINT_OUT, grad_step, new_state, new_work
+from gradgps._grad.pipeline import (
+    N_POINT_OUT,
+    grad_step,
+    lanes_step,
+    new_lane_work,
+    new_state,
+    new_work,
+)
 from gradgps._tracks.geo import LocalFrame
 
 

@@ -92,13 +92,13 @@ from .._tracks.track import ColumnKeywords, ColumnMap, check_keywords, datetime_
 from .core import N_CORE_PARAMS, _layout
 from .defaults import FRAME_RADIUS_M, MIN_STEP_S, grad_points
 from .events import fault_events
-from .lanes import LANES, lanes_step, new_lane_work
 from .model_io import CONFIG_FILE, WEIGHTS_FILE, gru_model, load_model
 from .motion import N_MOTION_STATE
 from .offset import N_OFFSET_STATE
 from .pipeline import (
     _N_OFF_OUT,
     _N_TAIL_STATE,
+    LANES,
     N_POINT_OUT,
     O_ALERT,
     O_BIAS,
@@ -111,6 +111,8 @@ from .pipeline import (
     PipelineParams,
     grad_segments,
     grad_step,
+    lanes_step,
+    new_lane_work,
     new_state,
     new_work,
     pipeline_feature_names,
