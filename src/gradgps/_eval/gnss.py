@@ -25,7 +25,9 @@ truth to score against), for every bias type (``noise``, ``jump``,
   type that truly are; the detector's type of a row is its ``bias_type``,
   except a fix it refused because the receiver reported no fix, whose type is
   ``outage``. ``None`` where the detector never names the type (the shipped
-  model's bias head knows none, noise, jump and freeze only).
+  model's bias head knows none, noise, jump and freeze only; ``drift`` comes
+  from the drift witness, :mod:`gradgps._grad.drift`, where the input has
+  speed and heading).
 
 For ``drift`` also per found episode the offset of the position from the
 truth at its first flagged fix (``label_offset_m``, metres) and the delay
@@ -270,5 +272,29 @@ def gnss_markdown(report: dict[str, Any], command: str) -> list[str]:
             f"{_num(n['recall'])} | {_num(c['bias_type_accuracy'])} | "
             + " | ".join(per)
             + f" | {_num(c['types']['drift'].get('offset_at_detection_median_m'), 1)} |"
+        )
+    return [*lines, "", *_drift_episode_lines(report)]
+
+
+def _drift_episode_lines(report: dict[str, Any]) -> list[str]:
+    """Per drift episode of each cell: the offset from the truth at its first flag (m) and
+    the delay (s), the two numbers a spoofing user asks for (``missed`` where never flagged)."""
+    lines = [
+        "Drift episodes, each as offset at the first flag (m) @ delay (s), in episode order:",
+        "",
+        "| data set | columns | found | episodes |",
+        "|---|---|---|---|",
+    ]
+    for c in report["cells"]:
+        episodes = c["types"]["drift"].get("drift_episodes") or []
+        if not episodes:
+            continue
+        shown = [
+            f"{e['offset_at_detection_m']:.1f} m @ {e['delay_s']:.0f} s" if e["found"] else "missed"
+            for e in episodes
+        ]
+        found = sum(bool(e["found"]) for e in episodes)
+        lines.append(
+            f"| {c['dataset']} | {c['variant']} | {found} of {len(episodes)} | {', '.join(shown)} |"
         )
     return [*lines, ""]

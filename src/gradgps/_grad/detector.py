@@ -91,6 +91,7 @@ from .._tracks.preprocess import stream_reasons
 from .._tracks.track import ColumnKeywords, ColumnMap, check_keywords, datetime_seconds
 from .core import N_CORE_PARAMS, _layout
 from .defaults import FRAME_RADIUS_M, MIN_STEP_S, grad_points
+from .drift import DRIFT_BIAS
 from .events import fault_events
 from .model_io import CONFIG_FILE, WEIGHTS_FILE, gru_model, load_model
 from .motion import N_MOTION_STATE
@@ -159,6 +160,12 @@ class GradModel:
     bias_classes: tuple[str, ...]
     checksum: str
     config: Mapping[str, Any]
+
+    @property
+    def output_bias_classes(self) -> tuple[str, ...]:
+        """The bias types a verdict can name: the GRU head's classes, then ``drift``
+        (the drift witness's verdict, :mod:`gradgps._grad.drift`; code ``len(bias_classes)``)."""
+        return (*self.bias_classes, DRIFT_BIAS)
 
 
 def _default_model_dir() -> Path:
@@ -601,7 +608,7 @@ class Detector:
         return usable_point(
             int(flag),
             score,
-            self.model_.bias_classes[int(bias)],
+            self.model_.output_bias_classes[int(bias)],
             TIME_TYPES[int(kind)],
             lat_c,
             lon_c,
@@ -886,7 +893,7 @@ class Detector:
         self, out: NDArray[np.float64], reason: NDArray[Any], index: pd.Index
     ) -> pd.DataFrame:
         invalid = reason != ""
-        bias_names = np.array(self.model_.bias_classes, dtype=object)
+        bias_names = np.array(self.model_.output_bias_classes, dtype=object)
         time_names = np.array(TIME_TYPES, dtype=object)
         codes_b = np.where(invalid, 0, np.nan_to_num(out[:, O_BIAS])).astype(np.int64)
         codes_t = np.where(invalid, 0, np.nan_to_num(out[:, O_TIME])).astype(np.int64)
@@ -1343,7 +1350,7 @@ class FleetDetector:
         self._n_p = int(P0.size)
         self._work = new_work(P0)
         self._lane_work = new_lane_work(P0, LANES)
-        self._bias_names = np.array([*m.bias_classes, "none"], dtype=object)
+        self._bias_names = np.array([*m.output_bias_classes, "none"], dtype=object)
         self._time_names = np.array([*TIME_TYPES, "none"], dtype=object)
         self._reasons = np.array(REASONS, dtype=object)
         self._index: dict[Hashable, int] = {}

@@ -43,8 +43,10 @@ Features are compressed with a signed ``log1p`` before the network's scaler
 (see :func:`_compress`).
 
 Layout of ``P``: core parameters (``N_CORE_PARAMS``), then the rest block
-(offset N_OFFSET_PARAMS, time 3, recovery 2, threshold, period, GRU dims 4, frame 12).
-Layout of ``S``: core state, offset state, time state, recovery state.
+(offset N_OFFSET_PARAMS, time 3, recovery 2, threshold, period, GRU dims 4, frame 12,
+motion on/off + N_MOTION_PARAMS, drift witness on/off + N_DRIFT_PARAMS).
+Layout of ``S``: core state, offset state, time state, recovery state, drift witness
+state, motion state.
 """
 
 from __future__ import annotations
@@ -68,6 +70,7 @@ from .core import (
     core_step,
 )
 from .defaults import grad_rema_params, grad_time_params
+from .drift import N_DRIFT_OUT, N_DRIFT_PARAMS, N_DRIFT_STATE, DriftParams, drift_step
 from .features import N_CHANNEL, FeatureParams, feature_names
 from .gru import (
     _heads,
@@ -129,15 +132,20 @@ _FRAME = _DIMS + 4
 # The motion model: an on/off flag, then its parameters (zeros when off).
 _MOTION_ON = _FRAME + N_FRAME_CONSTANTS
 _MOTION = _MOTION_ON + 1
-N_REST_PARAMS = _MOTION + N_MOTION_PARAMS
+# The drift witness (issue 16): an on/off flag, then its parameters (zeros when off).
+_DRIFT_ON = _MOTION + N_MOTION_PARAMS
+_DRIFT = _DRIFT_ON + 1
+N_REST_PARAMS = _DRIFT + N_DRIFT_PARAMS
 # ``off_out`` scratch: offset features, motion features, then the speed and
 # heading the pipeline used for the point (reported, or the motion model's).
 _SH = N_OFFSET_FEATURES + N_MOTION_FEATURES
-_N_OFF_OUT = _SH + 2
+# Then the drift witness's outputs (flag, offset m).
+_DRIFT_OUT = _SH + 2
+_N_OFF_OUT = _DRIFT_OUT + N_DRIFT_OUT
 # Where the motion model's normalised innovation sits in its outputs.
 _NIS = MOTION_FEATURES.index("motion_nis")
-# State blocks after the core's: offset, time, recovery, motion.
-_N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_MOTION_STATE
+# State blocks after the core's: offset, time, recovery, drift witness, motion.
+_N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_DRIFT_STATE + N_MOTION_STATE
 # Per-point outputs.
 O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT = range(7)
 N_POINT_OUT = 7
@@ -159,6 +167,9 @@ class PipelineParams:
     motion: MotionParams | None = field(default_factory=MotionParams)
     """The positions-only motion model's features (:mod:`gradgps._grad.motion`); ``None``
     in models trained before it existed (their ``config.json`` has no ``motion``)."""
+    drift: DriftParams | None = field(default_factory=DriftParams)
+    """The drift witness (:mod:`gradgps._grad.drift`), not learnt: a ``config.json``
+    without ``drift`` gets the defaults; ``"drift": null`` turns it off."""
 
     def core(self, period: float) -> CoreParams:
         return CoreParams(
@@ -186,6 +197,7 @@ class PipelineParams:
             threshold=float(data["threshold"]),
             max_gap_s=float(data["max_gap_s"]),
             motion=MotionParams(**data["motion"]).checked() if data.get("motion") else None,
+            drift=_drift_params(data),
         )
 
     def array(self, period: float, frame: LocalFrame, dims: NDArray[np.int64]) -> FloatArray:
@@ -201,9 +213,19 @@ class PipelineParams:
                 frame.constants(),
                 [0.0 if self.motion is None else 1.0],
                 np.zeros(N_MOTION_PARAMS) if self.motion is None else self.motion.to_array(period),
+                [0.0 if self.drift is None else 1.0],
+                np.zeros(N_DRIFT_PARAMS) if self.drift is None else self.drift.to_array(),
             ]
         )
         return np.concatenate([core, rest])
+
+
+def _drift_params(data: dict[str, Any]) -> DriftParams | None:
+    """The drift witness's settings in a saved ``pipeline`` block: absent (a model saved
+    before the witness existed) means the defaults, ``null`` means off."""
+    if "drift" not in data:
+        return DriftParams()
+    return None if data["drift"] is None else DriftParams(**data["drift"]).checked()
 
 
 def pipeline_feature_names(params: PipelineParams) -> list[str]:
@@ -329,12 +351,18 @@ def _decide_point(
     north: float,
     speed: float,
     heading: float,
+    drift: float,
     out: FloatArray,
 ) -> None:
-    """GRU on ``x`` -> threshold -> time type -> recovery -> clean position in degrees."""
+    """GRU on ``x`` -> threshold -> time type -> recovery -> clean position in degrees.
+
+    ``drift``: the drift witness's flag. A fix the GRU passes but the witness
+    flags is an anomaly of bias class ``dims[3]`` (``drift``, after the head's
+    classes: the head has no drift class); the GRU's own verdicts stand.
+    """
     _recurrent_step(gp, dims, x, H, scratch)
     _heads(gp, dims, H, scratch, gru_out)
-    _verdict(P, S, dims, gru_out, core_out, rec_out, east, north, speed, heading, out)
+    _verdict(P, S, dims, gru_out, core_out, rec_out, east, north, speed, heading, drift, out)
 
 
 @numba.njit(cache=True)
@@ -349,6 +377,7 @@ def _verdict(
     north: float,
     speed: float,
     heading: float,
+    drift: float,
     out: FloatArray,
 ) -> None:
     """The network's outputs ``gru_out`` -> threshold -> time type -> recovery -> clean
@@ -366,6 +395,9 @@ def _verdict(
         for k in range(2, dims[3]):
             if gru_out[1 + k] > gru_out[1 + best]:
                 best = k
+    elif drift != 0.0:
+        flag = 1.0
+        best = dims[3]
     code = time_step(rest[_TIME : _TIME + 3], S[ts : ts + N_TIME_STATE], flag)
     recovery_step(
         rest[_REC : _REC + 2],
@@ -445,6 +477,7 @@ def grad_step(
     """
     dims, core_out, off_out, rec_out, x, scratch, gru_out = work
     east, north = _features_point(P, S, core_out, off_out, dt, lat, lon, speed, heading, x)
+    _drift_point(P, S, off_out, dt, east, north, speed, heading)
     _decide_point(
         P,
         S,
@@ -460,8 +493,40 @@ def grad_step(
         north,
         off_out[_SH],
         off_out[_SH + 1],
+        off_out[_DRIFT_OUT],
         out,
     )
+
+
+@numba.njit(cache=True)
+def _drift_point(
+    P: FloatArray,
+    S: FloatArray,
+    off_out: FloatArray,
+    dt: float,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+) -> None:
+    """The drift witness (:mod:`gradgps._grad.drift`) on the *reported* speed and heading
+    (never the motion model's stand-in: the witness must be independent of the
+    positions); its flag and offset into ``off_out[_DRIFT_OUT:]`` (0 when off)."""
+    rest = P[N_CORE_PARAMS:]
+    off_out[_DRIFT_OUT] = 0.0
+    off_out[_DRIFT_OUT + 1] = 0.0
+    if rest[_DRIFT_ON] != 0.0:
+        ds = S.size - N_MOTION_STATE - N_DRIFT_STATE
+        drift_step(
+            rest[_DRIFT : _DRIFT + N_DRIFT_PARAMS],
+            S[ds : ds + N_DRIFT_STATE],
+            dt,
+            east,
+            north,
+            speed,
+            heading,
+            off_out[_DRIFT_OUT:],
+        )
 
 
 @numba.njit(cache=True)
@@ -842,18 +907,13 @@ def lanes_step(
         s = slot[v]
         i = rows[v]
         a = s_off[s]
-        en[v, 0], en[v, 1] = _features_point(
-            Ps[s],
-            Ss[a : a + s_len[s]],
-            core_out[v],
-            off_out[v],
-            dt[i],
-            lat[i],
-            lon[i],
-            speed[i],
-            heading[i],
-            x[v],
+        S = Ss[a : a + s_len[s]]
+        east, north = _features_point(
+            Ps[s], S, core_out[v], off_out[v], dt[i], lat[i], lon[i], speed[i], heading[i], x[v]
         )
+        _drift_point(Ps[s], S, off_out[v], dt[i], east, north, speed[i], heading[i])
+        en[v, 0] = east
+        en[v, 1] = north
     # The GRU for all streams at once (gradgps._grad.gru._recurrent_step, transposed).
     for j in range(n_features):
         mean = gp[j]
@@ -886,5 +946,6 @@ def lanes_step(
             en[v, 1],
             off_out[v, _SH],
             off_out[v, _SH + 1],
+            off_out[v, _DRIFT_OUT],
             out[rows[v]],
         )
