@@ -159,6 +159,9 @@ class _OneTrackOfMany:
         return self
 
 
+_FLEET_READINGS = ("speed", "heading", "fix_quality", "satellites")
+
+
 class _OneVehicleOfAFleet:
     """One vehicle of a :class:`FleetDetector`, whose streamed verdicts must be GRAD's batch
     verdicts (``detect`` is :meth:`Detector.detect`); sensor channels are not its input."""
@@ -169,21 +172,9 @@ class _OneVehicleOfAFleet:
     def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
         return Detector().detect(fixes)
 
-    def update(
-        self,
-        t: Any,
-        lat: Any,
-        lon: Any,
-        speed: Any = None,
-        heading: Any = None,
-        *,
-        fix_quality: Any = None,
-        satellites: Any = None,
-        **channels: Any,
-    ) -> Any:
-        return self.fleet.update(
-            "a", t, lat, lon, speed, heading, fix_quality=fix_quality, satellites=satellites
-        )
+    def update(self, *fix: Any, **readings: Any) -> Any:
+        kept = {k: v for k, v in readings.items() if k in _FLEET_READINGS}
+        return self.fleet.update("a", *fix, **kept)
 
     def get_state(self) -> dict[str, Any]:
         return self.fleet.get_state("a")
