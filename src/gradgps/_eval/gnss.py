@@ -40,24 +40,22 @@ detected faults (same typing).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
-from pathlib import Path
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 import pandas as pd
 
-from .._data.datasets import load_dataset
 from .._data.inject import BIAS_TYPES, GNSS_TYPES, inject_gnss
 from .._result import NO_FIX, NO_SATELLITES
 from .._tracks.track import ColumnMap, to_fixes
 from .metrics import _detections, class_scores, type_accuracy
 from .robustness import (
-    ROBUSTNESS_DATASETS,
     Detector,
-    check_real_datasets,
+    SuiteOptions,
     machine,
     plain_json,
+    report_head,
+    suite_tables,
 )
 
 __all__ = ["GNSS_BIAS", "GNSS_VARIANTS", "gnss_cell", "gnss_markdown", "run_gnss_bench"]
@@ -195,19 +193,19 @@ def run_gnss_bench(
     det: Detector,
     detector: str,
     *,
-    model: Path | None = None,
-    datasets: Sequence[str] = ROBUSTNESS_DATASETS,
-    data_dir: str | Path | None = None,
     seed: int = 0,
     scale: float = 1.0,
-    advance: Callable[[str], None] | None = None,
+    **options: Unpack[SuiteOptions],
 ) -> dict[str, Any]:
-    """Run ``det`` on every data set's test split under protocol ``gnss``; JSON-ready report."""
-    check_real_datasets(datasets, "has no real test split for protocol gnss")
+    """Run ``det`` on every data set's test split under protocol ``gnss``; JSON-ready report.
+
+    ``seed`` and ``scale`` go to :func:`gradgps._data.inject.inject_gnss`;
+    ``options``: :class:`gradgps._eval.robustness.SuiteOptions`.
+    """
+    advance = options.get("advance")
     began = time.perf_counter()
     cells: list[dict[str, Any]] = []
-    for name in datasets:
-        table = load_dataset(name, "test", data_dir=data_dir)
+    for name, table in suite_tables(options, "has no real test split for protocol gnss"):
         labelled = inject_gnss(table, seed=seed, scale=scale)
         full: ColumnMap = to_fixes(labelled).attrs["columns"]
         for variant in GNSS_VARIANTS:
@@ -218,13 +216,7 @@ def run_gnss_bench(
             if advance is not None:
                 advance(f"{name} {variant}")
     report = {
-        "protocol": "gnss",
-        "detector": detector,
-        "model": None if model is None else str(model),
-        "split": "test",
-        "seed": seed,
-        "scale": scale,
-        "datasets": list(datasets),
+        **report_head("protocol", "gnss", detector, options, seed, scale=scale),
         "machine": machine(),
         "seconds": time.perf_counter() - began,
         "cells": cells,
