@@ -10,6 +10,7 @@ check them against the batch predictions and for ``benchmarks/gru_speed.py``.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import numba
@@ -25,6 +26,8 @@ from gradgps._grad.gru import (
     _split_out,
     weight_shapes,
 )
+from gradgps._grad.model_io import save_model
+from gradgps._grad.pipeline import PipelineParams, pipeline_feature_names
 
 
 def random_weights(
@@ -40,6 +43,39 @@ def random_weights(
         name: (rng.normal(size=shape) * scale).astype(np.float32)
         for name, shape in weight_shapes(n_features, hidden1, hidden2, n_bias).items()
     }
+
+
+def random_detector_model(
+    directory: Path,
+    threshold: float = 0.5,
+    seed: int = 0,
+    params: PipelineParams | None = None,
+) -> Path:
+    """A stream model with random weights for the Detector (``params``: its pipeline
+    settings, the defaults with ``threshold`` when ``None``), saved to ``directory``."""
+    params = params or PipelineParams(threshold=threshold)
+    names = pipeline_feature_names(params)
+    rng = np.random.default_rng(seed)
+    config = {
+        "architecture": {
+            "n_features": len(names),
+            "hidden1": 32,
+            "hidden2": 16,
+            "n_bias_classes": 3,
+        },
+        "mode": "stream",
+        "window": 10,
+        "features": {"names": names, "params": {"pipeline": params.to_dict()}},
+        "scaler": {
+            "mean": rng.normal(0, 0.5, len(names)).tolist(),
+            "std": rng.uniform(0.5, 2.0, len(names)).tolist(),
+        },
+        "thresholds": {"anomaly": threshold},
+        "rema": {},
+        "class_names": {"anomaly": ["normal", "anomaly"], "bias": ["none", "noise", "jump"]},
+    }
+    save_model(directory, random_weights(len(names), 3, seed=seed, scale=0.6), config)
+    return directory
 
 
 def model_config(

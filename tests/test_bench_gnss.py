@@ -65,8 +65,16 @@ def test_markdown_has_one_row_per_cell_and_every_type() -> None:
     }
     json.dumps(report, default=lambda v: v.item())
     lines = gnss_markdown(report, "gradgps bench --protocol gnss")
-    table = [line for line in lines if line.startswith("| sim |")]
+    cut = next(i for i, line in enumerate(lines) if line.startswith("Drift episodes"))
+    table = [line for line in lines[:cut] if line.startswith("| sim |")]
     assert len(table) == 1
+    episodes = [line for line in lines[cut:] if line.startswith("| sim |")]
+    drift = cell["types"]["drift"]["drift_episodes"]
+    assert len(episodes) == (1 if drift else 0)
+    if drift:  # one entry per episode: "<offset> m @ <delay> s" or "missed"
+        entries = episodes[0].split("|")[4].split(",")
+        assert len(entries) == len(drift)
+        assert all(("m @" in e) == bool(d["found"]) for e, d in zip(entries, drift, strict=True))
     assert table[0].count("|") == 6 + len(GNSS_BIAS) + 2
     header = next(line for line in lines if line.startswith("| data set |"))
     assert all(kind in header for kind in GNSS_BIAS)

@@ -17,12 +17,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from _gru_support import random_weights
+from _gru_support import random_detector_model
 from gradgps import ConfigError, ModelError, simulate_fleet, to_fixes
 from gradgps._data.inject import inject_grad
 from gradgps._grad.detector import Detector
-from gradgps._grad.model_io import save_model
-from gradgps._grad.pipeline import PipelineParams, pipeline_feature_names
 
 RESULT = [
     "anomaly",
@@ -36,35 +34,9 @@ RESULT = [
 ]
 
 
-def _random_model(directory: Path, threshold: float = 0.5, seed: int = 0) -> Path:
-    params = PipelineParams(threshold=threshold)
-    names = pipeline_feature_names(params)
-    rng = np.random.default_rng(seed)
-    config = {
-        "architecture": {
-            "n_features": len(names),
-            "hidden1": 32,
-            "hidden2": 16,
-            "n_bias_classes": 3,
-        },
-        "mode": "stream",
-        "window": 10,
-        "features": {"names": names, "params": {"pipeline": params.to_dict()}},
-        "scaler": {
-            "mean": rng.normal(0, 0.5, len(names)).tolist(),
-            "std": rng.uniform(0.5, 2.0, len(names)).tolist(),
-        },
-        "thresholds": {"anomaly": threshold},
-        "rema": {},
-        "class_names": {"anomaly": ["normal", "anomaly"], "bias": ["none", "noise", "jump"]},
-    }
-    save_model(directory, random_weights(len(names), 3, seed=seed, scale=0.6), config)
-    return directory
-
-
 @pytest.fixture(scope="module")
 def model_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return _random_model(tmp_path_factory.mktemp("model"), threshold=0.5)
+    return random_detector_model(tmp_path_factory.mktemp("model"), threshold=0.5)
 
 
 @pytest.fixture(scope="module")
@@ -176,7 +148,7 @@ def test_threshold_override_changes_decisions(model_dir: Path, drives: pd.DataFr
 
 
 def test_state_from_another_model_is_refused(model_dir: Path, tmp_path: Path) -> None:
-    other = _random_model(tmp_path / "other", seed=1)
+    other = random_detector_model(tmp_path / "other", seed=1)
     det = Detector(model_dir)
     det.update(0.0, 41.0, -96.0)
     with pytest.raises(ConfigError, match="another model"):

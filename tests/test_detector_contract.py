@@ -7,6 +7,9 @@ and untrained weights keep the suite fast.
 
 from __future__ import annotations
 
+import importlib
+import inspect
+import pkgutil
 from collections.abc import Callable
 from importlib import resources
 from typing import Any
@@ -20,7 +23,14 @@ from _detector_checks import (
     STREAM_CHECKS,
     check_batch_schema_index_and_invalid_rows,
 )
-from gradgps import Detector, LocalFrame, RemaDetector, SpeedGate
+from gradgps import (
+    Detector,
+    FleetDetector,
+    LocalFrame,
+    MultiTrackDetector,
+    RemaDetector,
+    SpeedGate,
+)
 from gradgps._baselines.channel_grad import (
     ChannelGradDetector,
     ChannelGradModel,
@@ -128,12 +138,69 @@ for _peer in PEER_NAMES:
         MAKERS[_peer] = lambda name=_peer: PeerDetector(name)
 
 
+class _OneTrackOfMany:
+    """One track of a :class:`MultiTrackDetector`: ``update`` is that track's, the state is
+    the whole registry's, and ``detect`` is ``update_fixes`` on a fresh one."""
+
+    def __init__(self) -> None:
+        self.tracks = MultiTrackDetector()
+
+    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
+        return MultiTrackDetector().update_fixes(fixes)
+
+    def update(self, *args: Any, **kwargs: Any) -> Any:
+        return self.tracks.detector("a").update(*args, **kwargs)
+
+    def get_state(self) -> dict[str, Any]:
+        return self.tracks.get_state()
+
+    def set_state(self, state: Any) -> _OneTrackOfMany:
+        self.tracks.set_state(state)
+        return self
+
+
+_FLEET_READINGS = ("speed", "heading", "fix_quality", "satellites")
+
+
+class _OneVehicleOfAFleet:
+    """One vehicle of a :class:`FleetDetector`, whose streamed verdicts must be GRAD's batch
+    verdicts (``detect`` is :meth:`Detector.detect`); sensor channels are not its input."""
+
+    def __init__(self) -> None:
+        self.fleet = FleetDetector()
+
+    def detect(self, fixes: pd.DataFrame) -> pd.DataFrame:
+        return Detector().detect(fixes)
+
+    def update(self, *fix: Any, **readings: Any) -> Any:
+        kept = {k: v for k, v in readings.items() if k in _FLEET_READINGS}
+        return self.fleet.update("a", *fix, **kept)
+
+    def get_state(self) -> dict[str, Any]:
+        return self.fleet.get_state("a")
+
+    def set_state(self, state: Any) -> _OneVehicleOfAFleet:
+        self.fleet.set_state("a", state)
+        return self
+
+
+# GRAD's many-track faces, checked through one track's view: (maker, checks). The fleet's
+# batch is the Detector's, checked above; the multi-track registry's is its update_fixes.
+VIEWS: dict[str, tuple[Callable[[], Any], tuple[Callable[..., None], ...]]] = {
+    "grad-multi-track": (_OneTrackOfMany, BATCH_CHECKS + STREAM_CHECKS),
+    "grad-fleet": (_OneVehicleOfAFleet, STREAM_CHECKS),
+}
+
+
 def _cases() -> list[Any]:
     cases = []
     for name, make in MAKERS.items():
         streams = hasattr(make(), "update")
         for check in BATCH_CHECKS + (STREAM_CHECKS if streams else ()):
-            cases.append(pytest.param(name, check, id=f"{name}-{check.__name__}"))
+            cases.append(pytest.param(make, check, id=f"{name}-{check.__name__}"))
+    for name, (make, checks) in VIEWS.items():
+        for check in checks:
+            cases.append(pytest.param(make, check, id=f"{name}-{check.__name__}"))
     return cases
 
 
@@ -141,9 +208,51 @@ def test_every_bench_detector_is_checked() -> None:
     assert {name.split("/")[0] for name in MAKERS} | _OWN_VENV == set(DETECTOR_NAMES)
 
 
-@pytest.mark.parametrize(("name", "check"), _cases())
-def test_detector_contract(name: str, check: Callable[..., None]) -> None:
-    check(MAKERS[name], _fixes())
+def _detector_classes() -> set[type]:
+    """Every concrete class of gradgps's detector packages that detects: has ``detect``,
+    ``update_fixes``, ``update_many`` or a stateful ``update``, is not abstract, and is not a part (a peer's stream, rema's filter, the time
+    classifier, the fleet's readable reference)."""
+    import gradgps._baselines
+    import gradgps._grad
+
+    parts = {"Rema", "TimeClassifier", "ReferenceFleet"}
+    found: set[type] = set()
+    for package in (gradgps._baselines, gradgps._grad):
+        for info in pkgutil.iter_modules(package.__path__, package.__name__ + "."):
+            module = importlib.import_module(info.name)
+            for cls in vars(module).values():
+                if (
+                    isinstance(cls, type)
+                    and cls.__module__.partition(".")[0] == "gradgps"  # public ones say gradgps
+                    and not getattr(cls, "_is_protocol", False)
+                    and not cls.__name__.startswith("_")
+                    and not issubclass(cls, dict)
+                    and (
+                        any(hasattr(cls, m) for m in ("detect", "update_fixes", "update_many"))
+                        or (hasattr(cls, "update") and hasattr(cls, "get_state"))
+                    )
+                    and not inspect.isabstract(cls)
+                    and cls.__name__ not in parts
+                    and not (cls.__name__.endswith("Stream") and cls.__module__.endswith("peers"))
+                ):
+                    found.add(cls)
+    return found
+
+
+def test_every_detector_class_is_checked() -> None:
+    """A new detector class cannot slip past the suite: each one is what some maker makes
+    (or the object a view wraps: the multi-track registry, the fleet)."""
+    made = {type(make()) for make in MAKERS.values()}
+    made |= {type(view().tracks) for view in (_OneTrackOfMany,)}
+    made |= {type(_OneVehicleOfAFleet().fleet)}
+    classes = _detector_classes()
+    assert classes, "no detector classes found"
+    assert classes <= made, f"detector classes no maker builds: {classes - made}"
+
+
+@pytest.mark.parametrize(("make", "check"), _cases())
+def test_detector_contract(make: Callable[[], Any], check: Callable[..., None]) -> None:
+    check(make, _fixes())
 
 
 def test_a_broken_policy_fails_the_check() -> None:

@@ -11,8 +11,9 @@ nothing else; so imports only go downward:
 
 Imports inside functions count (they are imports all the same), and so do
 ``if TYPE_CHECKING:`` ones. Also checked: no import cycles between modules,
-no import of an underscore name from another layer (make the name public
-within the private package, or move the code), and at most
+no import of an underscore name from another layer, nor a use of one as
+``module._name`` (make the name public within the private package, or
+move the code), and at most
 ``MAX_LAYERS`` modules on the longest import chain.
 """
 
@@ -185,6 +186,66 @@ def test_no_underscore_name_crosses_a_layer() -> None:
     assert not wrong, "make these public within the private package, or move the code:\n" + (
         "\n".join(wrong)
     )
+
+
+def private_attributes(mod: str, source: str) -> list[tuple[str, int]]:
+    """``module._name`` uses in ``source`` (module ``mod``) of a gradgps module it imported:
+    an underscore import by another road (``from .. import x`` then ``x._private``)."""
+    mods = _modules()
+    package = mod if mods[mod].name == "__init__.py" else mod.rpartition(".")[0]
+    tree = ast.parse(source)
+    bound: dict[str, str] = {}  # local name -> the gradgps module it names
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if _ours(a.name):
+                    bound[a.asname or PACKAGE] = a.name if a.asname else PACKAGE
+        elif isinstance(node, ast.ImportFrom):
+            base = package.split(".")[: len(package.split(".")) - max(node.level - 1, 0)]
+            target = ".".join([*base, node.module] if node.module else base)
+            target = target if node.level else node.module or ""
+            for a in node.names:
+                if f"{target}.{a.name}" in mods:
+                    bound[a.asname or a.name] = f"{target}.{a.name}"
+    found = []
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Attribute) and node.attr.startswith("_")):
+            continue
+        if node.attr.startswith("__"):
+            continue
+        path, value = [], node.value
+        while isinstance(value, ast.Attribute):
+            path.insert(0, value.attr)
+            value = value.value
+        if isinstance(value, ast.Name) and value.id in bound:
+            target = ".".join([bound[value.id], *path])
+            if target in mods:
+                found.append((f"{target}.{node.attr}", node.lineno))
+    return found
+
+
+def test_no_private_attribute_crosses_a_layer() -> None:
+    wrong = [
+        f"{mod} uses {name} at line {line}"
+        for mod, path in _modules().items()
+        for name, line in private_attributes(mod, path.read_text(encoding="utf-8"))
+        if layer(name.rpartition(".")[0]) != layer(mod)
+    ]
+    assert not wrong, "make these public within the private package, or move the code:\n" + (
+        "\n".join(wrong)
+    )
+
+
+def test_a_private_attribute_use_is_seen() -> None:
+    source = (
+        "from .._grad import detector\n"
+        "import gradgps._tracks.geo as geo\n"
+        "detector._hidden(geo._frame, detector.Detector)\n"
+    )
+    assert private_attributes("gradgps._run.follow", source) == [
+        ("gradgps._grad.detector._hidden", 3),
+        ("gradgps._tracks.geo._frame", 3),
+    ]
 
 
 def _cycle(edges: dict[str, set[str]]) -> list[str] | None:

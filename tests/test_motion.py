@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from gradgps._exceptions import ConfigError
 from gradgps._grad.motion import MOTION_FEATURES, MotionParams, motion_batch, motion_reference
+from gradgps._grad.vehicle import CAR_MAX_SPEED
 
 RUN_S = MOTION_FEATURES.index("motion_run_s")
 NIS = MOTION_FEATURES.index("motion_nis")
@@ -220,3 +221,44 @@ def test_a_noise_run_whose_steps_agree_by_chance_is_no_track() -> None:
         motion_speed = feats[:, MOTION_FEATURES.index("motion_speed")]
         assert np.all(np.abs(motion_speed[64:] - speed) < 3.0)
         assert np.all(feats[66:, RUN_S] == 0.0)  # following the fixes again at once
+
+
+def test_a_gap_in_the_log_does_not_open_the_gate() -> None:
+    """A 60 s gap inside what the model is given as one segment (a logger paused),
+    then a 50 m jump half a minute later, at 1 Hz, positions only.
+
+    Across the gap the car's routine acceleration explains hundreds of metres,
+    so the gate accepts the fix after it; its innovation says nothing about the
+    receiver's noise. Before the running scale was winsorised, that one
+    innovation took the scale from a few metres to about 190 m, and the jump,
+    30 fixes later, passed the gate (and pulled the velocity after it)."""
+    rng = np.random.default_rng(3)
+    t = np.r_[np.arange(100.0), 160.0 + np.arange(60.0)]
+    heading = np.radians(60.0)
+    east = 12.0 * np.sin(heading) * t + rng.normal(0, 1.0, t.size)
+    north = 12.0 * np.cos(heading) * t + rng.normal(0, 1.0, t.size)
+    east[100] += 300.0  # the car took another road during the gap: it comes back 300 m off
+    east[101:] += 300.0
+    east[130:133] += 50.0  # three fixes jumped 50 m (the model re-acquires the
+    # jumped track on its second fix, which moves like the track: see the module doc)
+    for feats in (motion_batch(t, east, north, 1.0), motion_reference(t, east, north, 1.0)):
+        assert feats[100, NIS] <= MotionParams().gate  # the fix after the gap is taken
+        assert feats[130, NIS] > MotionParams().gate  # the jump is a surprise
+        assert feats[133, NIS] > MotionParams().gate  # and so is its end
+        assert (feats[140:, NIS] < 2.0).all()  # the track is followed again
+
+
+def test_the_velocity_is_never_faster_than_a_car() -> None:
+    """A minute of 50 m noise on every fix (a receiver in a deep canyon), 1 Hz, a car at
+    13 m/s: re-acquired after ``max_run_s`` on the step between two noise fixes, the
+    model's velocity read 100 m/s (a simulated drive), and dead-reckoned from there."""
+    rng = np.random.default_rng(11)
+    t = np.arange(200.0)
+    east = 13.0 * t + rng.normal(0, 1.0, t.size)
+    north = rng.normal(0, 1.0, t.size)
+    east[50:110] += rng.normal(0, 50.0, 60)
+    north[50:110] += rng.normal(0, 50.0, 60)
+    speed = MOTION_FEATURES.index("motion_speed")
+    for feats in (motion_batch(t, east, north, 1.0), motion_reference(t, east, north, 1.0)):
+        assert feats[:, speed].max() <= CAR_MAX_SPEED + 1e-9
+        assert (feats[130:, RUN_S] == 0).all()  # and the track is followed again

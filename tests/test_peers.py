@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from gradgps._baselines.peers import PEER_NAMES, PeerDetector, peer_stream
+from gradgps._baselines.peers import PEER_NAMES, STREAMING_PEERS, PeerDetector, peer_stream
 from gradgps._exceptions import ConfigError
 from gradgps._tracks.geo import LocalFrame
 
@@ -64,6 +64,49 @@ def test_streaming_and_batch_agree(name: str) -> None:
         for r in fixes.itertuples(index=False)
     ]
     assert flags == batch["anomaly"].tolist()
+
+
+@pytest.mark.parametrize("name", STREAMING_PEERS)
+def test_peer_stream_checks_each_fix_as_the_baselines_do(name: str) -> None:
+    """An unusable fix (None, NaN, text, out of range, before the previous one) is flagged
+    with its reason, raises nothing and leaves the stream as it was; a missing row
+    streamed gets the batch's verdict (the one invalid-row policy, gradgps._result)."""
+    fixes = _drive(40, 20)
+    settings = PeerDetector(name).settings_for("+speed+heading")
+    bad_fed = peer_stream(name, settings, "+speed+heading")
+    clean_fed = peer_stream(name, settings, "+speed+heading")
+    rows = list(fixes.itertuples(index=False))
+    for r in rows[:10]:
+        bad_fed.update(r.t, r.lat, r.lon, r.speed, r.heading)
+        clean_fed.update(r.t, r.lat, r.lon, r.speed, r.heading)
+    last = rows[9]
+    for args in (
+        (None, last.lat, last.lon),
+        (last.t + 1, None, last.lon),
+        (math.nan, last.lat, last.lon),
+        ("not a time", last.lat, last.lon),
+        (last.t + 1, 95.0, last.lon),
+        (last.t - 3.0, last.lat, last.lon),
+    ):
+        out = bad_fed.update(*args)
+        assert out.anomaly == 1, (args, out)
+        assert out.invalid_reason, (args, out)
+        assert math.isnan(out.score), (args, out)
+        assert math.isnan(out.lat_clean), (args, out)
+    for r in rows[10:]:
+        a = bad_fed.update(r.t, r.lat, r.lon, r.speed, r.heading)
+        b = clean_fed.update(r.t, r.lat, r.lon, r.speed, r.heading)
+        assert a == b
+
+    holes = fixes.copy()
+    holes.loc[[5, 25], "lat"] = math.nan
+    batch = PeerDetector(name).detect(holes)
+    stream = peer_stream(name, settings, "+speed+heading")
+    verdicts = [
+        stream.update(r.t, r.lat, r.lon, r.speed, r.heading) for r in holes.itertuples(index=False)
+    ]
+    assert [v.anomaly for v in verdicts] == batch["anomaly"].tolist()
+    assert [v.invalid_reason for v in verdicts] == batch["invalid_reason"].tolist()
 
 
 def test_missing_extra_is_one_line_naming_it(monkeypatch: pytest.MonkeyPatch) -> None:

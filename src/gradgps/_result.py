@@ -53,6 +53,7 @@ __all__ = [
     "result_frame",
     "results_frame",
     "shown",
+    "usable_point",
 ]
 
 #: Result columns and their dtypes, in order.
@@ -98,6 +99,38 @@ class PointResult:
         """
         kind = "none" if classifies else None
         return cls(1, math.nan, kind, kind, math.nan, math.nan, 0, reason)
+
+
+_new_object = object.__new__
+
+
+def usable_point(
+    anomaly: int,
+    score: float,
+    bias_type: str | None,
+    time_type: str | None,
+    lat_clean: float,
+    lon_clean: float,
+    alert: int,
+) -> PointResult:
+    """``PointResult(anomaly, score, ..., alert)`` of a usable fix (no ``invalid_reason``).
+
+    The same object, made without the frozen dataclass's ``__init__``, which sets each
+    field through ``object.__setattr__``: that took about a microsecond, a third of a
+    streaming ``Detector.update``.
+    """
+    point: PointResult = _new_object(PointResult)
+    point.__dict__.update(
+        anomaly=anomaly,
+        score=score,
+        bias_type=bias_type,
+        time_type=time_type,
+        lat_clean=lat_clean,
+        lon_clean=lon_clean,
+        alert=alert,
+        invalid_reason="",
+    )
+    return point
 
 
 def as_number(value: object) -> float:

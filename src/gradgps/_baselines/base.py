@@ -20,7 +20,8 @@ Unlike GRAD's preprocessing, rows are never merged: repeated timestamps are
 kept as readings ``dt = 0`` apart, so every input row gets its own verdict.
 
 Every baseline derives from :class:`BatchBaseline` (batch ``detect``) or
-:class:`StreamingBaseline` (also ``update``/``get_state``/``set_state``),
+:class:`StreamingBaseline` (also :class:`FixStream`'s ``update``, and
+``get_state``/``set_state``),
 which validate the input once and apply the invalid-row policy of
 :mod:`gradgps._result`, then delegate to the detector's own
 ``_detect_core`` / ``_update_valid`` (as darts' detectors and movingpandas'
@@ -59,6 +60,7 @@ __all__ = [
     "SENSOR_CHANNELS",
     "SENSOR_FIX_CHANNELS",
     "BatchBaseline",
+    "FixStream",
     "Reading",
     "Segment",
     "StreamingBaseline",
@@ -112,12 +114,13 @@ class BatchBaseline(ABC):
         return out
 
 
-class StreamingBaseline(BatchBaseline):
-    """A baseline that also streams one track: ``update`` validates, ``_update_valid`` judges.
+class FixStream(ABC):
+    """One track's fixes, one at a time: ``update`` validates, ``_update_valid`` judges.
 
+    Every streaming baseline and streaming peer is one, so a fix is checked
+    in one place, by the rule of :func:`gradgps._result.fix_reason`.
     Subclasses keep the time of their last usable fix in ``_last_t`` (``None``
-    before the first and after a reset) and implement ``_update_valid``,
-    ``get_state`` and ``set_state``.
+    before the first and after a reset) and implement ``_update_valid``.
     """
 
     _last_t: float | None = None
@@ -164,6 +167,11 @@ class StreamingBaseline(BatchBaseline):
     @abstractmethod
     def _update_valid(self, fix: Reading) -> PointResult:
         """Judge a usable fix (finite, in range, in time order)."""
+
+
+class StreamingBaseline(BatchBaseline, FixStream):
+    """A baseline that also streams one track (:class:`FixStream`) and saves its memory:
+    subclasses implement ``_update_valid``, ``get_state`` and ``set_state``."""
 
     @abstractmethod
     def get_state(self) -> dict[str, Any]:

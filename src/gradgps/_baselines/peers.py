@@ -43,11 +43,13 @@ in both. Each peer's settings come per variant (``settings[variant]``); the
 benchmark tunes them on a validation split (:mod:`gradgps._eval.peers`).
 
 Fixes are taken per track in time order; unusable fixes (time or position
-missing) are never flagged and never enter a peer's state, as for the other
-baselines. The filters that keep state (``kalman-chi2*``, ``river-*``) have a
-streaming object (``update(t, lat, lon, speed, heading) -> PointResult``);
-their batch ``detect`` is that object fed one fix at a time, so both modes
-give the same answer.
+missing or out of range) are flagged with their reason and never enter a
+peer's state, as for the other baselines (:mod:`gradgps._result`). The
+filters that keep state (``kalman-chi2*``, ``river-*``) have a streaming
+object (``update(t, lat, lon, speed, heading) -> PointResult``, checking
+each fix as every baseline's stream does, a fix before the previous usable
+one included); their batch ``detect`` is that object fed one fix at a
+time, so both modes give the same answer.
 """
 
 from __future__ import annotations
@@ -68,7 +70,7 @@ import pandas as pd
 from .._exceptions import ConfigError
 from .._result import PointResult, result_frame
 from .._tracks.geo import LocalFrame
-from .base import segments
+from .base import FixStream, Reading, segments
 
 __all__ = [
     "DEFAULT_SETTINGS",
@@ -288,8 +290,9 @@ def _value(values: np.ndarray | None, i: int) -> float:
 # ----------------------------------------------------------------------------
 
 
-class _Stream:
-    """Base of the streaming peers: local frame, usable-fix check, raw score per fix."""
+class _Stream(FixStream):
+    """Base of the streaming peers: local frame, raw score per fix; ``update`` checks each
+    fix as every baseline's stream does (:class:`gradgps._baselines.base.FixStream`)."""
 
     def __init__(self, settings: Mapping[str, Any], use_reported: bool) -> None:
         self.settings = dict(settings)
@@ -320,30 +323,10 @@ class _Stream:
         la, lo = self._frame.to_geodetic(np.array([better[0]]), np.array([better[1]]))
         return raw, float(la[0]), float(lo[0])
 
-    def update(
-        self,
-        t: float,
-        lat: float,
-        lon: float,
-        speed: float | None = None,
-        heading: float | None = None,
-        **channels: float,
-    ) -> PointResult:
-        """Score one fix of this stream's track (``channels`` are accepted and ignored)."""
-        t, lat, lon = float(t), float(lat), float(lon)
-        if not (
-            math.isfinite(t)
-            and math.isfinite(lat)
-            and math.isfinite(lon)
-            and abs(lat) <= 90
-            and abs(lon) <= 180
-        ):
-            return PointResult(
-                0, math.nan, None, None, math.nan, math.nan, 0, "time or position unusable"
-            )
-        sp = math.nan if speed is None else float(speed)
-        hd = math.nan if heading is None else float(heading)
-        raw, lat_c, lon_c = self.step(t, lat, lon, sp, hd)
+    def _update_valid(self, fix: Reading) -> PointResult:
+        """Score one usable fix of this stream's track (its ``channels`` are ignored)."""
+        raw, lat_c, lon_c = self.step(fix.t, fix.lat, fix.lon, fix.speed, fix.heading)
+        self._last_t = fix.t
         thr = self.threshold()
         return PointResult(int(raw > thr), _score(raw, thr), None, None, lat_c, lon_c, 0)
 
@@ -371,7 +354,7 @@ class KalmanChi2Stream(_Stream):
         self._kf_class = kalman.KalmanFilter
         self._q_noise = common.Q_discrete_white_noise
         self._kf: Any = None
-        self._last_t = math.nan
+        self._prev_t = math.nan  # time of the last fix scored (NaN: none yet)
         self._x_clean: tuple[float, float] | None = None
         r = float(self.settings["r"])
         self._h_pos = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0]])
@@ -401,8 +384,8 @@ class KalmanChi2Stream(_Stream):
         else:
             z = np.array([east, north])
             big_h, big_r = self._h_pos, self._r_pos
-        dt = t - self._last_t
-        self._last_t = t
+        dt = t - self._prev_t
+        self._prev_t = t
         if self._kf is None or not (dt <= MAX_GAP_S):
             self._start(z, has_vel)
             self._x_clean = None

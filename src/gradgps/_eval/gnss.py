@@ -25,7 +25,9 @@ truth to score against), for every bias type (``noise``, ``jump``,
   type that truly are; the detector's type of a row is its ``bias_type``,
   except a fix it refused because the receiver reported no fix, whose type is
   ``outage``. ``None`` where the detector never names the type (the shipped
-  model's bias head knows none, noise, jump and freeze only).
+  model's bias head knows none, noise, jump and freeze only; ``drift`` comes
+  from the drift witness, :mod:`gradgps._grad.drift`, where the input has
+  speed and heading).
 
 For ``drift`` also per found episode the offset of the position from the
 truth at its first flagged fix (``label_offset_m``, metres) and the delay
@@ -38,24 +40,22 @@ detected faults (same typing).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
-from pathlib import Path
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 import pandas as pd
 
-from .._data.datasets import load_dataset
 from .._data.inject import BIAS_TYPES, GNSS_TYPES, inject_gnss
 from .._result import NO_FIX, NO_SATELLITES
 from .._tracks.track import ColumnMap, to_fixes
 from .metrics import _detections, class_scores, type_accuracy
 from .robustness import (
-    ROBUSTNESS_DATASETS,
     Detector,
-    check_real_datasets,
+    SuiteOptions,
     machine,
     plain_json,
+    report_head,
+    suite_tables,
 )
 
 __all__ = ["GNSS_BIAS", "GNSS_VARIANTS", "gnss_cell", "gnss_markdown", "run_gnss_bench"]
@@ -193,19 +193,19 @@ def run_gnss_bench(
     det: Detector,
     detector: str,
     *,
-    model: Path | None = None,
-    datasets: Sequence[str] = ROBUSTNESS_DATASETS,
-    data_dir: str | Path | None = None,
     seed: int = 0,
     scale: float = 1.0,
-    advance: Callable[[str], None] | None = None,
+    **options: Unpack[SuiteOptions],
 ) -> dict[str, Any]:
-    """Run ``det`` on every data set's test split under protocol ``gnss``; JSON-ready report."""
-    check_real_datasets(datasets, "has no real test split for protocol gnss")
+    """Run ``det`` on every data set's test split under protocol ``gnss``; JSON-ready report.
+
+    ``seed`` and ``scale`` go to :func:`gradgps._data.inject.inject_gnss`;
+    ``options``: :class:`gradgps._eval.robustness.SuiteOptions`.
+    """
+    advance = options.get("advance")
     began = time.perf_counter()
     cells: list[dict[str, Any]] = []
-    for name in datasets:
-        table = load_dataset(name, "test", data_dir=data_dir)
+    for name, table in suite_tables(options, "has no real test split for protocol gnss"):
         labelled = inject_gnss(table, seed=seed, scale=scale)
         full: ColumnMap = to_fixes(labelled).attrs["columns"]
         for variant in GNSS_VARIANTS:
@@ -216,13 +216,7 @@ def run_gnss_bench(
             if advance is not None:
                 advance(f"{name} {variant}")
     report = {
-        "protocol": "gnss",
-        "detector": detector,
-        "model": None if model is None else str(model),
-        "split": "test",
-        "seed": seed,
-        "scale": scale,
-        "datasets": list(datasets),
+        **report_head("protocol", "gnss", detector, options, seed, scale=scale),
         "machine": machine(),
         "seconds": time.perf_counter() - began,
         "cells": cells,
@@ -270,5 +264,29 @@ def gnss_markdown(report: dict[str, Any], command: str) -> list[str]:
             f"{_num(n['recall'])} | {_num(c['bias_type_accuracy'])} | "
             + " | ".join(per)
             + f" | {_num(c['types']['drift'].get('offset_at_detection_median_m'), 1)} |"
+        )
+    return [*lines, "", *_drift_episode_lines(report)]
+
+
+def _drift_episode_lines(report: dict[str, Any]) -> list[str]:
+    """Per drift episode of each cell: the offset from the truth at its first flag (m) and
+    the delay (s), the two numbers a spoofing user asks for (``missed`` where never flagged)."""
+    lines = [
+        "Drift episodes, each as offset at the first flag (m) @ delay (s), in episode order:",
+        "",
+        "| data set | columns | found | episodes |",
+        "|---|---|---|---|",
+    ]
+    for c in report["cells"]:
+        episodes = c["types"]["drift"].get("drift_episodes") or []
+        if not episodes:
+            continue
+        shown = [
+            f"{e['offset_at_detection_m']:.1f} m @ {e['delay_s']:.0f} s" if e["found"] else "missed"
+            for e in episodes
+        ]
+        found = sum(bool(e["found"]) for e in episodes)
+        lines.append(
+            f"| {c['dataset']} | {c['variant']} | {found} of {len(episodes)} | {', '.join(shown)} |"
         )
     return [*lines, ""]

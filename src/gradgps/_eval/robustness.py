@@ -46,9 +46,9 @@ import math
 import os
 import platform
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Protocol, TypedDict, Unpack
 
 import numpy as np
 import pandas as pd
@@ -65,13 +65,16 @@ __all__ = [
     "ROBUSTNESS_DATASETS",
     "TARGETS",
     "VARIANTS",
+    "SuiteOptions",
     "check_real_datasets",
     "decimate",
     "judge",
     "machine",
     "plain_json",
+    "report_head",
     "robustness_markdown",
     "run_robustness",
+    "suite_tables",
 ]
 
 ROBUSTNESS_DATASETS = tuple(d for d in DATASETS if d != "simulated")
@@ -276,28 +279,61 @@ def machine() -> str:
     )
 
 
-def run_robustness(
-    det: Detector,
-    detector: str,
-    *,
-    model: Path | None = None,
-    datasets: Sequence[str] = ROBUSTNESS_DATASETS,
-    data_dir: str | Path | None = None,
-    advance: Callable[[str], None] | None = None,
+class SuiteOptions(TypedDict, total=False):
+    """The keyword options of every suite over the real test splits.
+
+    :func:`run_robustness` and :func:`gradgps._eval.gnss.run_gnss_bench`
+    take them alike: ``model``, the detector's model directory, only named in
+    the report; ``datasets``, which real test splits (default
+    :data:`ROBUSTNESS_DATASETS`); ``data_dir``, where the data files are;
+    ``advance``, called with a short label after each cell.
+    """
+
+    model: Path | None
+    datasets: Sequence[str]
+    data_dir: str | Path | None
+    advance: Callable[[str], None] | None
+
+
+def suite_tables(options: SuiteOptions, problem: str) -> Iterator[tuple[str, pd.DataFrame]]:
+    """Each chosen data set's name and test split; a data set with no real test split is
+    refused first (``problem`` says why, in the error)."""
+    datasets = options.get("datasets", ROBUSTNESS_DATASETS)
+    check_real_datasets(datasets, problem)
+    for name in datasets:
+        yield name, load_dataset(name, "test", data_dir=options.get("data_dir"))
+
+
+def report_head(
+    kind: str, name: str, detector: str, options: SuiteOptions, seed: int, **settings: Any
 ) -> dict[str, Any]:
+    """The first keys of a suite's report, in the order its JSON files have them: the suite
+    (``{kind: name}``), the detector and its model, the split, the seed, the suite's own
+    ``settings``, the data sets."""
+    model = options.get("model")
+    return {
+        kind: name,
+        "detector": detector,
+        "model": None if model is None else str(model),
+        "split": "test",
+        "seed": seed,
+        **settings,
+        "datasets": list(options.get("datasets", ROBUSTNESS_DATASETS)),
+    }
+
+
+def run_robustness(det: Detector, detector: str, **options: Unpack[SuiteOptions]) -> dict[str, Any]:
     """Run the suite with ``det``; return the JSON-ready report (``nan`` turned into ``None``).
 
     ``det`` is any batch detector, used for every cell (build it with
-    :func:`gradgps._eval.bench.make_detector`); ``detector`` is its name and
-    ``model`` its model directory, for the report. ``advance`` is called
-    after each cell.
+    :func:`gradgps._eval.bench.make_detector`); ``detector`` is its name, for
+    the report; ``options``: :class:`SuiteOptions`.
     """
-    check_real_datasets(datasets, "is not in the robustness suite")
+    advance = options.get("advance")
     load_before = _load()
     began = time.perf_counter()
     cells: list[dict[str, Any]] = []
-    for name in datasets:
-        table = load_dataset(name, "test", data_dir=data_dir)
+    for name, table in suite_tables(options, "is not in the robustness suite"):
         full: ColumnMap = to_fixes(table).attrs["columns"]
         for variant in VARIANTS:
             picked = _variant_columns(table, full, variant)
@@ -324,12 +360,7 @@ def run_robustness(
         cell["misses"] = misses
         cell["passed"] = not misses
     report = {
-        "suite": "robustness",
-        "detector": detector,
-        "model": None if model is None else str(model),
-        "split": "test",
-        "seed": SEED,
-        "datasets": list(datasets),
+        **report_head("suite", "robustness", detector, options, SEED),
         "targets": TARGETS,
         "machine": machine(),
         "load_before": load_before,

@@ -84,18 +84,22 @@ from .._result import (
     result_frame,
     results_frame,
     shown,
+    usable_point,
 )
 from .._tracks.geo import LocalFrame, far_apart_scalar
 from .._tracks.preprocess import stream_reasons
 from .._tracks.track import ColumnKeywords, ColumnMap, check_keywords, datetime_seconds
 from .core import N_CORE_PARAMS, _layout
 from .defaults import FRAME_RADIUS_M, MIN_STEP_S, grad_points
+from .drift import DRIFT_BIAS
 from .events import fault_events
 from .model_io import CONFIG_FILE, WEIGHTS_FILE, gru_model, load_model
 from .motion import N_MOTION_STATE
 from .offset import N_OFFSET_STATE
 from .pipeline import (
+    _N_OFF_OUT,
     _N_TAIL_STATE,
+    LANES,
     N_POINT_OUT,
     O_ALERT,
     O_BIAS,
@@ -108,6 +112,8 @@ from .pipeline import (
     PipelineParams,
     grad_segments,
     grad_step,
+    lanes_step,
+    new_lane_work,
     new_state,
     new_work,
     pipeline_feature_names,
@@ -154,6 +160,12 @@ class GradModel:
     bias_classes: tuple[str, ...]
     checksum: str
     config: Mapping[str, Any]
+
+    @property
+    def output_bias_classes(self) -> tuple[str, ...]:
+        """The bias types a verdict can name: the GRU head's classes, then ``drift``
+        (the drift witness's verdict, :mod:`gradgps._grad.drift`; code ``len(bias_classes)``)."""
+        return (*self.bias_classes, DRIFT_BIAS)
 
 
 def _default_model_dir() -> Path:
@@ -461,13 +473,29 @@ class Detector:
         self._P = m.params.array(period, self._frame, m.dims)
         self._S = new_state(self._P)
         self._H = np.zeros(int(m.dims[1] + m.dims[2]), np.float32)
-        self._work = new_work(self._P)
+        self._make_work()
+
+    def _make_work(self) -> None:
+        """The segment's work arrays (:func:`new_work`) and outputs, as views into two
+        buffers that :func:`_stream_fix` carves the same way (few arrays to pass)."""
+        assert self._P is not None
+        work = new_work(self._P)
+        self._w64 = np.concatenate([*work[1:4], np.zeros(N_POINT_OUT)])
+        self._w32 = np.concatenate(work[4:])
+        views = []
+        for buffer, parts in ((self._w64, work[1:4]), (self._w32, work[4:])):
+            at = 0
+            for part in parts:
+                views.append(buffer[at : at + part.size])
+                at += part.size
+        self._work = (work[0], *views)
+        self._out = self._w64[-N_POINT_OUT:]
 
     def _step(self, dt: float, lat: float, lon: float, speed: float, heading: float) -> None:
         assert self._P is not None
         assert self._S is not None
         if self._work is None:  # restored by set_state: made on the first step
-            self._work = new_work(self._P)
+            self._make_work()
         grad_step(
             self._P,
             self._S,
@@ -509,7 +537,45 @@ class Detector:
         ``channels`` (other sensor readings) are accepted for interface
         compatibility and ignored by the position model.
         """
-        t_f, lat_f, lon_f = _time_number(t), as_number(lat), as_number(lon)
+        t_f = t if type(t) is float else _time_number(t)
+        lat_f, lon_f = as_number(lat), as_number(lon)
+        if (
+            self._seg_count > PERIOD_STEPS  # the period is final, no warm-up kept
+            and self._work is not None
+            and fix_quality is None
+            and satellites is None
+        ):
+            # The common case in one compiled call; it declines (-1) whatever needs the
+            # segment rule below (a gap, a far jump) before touching the state.
+            frame, P, S, last_t = self._frame, self._P, self._S, self._last_t
+            assert frame is not None
+            assert P is not None
+            assert S is not None
+            assert last_t is not None
+            code = _stream_fix(
+                P,
+                S,
+                self._H,
+                self.model_.gru_params,
+                self._work[0],
+                self._w64,
+                self._w32,
+                t_f,
+                lat_f,
+                lon_f,
+                reading(speed),
+                reading(heading),
+                last_t,
+                frame.lat0,
+                frame.lon0,
+                self.model_.params.max_gap_s,
+            )
+            if code > 0:
+                return PointResult.invalid(REASONS[code])
+            if code == 0:
+                self._seg_count += 1
+                self._last_t = t_f
+                return self._point()
         reason = fix_reason(
             t_f,
             lat_f,
@@ -534,16 +600,19 @@ class Detector:
         )
         self._seg_count = 1 if restarted else self._seg_count + 1
         self._last_t = t_f
-        o = self._out
-        flag = int(o[O_FLAG])
-        return PointResult(
-            anomaly=flag,
-            score=float(o[O_SCORE]),
-            bias_type=self.model_.bias_classes[int(o[O_BIAS])],
-            time_type=TIME_TYPES[int(o[O_TIME])],
-            lat_clean=float(o[O_LAT]),
-            lon_clean=float(o[O_LON]),
-            alert=int(o[O_ALERT]),
+        return self._point()
+
+    def _point(self) -> PointResult:
+        """The verdict the last step wrote into ``self._out``."""
+        flag, score, bias, kind, lat_c, lon_c, alert = self._out.tolist()
+        return usable_point(
+            int(flag),
+            score,
+            self.model_.output_bias_classes[int(bias)],
+            TIME_TYPES[int(kind)],
+            lat_c,
+            lon_c,
+            int(alert),
         )
 
     def get_state(self) -> dict[str, Any]:
@@ -824,7 +893,7 @@ class Detector:
         self, out: NDArray[np.float64], reason: NDArray[Any], index: pd.Index
     ) -> pd.DataFrame:
         invalid = reason != ""
-        bias_names = np.array(self.model_.bias_classes, dtype=object)
+        bias_names = np.array(self.model_.output_bias_classes, dtype=object)
         time_names = np.array(TIME_TYPES, dtype=object)
         codes_b = np.where(invalid, 0, np.nan_to_num(out[:, O_BIAS])).astype(np.int64)
         codes_t = np.where(invalid, 0, np.nan_to_num(out[:, O_TIME])).astype(np.int64)
@@ -1001,6 +1070,56 @@ def _reason_code(
 
 
 @numba.njit(cache=True)
+def _stream_fix(
+    P: FloatArray,
+    S: FloatArray,
+    H: Any,
+    gp: Any,
+    dims: NDArray[np.int64],
+    w64: FloatArray,
+    w32: Any,
+    t: float,
+    lat: float,
+    lon: float,
+    speed: float,
+    heading: float,
+    last_t: float,
+    lat0: float,
+    lon0: float,
+    max_gap_s: float,
+) -> int:
+    """:meth:`Detector.update`'s common case (a segment whose period is final, no receiver
+    fields) in one compiled call: :func:`_reason_code` of the fix (returned when it is
+    invalid), -1 without touching the state when the segment rule must decide (a gap
+    over ``max_gap_s``, a fix beyond :data:`FRAME_RADIUS_M`), else :func:`grad_step` with
+    the work arrays carved from ``w64``/``w32`` as :meth:`Detector._make_work` lays them
+    out (outputs in the last :data:`N_POINT_OUT` of ``w64``) and 0.
+
+    Fewer, flat arguments than ``grad_step``'s: numba unboxes every array of a call
+    (about 70 ns each), and the work tuple held seven."""
+    c = _reason_code(t, lat, lon, False, last_t, 0)
+    if c != 0:
+        return c
+    dt = t - last_t
+    if dt > max_gap_s or far_apart_scalar(lat0, lon0, lat, lon, FRAME_RADIUS_M):
+        return -1
+    n_core = w64.size - _N_OFF_OUT - 3 - N_POINT_OUT
+    n_x = dims[0]
+    n_scratch = w32.size - n_x - 1 - dims[3]
+    work = (
+        dims,
+        w64[:n_core],
+        w64[n_core : n_core + _N_OFF_OUT],
+        w64[n_core + _N_OFF_OUT : n_core + _N_OFF_OUT + 3],
+        w32[:n_x],
+        w32[n_x : n_x + n_scratch],
+        w32[n_x + n_scratch :],
+    )
+    grad_step(P, S, H, gp, work, dt, lat, lon, speed, heading, w64[w64.size - N_POINT_OUT :])
+    return 0
+
+
+@numba.njit(cache=True)
 def _fleet_kernel(
     Ps: FloatArray,
     Ss: FloatArray,
@@ -1028,8 +1147,36 @@ def _fleet_kernel(
 ) -> int:
     """Fixes ``todo`` (batch positions, in order) of vehicles ``slots``: the common case and
     invalid fixes scored here, into ``out``/``code``; a vehicle's first rare fix and all its
-    later ones are listed in ``deferred`` (returns how many)."""
+    later ones are listed in ``deferred`` (returns how many).
+
+    Common-case fixes are gathered into blocks of up to :data:`LANES` vehicles, each
+    vehicle at most once per block, and each block is scored by one :func:`lanes_step`
+    (a vehicle's next fix waits for its block to be scored)."""
     blocked = np.zeros(seg.size, np.bool_)
+    in_block = np.zeros(seg.size, np.bool_)
+    lanes = work[1].shape[0]
+    block_slots = np.empty(lanes, np.int64)
+    block_rows = np.empty(lanes, np.int64)
+    dt = np.empty(t.size)
+    # lanes_step's arguments but the block's size
+    block = (
+        Ps,
+        Ss,
+        s_off,
+        s_len,
+        Hs,
+        gp,
+        work,
+        block_slots,
+        block_rows,
+        dt,
+        lat,
+        lon,
+        speed,
+        heading,
+        out,
+    )
+    n_block = 0
     n_def = 0
     for j in range(todo.size):
         i = todo[j]
@@ -1043,33 +1190,41 @@ def _fleet_kernel(
         if c != 0:
             code[i] = c
             continue
-        dt = t[i] - last_t[s]
+        dt[i] = t[i] - last_t[s]
         if (
             seg[s] <= PERIOD_STEPS
-            or dt > max_gap_s
+            or dt[i] > max_gap_s
             or far_apart_scalar(lat0[s], lon0[s], lat[i], lon[i], FRAME_RADIUS_M)
         ):
             blocked[s] = True
             deferred[n_def] = i
             n_def += 1
             continue
-        a = s_off[s]
-        grad_step(
-            Ps[s],
-            Ss[a : a + s_len[s]],
-            Hs[s],
-            gp,
-            work,
-            dt,
-            lat[i],
-            lon[i],
-            speed[i],
-            heading[i],
-            out[i],
-        )
+        if in_block[s] or n_block == lanes:
+            _score_block(block, n_block, in_block)
+            n_block = 0
+        block_slots[n_block] = s
+        block_rows[n_block] = i
+        in_block[s] = True
+        n_block += 1
         seg[s] += 1
         last_t[s] = t[i]
+    _score_block(block, n_block, in_block)
     return n_def
+
+
+@numba.njit(cache=True)
+def _score_block(block: Any, n: int, in_block: NDArray[np.bool_]) -> None:
+    """Score the first ``n`` fixes of one block of :func:`_fleet_kernel` (``block``:
+    :func:`lanes_step`'s arguments but ``n``) and mark its vehicles free again."""
+    if n == 0:
+        return
+    Ps, Ss, s_off, s_len, Hs, gp, work, slots, rows, dt, lat, lon, speed, heading, out = block
+    lanes_step(
+        Ps, Ss, s_off, s_len, Hs, gp, work, slots, rows, n, dt, lat, lon, speed, heading, out
+    )
+    for v in range(n):
+        in_block[slots[v]] = False
 
 
 @dataclass(frozen=True)
@@ -1194,7 +1349,8 @@ class FleetDetector:
         P0 = m.params.array(1.0, LocalFrame(0.0, 0.0), m.dims)
         self._n_p = int(P0.size)
         self._work = new_work(P0)
-        self._bias_names = np.array([*m.bias_classes, "none"], dtype=object)
+        self._lane_work = new_lane_work(P0, LANES)
+        self._bias_names = np.array([*m.output_bias_classes, "none"], dtype=object)
         self._time_names = np.array([*TIME_TYPES, "none"], dtype=object)
         self._reasons = np.array(REASONS, dtype=object)
         self._index: dict[Hashable, int] = {}
@@ -1447,7 +1603,7 @@ class FleetDetector:
                     self._lat0,
                     self._lon0,
                     self._gp,
-                    self._work,
+                    self._lane_work,
                     self._max_gap,
                     slots,
                     t_f,

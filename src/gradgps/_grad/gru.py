@@ -270,26 +270,45 @@ def _tanh_scalar(v: float) -> float:
 
 
 @numba.njit(cache=True)
+def _accumulate(params: Any, o_w: int, n_in: int, g: int, x: Any, acc: Any) -> None:
+    """``acc[i] += sum_j W[j, i] * x[j]``, ``W^T`` (n_in x g) at ``params[o_w:]``: j = 0, 1,
+    2, ... in order, each product and sum in float32.
+
+    Four inputs per pass over ``acc``, their additions written out left to right (so
+    the sums are the one-input-at-a-time sums, bit for bit): a quarter of the passes,
+    loads and stores of ``acc``, which at 96 gates cost as much as the arithmetic.
+    Row views (not params[base + i]) let LLVM prove the indices are in range and
+    vectorise the loops: about 5x faster.
+    """
+    j = 0
+    while j + 4 <= n_in:
+        r0 = params[o_w + j * g : o_w + (j + 1) * g]
+        r1 = params[o_w + (j + 1) * g : o_w + (j + 2) * g]
+        r2 = params[o_w + (j + 2) * g : o_w + (j + 3) * g]
+        r3 = params[o_w + (j + 3) * g : o_w + (j + 4) * g]
+        x0, x1, x2, x3 = x[j], x[j + 1], x[j + 2], x[j + 3]
+        for i in range(g):
+            acc[i] = (((acc[i] + r0[i] * x0) + r1[i] * x1) + r2[i] * x2) + r3[i] * x3
+        j += 4
+    while j < n_in:
+        xj = x[j]
+        row = params[o_w + j * g : o_w + (j + 1) * g]
+        for i in range(g):
+            acc[i] += row[i] * xj
+        j += 1
+
+
+@numba.njit(cache=True)
 def _cell(params: Any, o_wih: int, n_in: int, size: int, x: Any, h: Any, gi: Any, gh: Any) -> None:
     """One GRU step in place on ``h``; weights at ``params[o_wih:]`` in packed order."""
     g = 3 * size
     o_whh = o_wih + n_in * g
     o_bih = o_whh + size * g
     o_bhh = o_bih + g
-    # Row views (not params[base + i]) let LLVM prove the indices are in
-    # range and vectorise the loops: about 5x faster.
     gi[:g] = params[o_bih : o_bih + g]
     gh[:g] = params[o_bhh : o_bhh + g]
-    for j in range(n_in):
-        xj = x[j]
-        row = params[o_wih + j * g : o_wih + (j + 1) * g]
-        for i in range(g):
-            gi[i] += row[i] * xj
-    for j in range(size):
-        hj = h[j]
-        row = params[o_whh + j * g : o_whh + (j + 1) * g]
-        for i in range(g):
-            gh[i] += row[i] * hj
+    _accumulate(params, o_wih, n_in, g, x, gi)
+    _accumulate(params, o_whh, size, g, h, gh)
     for i in range(size):
         r = _sigmoid_scalar(gi[i] + gh[i])
         z = _sigmoid_scalar(gi[size + i] + gh[size + i])

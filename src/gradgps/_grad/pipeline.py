@@ -43,8 +43,10 @@ Features are compressed with a signed ``log1p`` before the network's scaler
 (see :func:`_compress`).
 
 Layout of ``P``: core parameters (``N_CORE_PARAMS``), then the rest block
-(offset N_OFFSET_PARAMS, time 3, recovery 2, threshold, period, GRU dims 4, frame 12).
-Layout of ``S``: core state, offset state, time state, recovery state.
+(offset N_OFFSET_PARAMS, time 3, recovery 2, threshold, period, GRU dims 4, frame 12,
+motion on/off + N_MOTION_PARAMS, drift witness on/off + N_DRIFT_PARAMS).
+Layout of ``S``: core state, offset state, time state, recovery state, drift witness
+state, motion state.
 """
 
 from __future__ import annotations
@@ -68,8 +70,16 @@ from .core import (
     core_step,
 )
 from .defaults import grad_rema_params, grad_time_params
+from .drift import N_DRIFT_OUT, N_DRIFT_PARAMS, N_DRIFT_STATE, DriftParams, drift_step
 from .features import N_CHANNEL, FeatureParams, feature_names
-from .gru import _heads, _recurrent_step, _scratch_size
+from .gru import (
+    _heads,
+    _layer_size,
+    _recurrent_step,
+    _scratch_size,
+    _sigmoid_scalar,
+    _tanh_scalar,
+)
 from .motion import (
     MOTION_FEATURES,
     N_MOTION_FEATURES,
@@ -94,12 +104,15 @@ from .time_classifier import N_TIME_STATE, T_GAP, TimeParams, time_step
 from .vehicle import CAR_MAX_SPEED
 
 __all__ = [
+    "LANES",
     "N_POINT_OUT",
     "PERIOD_STEPS",
     "PipelineParams",
     "grad_features",
     "grad_segments",
     "grad_step",
+    "lanes_step",
+    "new_lane_work",
     "new_state",
     "new_work",
     "pipeline_feature_names",
@@ -119,15 +132,20 @@ _FRAME = _DIMS + 4
 # The motion model: an on/off flag, then its parameters (zeros when off).
 _MOTION_ON = _FRAME + N_FRAME_CONSTANTS
 _MOTION = _MOTION_ON + 1
-N_REST_PARAMS = _MOTION + N_MOTION_PARAMS
+# The drift witness (issue 16): an on/off flag, then its parameters (zeros when off).
+_DRIFT_ON = _MOTION + N_MOTION_PARAMS
+_DRIFT = _DRIFT_ON + 1
+N_REST_PARAMS = _DRIFT + N_DRIFT_PARAMS
 # ``off_out`` scratch: offset features, motion features, then the speed and
 # heading the pipeline used for the point (reported, or the motion model's).
 _SH = N_OFFSET_FEATURES + N_MOTION_FEATURES
-_N_OFF_OUT = _SH + 2
+# Then the drift witness's outputs (flag, offset m).
+_DRIFT_OUT = _SH + 2
+_N_OFF_OUT = _DRIFT_OUT + N_DRIFT_OUT
 # Where the motion model's normalised innovation sits in its outputs.
 _NIS = MOTION_FEATURES.index("motion_nis")
-# State blocks after the core's: offset, time, recovery, motion.
-_N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_MOTION_STATE
+# State blocks after the core's: offset, time, recovery, drift witness, motion.
+_N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_DRIFT_STATE + N_MOTION_STATE
 # Per-point outputs.
 O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT = range(7)
 N_POINT_OUT = 7
@@ -149,6 +167,13 @@ class PipelineParams:
     motion: MotionParams | None = field(default_factory=MotionParams)
     """The positions-only motion model's features (:mod:`gradgps._grad.motion`); ``None``
     in models trained before it existed (their ``config.json`` has no ``motion``)."""
+    drift: DriftParams | None = None
+    """The drift witness (:mod:`gradgps._grad.drift`), not learnt; off unless a model's
+    ``config.json`` names it (``"drift": {}`` for its defaults). Off in the shipped
+    model: on the DrivePlotR test drives (phone positions with the phone's own speed
+    and heading) its defaults, chosen on the validation drives, flagged 20.5 % of the
+    clean fixes as drift (721 of 3,512; `gradgps bench --suite robustness`, cell
+    ``+speed+heading``), where the validation drives gave 0.00 %."""
 
     def core(self, period: float) -> CoreParams:
         return CoreParams(
@@ -176,6 +201,7 @@ class PipelineParams:
             threshold=float(data["threshold"]),
             max_gap_s=float(data["max_gap_s"]),
             motion=MotionParams(**data["motion"]).checked() if data.get("motion") else None,
+            drift=_drift_params(data),
         )
 
     def array(self, period: float, frame: LocalFrame, dims: NDArray[np.int64]) -> FloatArray:
@@ -191,9 +217,19 @@ class PipelineParams:
                 frame.constants(),
                 [0.0 if self.motion is None else 1.0],
                 np.zeros(N_MOTION_PARAMS) if self.motion is None else self.motion.to_array(period),
+                [0.0 if self.drift is None else 1.0],
+                np.zeros(N_DRIFT_PARAMS) if self.drift is None else self.drift.to_array(),
             ]
         )
         return np.concatenate([core, rest])
+
+
+def _drift_params(data: dict[str, Any]) -> DriftParams | None:
+    """The drift witness's settings in a saved ``pipeline`` block: absent or ``null``
+    means off."""
+    if data.get("drift") is None:
+        return None
+    return DriftParams(**data["drift"]).checked()
 
 
 def pipeline_feature_names(params: PipelineParams) -> list[str]:
@@ -319,15 +355,42 @@ def _decide_point(
     north: float,
     speed: float,
     heading: float,
+    drift: float,
     out: FloatArray,
 ) -> None:
-    """GRU on ``x`` -> threshold -> time type -> recovery -> clean position in degrees."""
+    """GRU on ``x`` -> threshold -> time type -> recovery -> clean position in degrees.
+
+    ``drift``: the drift witness's flag. A fix the GRU passes but the witness
+    flags is an anomaly of bias class ``dims[3]`` (``drift``, after the head's
+    classes: the head has no drift class); the GRU's own verdicts stand.
+    """
+    _recurrent_step(gp, dims, x, H, scratch)
+    _heads(gp, dims, H, scratch, gru_out)
+    _verdict(P, S, dims, gru_out, core_out, rec_out, east, north, speed, heading, drift, out)
+
+
+@numba.njit(cache=True)
+def _verdict(
+    P: FloatArray,
+    S: FloatArray,
+    dims: Any,
+    gru_out: Any,
+    core_out: FloatArray,
+    rec_out: FloatArray,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+    drift: float,
+    out: FloatArray,
+) -> None:
+    """The network's outputs ``gru_out`` -> threshold -> time type -> recovery -> clean
+    position in degrees (the part of :func:`_decide_point` after the GRU, shared with the
+    many-stream step :func:`lanes_step`)."""
     rest = P[N_CORE_PARAMS:]
     core_size = S.size - _N_TAIL_STATE
     ts = core_size + N_OFFSET_STATE
     rs = ts + N_TIME_STATE
-    _recurrent_step(gp, dims, x, H, scratch)
-    _heads(gp, dims, H, scratch, gru_out)
     score = float(gru_out[0])
     flag = 1.0 if score >= rest[_THR] else 0.0
     best = 0
@@ -336,6 +399,9 @@ def _decide_point(
         for k in range(2, dims[3]):
             if gru_out[1 + k] > gru_out[1 + best]:
                 best = k
+    elif drift != 0.0:
+        flag = 1.0
+        best = dims[3]
     code = time_step(rest[_TIME : _TIME + 3], S[ts : ts + N_TIME_STATE], flag)
     recovery_step(
         rest[_REC : _REC + 2],
@@ -415,6 +481,7 @@ def grad_step(
     """
     dims, core_out, off_out, rec_out, x, scratch, gru_out = work
     east, north = _features_point(P, S, core_out, off_out, dt, lat, lon, speed, heading, x)
+    _drift_point(P, S, off_out, dt, east, north, speed, heading)
     _decide_point(
         P,
         S,
@@ -430,8 +497,40 @@ def grad_step(
         north,
         off_out[_SH],
         off_out[_SH + 1],
+        off_out[_DRIFT_OUT],
         out,
     )
+
+
+@numba.njit(cache=True)
+def _drift_point(
+    P: FloatArray,
+    S: FloatArray,
+    off_out: FloatArray,
+    dt: float,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+) -> None:
+    """The drift witness (:mod:`gradgps._grad.drift`) on the *reported* speed and heading
+    (never the motion model's stand-in: the witness must be independent of the
+    positions); its flag and offset into ``off_out[_DRIFT_OUT:]`` (0 when off)."""
+    rest = P[N_CORE_PARAMS:]
+    off_out[_DRIFT_OUT] = 0.0
+    off_out[_DRIFT_OUT + 1] = 0.0
+    if rest[_DRIFT_ON] != 0.0:
+        ds = S.size - N_MOTION_STATE - N_DRIFT_STATE
+        drift_step(
+            rest[_DRIFT : _DRIFT + N_DRIFT_PARAMS],
+            S[ds : ds + N_DRIFT_STATE],
+            dt,
+            east,
+            north,
+            speed,
+            heading,
+            off_out[_DRIFT_OUT:],
+        )
 
 
 @numba.njit(cache=True)
@@ -669,3 +768,188 @@ def grad_features(
         P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names)
     )
     return SegmentFeatures(np.asarray(features), np.asarray(bounds))
+
+
+# -- Many streams in one step ------------------------------------------------------
+#
+# lanes_step: one GRAD step for many independent streams at once ("lanes"), the same
+# numbers bit for bit.
+#
+# grad_step scores one fix of one stream: the
+# features, then the GRU as matrix-vector products (96 and 48 gate rows), then
+# the verdict. Each of those products is a loop over the inputs whose body is a
+# short vector loop over the gates, and at this size the loop's set-up costs
+# about as much as its arithmetic: the network took more than half of a fix's
+# time. A fleet scores one fix of thousands of vehicles at a time, so
+# lanes_step runs the same step for many streams together: the
+# features stream by stream (the very function ``grad_step`` calls), then both
+# GRU layers for all streams as matrix-matrix products whose innermost loop
+# runs over the streams (long, contiguous, vectorised), then the verdict
+# stream by stream (again ``grad_step``'s own function).
+#
+# The numbers are those of ``grad_step``, bit for bit: every gate of every
+# stream is summed in the same order as :func:`gradgps._grad.gru._cell` sums it
+# (its bias, then input 0, 1, 2, ..., each product rounded to float32 and added
+# in float32), four inputs per pass with the additions kept in that order, and
+# the gates go through the same functions. ``tests/test_lanes.py`` holds
+# lanes_step to ``grad_step`` fix by fix; the fleet's property test
+# holds gradgps.FleetDetector (which runs on it) to one Detector per
+# vehicle.
+
+#: Streams stepped together: long enough that the GRU's inner loops run over many
+#: streams, short enough that one block's gate buffers stay in the L1/L2 caches.
+LANES = 128
+
+
+@numba.njit(cache=True)
+def new_lane_work(P: FloatArray, lanes: int) -> Any:
+    """Work arrays of :func:`lanes_step` for up to ``lanes`` streams of models shaped like ``P``.
+
+    ``(dims, core_out, off_out, rec_out, x, xt, ht, gi, gh, scratch, gru_out, east_north)``.
+    """
+    dims = _dims(P)
+    n_features, hidden1, hidden2 = dims[0], dims[1], dims[2]
+    widest = max(hidden1, hidden2)
+    return (
+        dims,
+        np.empty((lanes, _core_width(P))),
+        np.empty((lanes, _N_OFF_OUT)),
+        np.empty(3),
+        np.empty((lanes, n_features), np.float32),
+        np.empty((n_features, lanes), np.float32),
+        np.empty((hidden1 + hidden2, lanes), np.float32),
+        np.empty((3 * widest, lanes), np.float32),
+        np.empty((3 * widest, lanes), np.float32),
+        np.empty(_scratch_size(dims), np.float32),
+        np.empty(1 + dims[3], np.float32),
+        np.empty((lanes, 2)),
+    )
+
+
+@numba.njit(cache=True)
+def _products(params: Any, o_w: int, n_in: int, g: int, inputs: Any, gates: Any, n: int) -> None:
+    """``gates[i, v] += sum_j W[j, i] * inputs[j, v]`` for the first ``n`` streams, ``W`` (n_in x
+    g) at ``params[o_w:]``, in :func:`gradgps._grad.gru._cell`'s order: j = 0, 1, 2, ...,
+    each product and sum in float32 (four inputs per pass, added left to right)."""
+    j = 0
+    while j + 4 <= n_in:
+        x0, x1, x2, x3 = inputs[j], inputs[j + 1], inputs[j + 2], inputs[j + 3]
+        for i in range(g):
+            w0 = params[o_w + j * g + i]
+            w1 = params[o_w + (j + 1) * g + i]
+            w2 = params[o_w + (j + 2) * g + i]
+            w3 = params[o_w + (j + 3) * g + i]
+            row = gates[i]
+            for v in range(n):
+                row[v] = (((row[v] + w0 * x0[v]) + w1 * x1[v]) + w2 * x2[v]) + w3 * x3[v]
+        j += 4
+    while j < n_in:
+        xj = inputs[j]
+        for i in range(g):
+            w = params[o_w + j * g + i]
+            row = gates[i]
+            for v in range(n):
+                row[v] += w * xj[v]
+        j += 1
+
+
+@numba.njit(cache=True)
+def _cell_lanes(
+    params: Any, o_wih: int, n_in: int, size: int, x: Any, h: Any, gi: Any, gh: Any, n: int
+) -> None:
+    """:func:`gradgps._grad.gru._cell` for ``n`` streams: ``x`` (n_in x lanes), ``h`` (size x
+    lanes) updated in place; ``gi``, ``gh``: gate buffers (at least 3 size x lanes)."""
+    g = 3 * size
+    o_whh = o_wih + n_in * g
+    o_bih = o_whh + size * g
+    o_bhh = o_bih + g
+    for i in range(g):
+        bi = params[o_bih + i]
+        bh = params[o_bhh + i]
+        for v in range(n):
+            gi[i, v] = bi
+            gh[i, v] = bh
+    _products(params, o_wih, n_in, g, x, gi, n)
+    _products(params, o_whh, size, g, h, gh, n)
+    for i in range(size):
+        for v in range(n):
+            r = _sigmoid_scalar(gi[i, v] + gh[i, v])
+            z = _sigmoid_scalar(gi[size + i, v] + gh[size + i, v])
+            c = _tanh_scalar(gi[2 * size + i, v] + r * gh[2 * size + i, v])
+            h[i, v] = (1.0 - z) * c + z * h[i, v]
+
+
+@numba.njit(cache=True)
+def lanes_step(
+    Ps: FloatArray,
+    Ss: FloatArray,
+    s_off: NDArray[np.int64],
+    s_len: NDArray[np.int64],
+    Hs: Any,
+    gp: Any,
+    work: Any,
+    slot: NDArray[np.int64],
+    rows: NDArray[np.int64],
+    n: int,
+    dt: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    speed: FloatArray,
+    heading: FloatArray,
+    out: FloatArray,
+) -> None:
+    """One fix for each of ``n`` streams (no stream twice), as :func:`grad_step` scores it.
+
+    Stream ``v`` has parameters ``Ps[slot[v]]``, state ``Ss[s_off[slot[v]]:][:s_len[slot[v]]]``
+    and GRU state ``Hs[slot[v]]``; its fix is row ``rows[v]`` of ``dt``, ``lat``, ``lon``,
+    ``speed``, ``heading``, and its 7 outputs go to ``out[rows[v]]``. ``work``:
+    :func:`new_lane_work` (for at least ``n`` streams).
+    """
+    dims, core_out, off_out, rec_out, x, xt, ht, gi, gh, scratch, gru_out, en = work
+    n_features, hidden1, hidden2 = dims[0], dims[1], dims[2]
+    for v in range(n):
+        s = slot[v]
+        i = rows[v]
+        a = s_off[s]
+        S = Ss[a : a + s_len[s]]
+        east, north = _features_point(
+            Ps[s], S, core_out[v], off_out[v], dt[i], lat[i], lon[i], speed[i], heading[i], x[v]
+        )
+        _drift_point(Ps[s], S, off_out[v], dt[i], east, north, speed[i], heading[i])
+        en[v, 0] = east
+        en[v, 1] = north
+    # The GRU for all streams at once (gradgps._grad.gru._recurrent_step, transposed).
+    for j in range(n_features):
+        mean = gp[j]
+        inv_std = gp[n_features + j]
+        for v in range(n):
+            scaled = (x[v, j] - mean) * inv_std
+            xt[j, v] = scaled if math.isfinite(scaled) else 0.0
+    for k in range(hidden1 + hidden2):
+        for v in range(n):
+            ht[k, v] = Hs[slot[v], k]
+    o1 = 2 * n_features
+    _cell_lanes(gp, o1, n_features, hidden1, xt, ht[:hidden1], gi, gh, n)
+    o2 = o1 + _layer_size(n_features, hidden1)
+    _cell_lanes(gp, o2, hidden1, hidden2, ht[:hidden1], ht[hidden1:], gi, gh, n)
+    for v in range(n):
+        s = slot[v]
+        H = Hs[s]
+        for k in range(hidden1 + hidden2):
+            H[k] = ht[k, v]
+        _heads(gp, dims, H, scratch, gru_out)
+        a = s_off[s]
+        _verdict(
+            Ps[s],
+            Ss[a : a + s_len[s]],
+            dims,
+            gru_out,
+            core_out[v],
+            rec_out,
+            en[v, 0],
+            en[v, 1],
+            off_out[v, _SH],
+            off_out[v, _SH + 1],
+            off_out[v, _DRIFT_OUT],
+            out[rows[v]],
+        )

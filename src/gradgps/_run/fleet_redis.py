@@ -69,7 +69,7 @@ import re
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import astuple, dataclass, fields
+from dataclasses import KW_ONLY, astuple, dataclass, field, fields
 from typing import TYPE_CHECKING, Any
 
 from .._exceptions import ConfigError, GradGPSError
@@ -77,8 +77,9 @@ from .._result import RESULT_COLUMNS, PointResult
 
 if TYPE_CHECKING:
     import redis
+    from redis.commands.core import Script
 
-    from .._grad.detector import FleetResult
+    from .._grad.detector import FleetDetector, FleetResult
 
 __all__ = ["OUTPUT_FIELDS", "READ_SCRIPT", "ROUTE_SCRIPT", "RedisStreamWorker", "StepReport"]
 
@@ -307,6 +308,7 @@ def _outputs(messages: list[_Message], result: FleetResult) -> list[dict[str, st
     return [_output(m, v) for m, v in zip(messages, zip(*columns, strict=True), strict=True)]
 
 
+@dataclass(eq=False)
 class RedisStreamWorker:
     """One consumer of a Redis Streams consumer group running GRAD per vehicle.
 
@@ -324,42 +326,37 @@ class RedisStreamWorker:
     ``gradgps:<input_stream>:<group>:``.
     """
 
-    def __init__(
-        self,
-        client: redis.Redis,
-        input_stream: str,
-        output_stream: str,
-        group: str,
-        consumer: str,
-        *,
-        model: str | os.PathLike[str] | None = None,
-        threshold: float | None = None,
-        batch_size: int = 1000,
-        lease_ms: int = 10_000,
-        cache_size: int = 10_000,
-        key_prefix: str | None = None,
-    ) -> None:
-        self.client = client
-        self.input_stream = input_stream
-        self.output_stream = output_stream
-        self.group = group
-        self.consumer = consumer
-        self.model = model
-        self.threshold = threshold
-        self.batch_size = batch_size
-        self.lease_ms = lease_ms
-        self.cache_size = cache_size
-        self.key_prefix = f"gradgps:{input_stream}:{group}:" if key_prefix is None else key_prefix
+    client: redis.Redis
+    input_stream: str
+    output_stream: str
+    group: str
+    consumer: str
+    _: KW_ONLY
+    model: str | os.PathLike[str] | None = None
+    threshold: float | None = None
+    batch_size: int = 1000
+    lease_ms: int = 10_000
+    cache_size: int = 10_000
+    key_prefix: str | None = None
+    _fleet: FleetDetector = field(init=False, repr=False)
+    # Vehicles whose state in self._fleet is current, with the id of the last message
+    # it has seen (least recently used first).
+    _tracks: OrderedDict[bytes, str] = field(init=False, repr=False)
+    _route: Script = field(init=False, repr=False)
+    _read: Script = field(init=False, repr=False)
+    _dead: list[dict[str, str]] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.key_prefix is None:
+            self.key_prefix = f"gradgps:{self.input_stream}:{self.group}:"
         self._check()
         from .._grad.detector import FleetDetector
 
-        self._fleet = FleetDetector(model, threshold=threshold)
-        # Vehicles whose state in self._fleet is current, with the id of the last message
-        # it has seen (least recently used first).
-        self._tracks: OrderedDict[bytes, str] = OrderedDict()
-        self._route = client.register_script(ROUTE_SCRIPT)
-        self._read = client.register_script(READ_SCRIPT)
-        self._dead: list[dict[str, str]] = []
+        self._fleet = FleetDetector(self.model, threshold=self.threshold)
+        self._tracks = OrderedDict()
+        self._route = self.client.register_script(ROUTE_SCRIPT)
+        self._read = self.client.register_script(READ_SCRIPT)
+        self._dead = []
 
     def _check(self) -> None:
         kwargs = self.client.connection_pool.connection_kwargs
