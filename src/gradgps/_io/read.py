@@ -761,7 +761,10 @@ def _parquet_tables(
     except ImportError as exc:
         raise _no_pyarrow(exc) from None
     try:
-        file = pq.ParquetFile(path)
+        # pre_buffer off: on, pyarrow reads ahead the column chunks of every row group
+        # still to come and holds them (84 MB more at 4.69 M fixes, a 103 MB file; the
+        # peak grew with the file, docs/reliability.md "Round two").
+        file = pq.ParquetFile(path, pre_buffer=False)
         schema = file.schema_arrow
         stored_index = [
             c for c in (schema.pandas_metadata or {}).get("index_columns", []) if isinstance(c, str)
