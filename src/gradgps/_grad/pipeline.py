@@ -281,7 +281,7 @@ def _features_point(
     same miss to the offset every step; the tracker then predicts with its
     own estimate from the steps it explained.
     The speed and heading used are left in ``off_out[_SH : _SH + 2]`` for the
-    recovery in :func:`_decide_point`.
+    recovery in :func:`_verdict`.
     """
     Pc = P[:N_CORE_PARAMS]
     rest = P[N_CORE_PARAMS:]
@@ -340,36 +340,6 @@ def _compress(v: float) -> float:
 
 
 @numba.njit(cache=True)
-def _decide_point(
-    P: FloatArray,
-    S: FloatArray,
-    H: Any,
-    gp: Any,
-    dims: Any,
-    x: Any,
-    scratch: Any,
-    gru_out: Any,
-    core_out: FloatArray,
-    rec_out: FloatArray,
-    east: float,
-    north: float,
-    speed: float,
-    heading: float,
-    drift: float,
-    out: FloatArray,
-) -> None:
-    """GRU on ``x`` -> threshold -> time type -> recovery -> clean position in degrees.
-
-    ``drift``: the drift witness's flag. A fix the GRU passes but the witness
-    flags is an anomaly of bias class ``dims[3]`` (``drift``, after the head's
-    classes: the head has no drift class); the GRU's own verdicts stand.
-    """
-    _recurrent_step(gp, dims, x, H, scratch)
-    _heads(gp, dims, H, scratch, gru_out)
-    _verdict(P, S, dims, gru_out, core_out, rec_out, east, north, speed, heading, drift, out)
-
-
-@numba.njit(cache=True)
 def _verdict(
     P: FloatArray,
     S: FloatArray,
@@ -385,8 +355,13 @@ def _verdict(
     out: FloatArray,
 ) -> None:
     """The network's outputs ``gru_out`` -> threshold -> time type -> recovery -> clean
-    position in degrees (the part of :func:`_decide_point` after the GRU, shared with the
-    many-stream step :func:`lanes_step`)."""
+    position in degrees (the part of :func:`grad_step` after the GRU, shared with the
+    many-stream step :func:`lanes_step`).
+
+    ``drift``: the drift witness's flag. A fix the GRU passes but the witness
+    flags is an anomaly of bias class ``dims[3]`` (``drift``, after the head's
+    classes: the head has no drift class); the GRU's own verdicts stand.
+    """
     rest = P[N_CORE_PARAMS:]
     core_size = S.size - _N_TAIL_STATE
     ts = core_size + N_OFFSET_STATE
@@ -482,14 +457,12 @@ def grad_step(
     dims, core_out, off_out, rec_out, x, scratch, gru_out = work
     east, north = _features_point(P, S, core_out, off_out, dt, lat, lon, speed, heading, x)
     _drift_point(P, S, off_out, dt, east, north, speed, heading)
-    _decide_point(
+    _recurrent_step(gp, dims, x, H, scratch)
+    _heads(gp, dims, H, scratch, gru_out)
+    _verdict(
         P,
         S,
-        H,
-        gp,
         dims,
-        x,
-        scratch,
         gru_out,
         core_out,
         rec_out,
