@@ -37,6 +37,7 @@ from typing import Any
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 from gradgps._data.simulator import simulate_fleet
+from gradgps._run.chunked import detect_partition
 from gradgps._run.fleet_dask import dask_client, detect_fleet
 
 START, END = "<!-- fleet:start -->", "<!-- fleet:end -->"
@@ -61,7 +62,7 @@ def measure(source: Path, scratch: Path, workers: int) -> dict[str, Any]:
     with dask_client(workers=workers) as client:
         client.run(_warm_up)
         load_before = os.getloadavg()[0]
-        summary = detect_fleet(source, scratch / f"out-{workers}", client)
+        summary = detect_fleet(source, scratch / f"out-{workers}", client, task=detect_partition)
     return {
         "workers": workers,
         "vehicles": summary.vehicles,

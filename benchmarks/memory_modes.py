@@ -16,7 +16,17 @@ mode:
 * ``csv --chunk-size 0``: the whole file at once;
 * ``parquet``, ``gpx``, ``nmea``: those inputs (same fixes; the files'
   sizes differ, each is recorded);
-* ``csv --report``: chunked detection plus the HTML report.
+* ``csv --report``: chunked detection plus the HTML report;
+* ``geoparquet``: the fixes as GeoParquet (WKB points, ``geo`` metadata);
+* ``rosbag``: the fixes as a ROS 1 bag (``sensor_msgs/NavSatFix`` on one
+  topic per 100 tracks, so several receivers interleave);
+* ``csv --geojson --gpx``: chunked detection writing both exports;
+* ``detect-fleet``: the CSV as one vehicle's file of a fleet directory,
+  ``detect-fleet --workers 1`` (peak: the larger of the process and its Dask
+  worker processes, ``ru_maxrss`` of the children, which needs the processes
+  ended; for this mode only, since ``VmHWM`` does not see the workers);
+* ``geojson``: the fixes as GeoJSON Point features (read whole: run it at
+  small sizes only).
 
 Each command runs in a child Python process that calls the CLI and reports its
 own peak resident set size (``VmHWM`` in ``/proc/self/status``: the kernel's
@@ -39,6 +49,7 @@ import datetime
 import json
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -47,7 +58,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from memory_hostile import VMHWM_CHILD, run_child
+from memory_hostile import _CHILD, VMHWM_CHILD, run_child
 
 from gradgps import simulate_fleet
 from gradgps._io.nmea import nmea_checksum
@@ -55,7 +66,19 @@ from gradgps._io.nmea import nmea_checksum
 _BLOCK = 100  # tracks simulated once and repeated
 _BYTES_PER_ROW = 64.0  # of the CSV below, measured: sizes are approximate
 
-MODES = ("csv chunked", "csv --chunk-size 0", "parquet", "gpx", "nmea", "csv --report")
+MODES = (
+    "csv chunked",
+    "csv --chunk-size 0",
+    "parquet",
+    "gpx",
+    "nmea",
+    "csv --report",
+    "geoparquet",
+    "rosbag",
+    "csv --geojson --gpx",
+    "detect-fleet",
+    "geojson",
+)
 
 
 def _fleet(rows: int) -> pd.DataFrame:
@@ -124,6 +147,85 @@ def _nmea(fixes: pd.DataFrame, path: Path) -> None:
             out.write(f"${body}*{nmea_checksum(body):02X}\n")
 
 
+def _geoparquet(fixes: pd.DataFrame, path: Path) -> None:
+    """GeoParquet 1.0 with WKB points (little-endian, type 1) and no CRS (OGC:CRS84)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    n = len(fixes)
+    wkb = np.zeros(n, np.dtype([("order", "u1"), ("kind", "<u4"), ("x", "<f8"), ("y", "<f8")]))
+    wkb["order"], wkb["kind"] = 1, 1
+    wkb["x"], wkb["y"] = fixes["lon"].to_numpy(), fixes["lat"].to_numpy()
+    points = pa.Array.from_buffers(pa.binary(21), n, [None, pa.py_buffer(wkb.tobytes())])
+    table = pa.Table.from_pandas(fixes.drop(columns=["lat", "lon"]), preserve_index=False)
+    table = table.append_column("geometry", points.cast(pa.binary()))
+    geo = {
+        "version": "1.0.0",
+        "primary_column": "geometry",
+        "columns": {"geometry": {"encoding": "WKB", "geometry_types": ["Point"]}},
+    }
+    metadata = {**(table.schema.metadata or {}), b"geo": json.dumps(geo).encode()}
+    pq.write_table(table.replace_schema_metadata(metadata), path)
+
+
+def _rosbag(fixes: pd.DataFrame, path: Path) -> None:
+    """A ROS 1 bag: a NavSatFix per fix, on topic ``/gps<k>/fix`` for tracks ``k*100..``."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    types = store.types
+    fix_type = "sensor_msgs/msg/NavSatFix"
+    status = types["sensor_msgs/msg/NavSatStatus"](status=0, service=1)
+    covariance = np.zeros(9)
+    group = fixes["track"].astype(int).to_numpy() // 100
+    with Writer(path) as writer:
+        connections = {
+            int(k): writer.add_connection(f"/gps{k}/fix", fix_type, typestore=store)
+            for k in np.unique(group)
+        }
+        for k, t, lat, lon in zip(
+            group.tolist(),
+            fixes["t"].tolist(),
+            fixes["lat"].tolist(),
+            fixes["lon"].tolist(),
+            strict=True,
+        ):
+            stamp = t  # unix seconds
+            sec = int(stamp)
+            header = types["std_msgs/msg/Header"](
+                seq=0,
+                stamp=types["builtin_interfaces/msg/Time"](
+                    sec=sec, nanosec=round((stamp - sec) * 1e9)
+                ),
+                frame_id="gps",
+            )
+            message = types[fix_type](
+                header=header,
+                status=status,
+                latitude=lat,
+                longitude=lon,
+                altitude=500.0,
+                position_covariance=covariance,
+                position_covariance_type=0,
+            )
+            writer.write(connections[k], int(stamp * 1e9), store.serialize_ros1(message, fix_type))
+
+
+def _geojson(fixes: pd.DataFrame, path: Path) -> None:
+    with path.open("w") as out:
+        out.write('{"type":"FeatureCollection","features":[')
+        for i, (track, t, lat, lon) in enumerate(
+            zip(fixes["track"], fixes["t"], fixes["lat"], fixes["lon"], strict=True)
+        ):
+            out.write(
+                ("," if i else "")
+                + '{"type":"Feature","geometry":{"type":"Point","coordinates":'
+                + f'[{lon!r},{lat!r}]}},"properties":{{"track":"{track}","t":{t!r}}}}}'
+            )
+        out.write("]}")
+
+
 def _inputs(folder: Path, size_mb: float, formats: set[str]) -> dict[str, Path]:
     """The fixes of a ``size_mb`` CSV, written in each of ``formats`` (Parquet always: the
     fix count is read from it)."""
@@ -133,12 +235,21 @@ def _inputs(folder: Path, size_mb: float, formats: set[str]) -> dict[str, Path]:
         "parquet": lambda path: fixes.to_parquet(path, index=False),
         "gpx": lambda path: _gpx(fixes, path),
         "nmea": lambda path: _nmea(fixes, path),
+        "geoparquet": lambda path: _geoparquet(fixes, path),
+        "rosbag": lambda path: _rosbag(fixes, path),
+        "geojson": lambda path: _geojson(fixes, path),
     }
     paths = {}
     for kind, write in writers.items():
         if kind in formats or kind == "parquet":
-            paths[kind] = folder / f"fleet_{size_mb:g}.{kind}"
+            suffix = {"geoparquet": "parquet", "rosbag": "bag"}.get(kind, kind)
+            paths[kind] = folder / f"fleet_{size_mb:g}_{kind}.{suffix}"
             write(paths[kind])
+    if "detect-fleet" in formats:  # the CSV as one vehicle's file
+        vehicles = folder / f"fleet_{size_mb:g}_dir"
+        vehicles.mkdir()
+        os.link(paths["csv"], vehicles / "vehicle.csv")
+        paths["detect-fleet"] = vehicles
     return paths
 
 
@@ -150,16 +261,84 @@ def _command(mode: str, paths: dict[str, Path], out: Path) -> list[str]:
     if mode == "csv --report":
         report = out.with_name("report.html")
         return ["detect", str(paths["csv"]), "-o", str(out), "--report", str(report)]
+    if mode == "csv --geojson --gpx":
+        geo, gpx = out.with_name("out.geojson"), out.with_name("out.gpx")
+        return [
+            "detect",
+            str(paths["csv"]),
+            "-o",
+            str(out),
+            "--geojson",
+            str(geo),
+            "--gpx",
+            str(gpx),
+        ]
+    if mode == "detect-fleet":
+        return [
+            "detect-fleet",
+            str(paths[mode]),
+            "-o",
+            str(out.with_name("fleet_out")),
+            "--workers",
+            "1",
+        ]
     return ["detect", str(paths[mode]), "-o", str(out)]
 
 
 def _input_of(mode: str) -> str:
-    return mode.split()[0]
+    return "csv" if mode == "detect-fleet" else mode.split()[0]
+
+
+# Runs children for this process, started before any input is built (see _Launcher).
+_LAUNCHER = """
+import json, sys
+from memory_hostile import run_child
+for line in sys.stdin:
+    args, child = json.loads(line)
+    print(json.dumps(run_child(args, child)), flush=True)
+"""
+
+
+class _Launcher:
+    """A small process, started before any input is built, that starts the measured children.
+
+    detect-fleet's peak is read as ``ru_maxrss`` of the children (its Dask worker
+    processes, which ``VmHWM`` of the CLI's process does not see), and Linux carries a
+    process's ``ru_maxrss`` over into the children it forks and execs: started from this
+    process, holding the inputs it built (a gigabyte at 100 MB of CSV), the figure would
+    be this process's peak (it was: 1,039 MB at 1.56 M fixes, where the worker peaked
+    at 473 MB at 781,200 fixes, sampled). The launcher's own peak is the floor instead.
+    """
+
+    def __init__(self) -> None:
+        self._proc = subprocess.Popen(
+            [sys.executable, "-c", _LAUNCHER],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            cwd=Path(__file__).parent,
+        )
+
+    def run(self, args: list[str], child: str) -> dict[str, object]:
+        assert self._proc.stdin is not None
+        assert self._proc.stdout is not None
+        self._proc.stdin.write(json.dumps([args, child]) + "\n")
+        self._proc.stdin.flush()
+        done: dict[str, object] = json.loads(self._proc.stdout.readline())
+        return done
+
+
+_launcher: _Launcher | None = None
 
 
 def _run(args: list[str]) -> dict[str, object]:
-    # The child's own peak (VmHWM), not ru_maxrss, which carries the parent's size.
-    return run_child(args, VMHWM_CHILD)
+    # The child's own peak (VmHWM), not ru_maxrss, which carries the parent's size; for
+    # detect-fleet, whose work is done in Dask worker processes, ru_maxrss of the children,
+    # started from the launcher.
+    if args[0] != "detect-fleet":
+        return run_child(args, VMHWM_CHILD)
+    assert _launcher is not None
+    return _launcher.run(args, _CHILD)
 
 
 def _fit(rows: list[dict[str, object]]) -> dict[str, float] | None:
@@ -226,6 +405,8 @@ def main() -> None:
         print(json.dumps(done["growth"], indent=2))
         return
     modes = [m for m in MODES if not opts.only or m in opts.only]
+    global _launcher
+    _launcher = _Launcher()
     rows: list[dict[str, object]] = []
     load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="gradgps-memmodes-") as tmp:
@@ -236,7 +417,7 @@ def main() -> None:
         print(json.dumps({"baseline": baseline}), flush=True)
         for size in opts.sizes_mb:
             started = time.perf_counter()
-            paths = _inputs(folder, size, {_input_of(m) for m in modes})
+            paths = _inputs(folder, size, {_input_of(m) for m in modes} | set(modes))
             sizes = {k: p.stat().st_size for k, p in paths.items()}
             n_fixes = len(pd.read_parquet(paths["parquet"], columns=["t"]))
             print(
@@ -251,12 +432,14 @@ def main() -> None:
                     "input_mb": round(sizes[_input_of(mode)] / 1e6, 2),
                     **_run(_command(mode, paths, out)),
                 }
-                for leftover in (out, folder / "report.html"):
-                    leftover.unlink(missing_ok=True)
+                for leftover in ("report.html", "out.geojson", "out.gpx"):
+                    (folder / leftover).unlink(missing_ok=True)
+                out.unlink(missing_ok=True)
+                shutil.rmtree(folder / "fleet_out", ignore_errors=True)
                 rows.append(row)
                 print(json.dumps(row), flush=True)
             for p in paths.values():
-                p.unlink()
+                shutil.rmtree(p) if p.is_dir() else p.unlink()
     fits = {mode: _fit([r for r in rows if r["mode"] == mode]) for mode in modes}
     report = {
         "command": " ".join(["python", *sys.argv]),

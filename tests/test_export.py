@@ -231,7 +231,7 @@ def _segments(g: dict[str, Any]) -> list[list[list[float]]]:
 def test_geojson_is_strict_with_missing_values_and_the_antimeridian(tmp_path: Path) -> None:
     """NaN/inf/None become null, positions stay in range, lines are cut at 180 (RFC 7946 3.1.9)."""
     from gradgps._grad.events import fault_events
-    from gradgps._io.export import write_geojson
+    from gradgps._io.export_streamed import write_geojson
 
     lon = [179.9997, 179.9998, 179.9999, -179.9999, -179.9998, -179.9997]
     # A repaired longitude just past 180 is the same place written the other way round.

@@ -14,6 +14,7 @@ from gradgps import ConfigError, InputError
 from gradgps._cli import main
 from gradgps._data.simulator import simulate_fleet
 from gradgps._result import RESULT_COLUMNS as _RESULT_COLUMNS
+from gradgps._run.chunked import detect_partition
 from gradgps._run.fleet_dask import dask_client, detect_fleet, find_partitions
 
 pytest.importorskip("distributed")
@@ -139,7 +140,7 @@ def test_a_bad_vehicle_file_fails_the_run_naming_the_file(client: Any, tmp_path:
     (source / "ok.csv").write_text("t,lat,lon\n0,45,7\n1,45.0001,7\n")
     (source / "bad.csv").write_text("t,lat,lon\n0,45,7\n1,north,7\n")
     with pytest.raises(InputError, match=r"bad\.csv.*lat"):
-        detect_fleet(source, tmp_path / "out", client)
+        detect_fleet(source, tmp_path / "out", client, task=detect_partition)
 
 
 def test_output_directory_must_be_new_or_empty(
@@ -150,9 +151,9 @@ def test_output_directory_must_be_new_or_empty(
     target.mkdir()
     (target / "old.csv").write_text("x\n")
     with pytest.raises(ConfigError, match="not empty"):
-        detect_fleet(source, target, client)
+        detect_fleet(source, target, client, task=detect_partition)
     with pytest.raises(ConfigError, match="input directory"):
-        detect_fleet(source, source, client)
+        detect_fleet(source, source, client, task=detect_partition)
 
 
 def test_a_partition_runs_serially_without_touching_numba_threads(
@@ -164,7 +165,6 @@ def test_a_partition_runs_serially_without_touching_numba_threads(
     import numba
 
     from gradgps._run import fleet_dask
-    from gradgps._run.fleet_dask import detect_partition
 
     _write_fleet(fleet, tmp_path / "in")
     parts = find_partitions(tmp_path / "in")
@@ -174,3 +174,27 @@ def test_a_partition_runs_serially_without_touching_numba_threads(
     summary = detect_partition(parts[0], str(tmp_path / "out"))
     assert numba.get_num_threads() == before
     assert summary is not None
+
+
+@pytest.mark.parametrize("chunk_size", [1, 7, 10_000])
+def test_a_partition_in_chunks_equals_batch_detection_of_its_files_joined(
+    fleet: pd.DataFrame, tmp_path: Path, chunk_size: int
+) -> None:
+    """Issue 18: a task reads its vehicle's files in chunks (memory of one chunk), with the
+    detectors carried over chunk and file boundaries: the results of the files joined and
+    detected whole, as tasks did before, row for row."""
+    from gradgps import Detector
+    from gradgps._io.read import load_table
+    from gradgps._tracks.track import to_fixes
+
+    _write_fleet(fleet, tmp_path / "in")
+    split = next(p for p in find_partitions(tmp_path / "in") if len(p.files) == 2)
+    (tmp_path / "out").mkdir()
+    summary = detect_partition(split, str(tmp_path / "out"), chunk_size=chunk_size)
+    fixes = pd.concat([to_fixes(load_table(f)) for f in split.files], ignore_index=True)
+    want = Detector().detect(fixes).reset_index(drop=True)
+    got = pd.concat(
+        [pd.read_parquet(tmp_path / "out" / r) for r in split.outputs], ignore_index=True
+    )
+    assert summary.rows == len(want) == len(got)
+    pd.testing.assert_frame_equal(got[RESULT_COLUMNS], want[RESULT_COLUMNS], check_dtype=False)

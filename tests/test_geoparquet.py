@@ -75,11 +75,44 @@ def test_geoparquet_to_csv_writes_the_geometry_as_wkt(tmp_path: Path) -> None:
     assert frame["time"].iloc[0] == "2026-11-23T10:00:00Z"
 
 
-def test_geoparquet_with_lines_names_the_row(tmp_path: Path) -> None:
+@pytest.mark.parametrize("chunked", [False, True])
+def test_geoparquet_with_lines_names_the_row(tmp_path: Path, chunked: bool) -> None:
+    """Read whole or in chunks of 10 (issue 18), a line names its row in the file."""
+    from gradgps._io.read import table_chunks
+
     geometry = list(gpd.points_from_xy(LON, LAT))
-    geometry[4] = shapely.LineString([(11.5, 48.1), (11.6, 48.2)])
+    geometry[24] = shapely.LineString([(11.5, 48.1), (11.6, 48.2)])
     frame = gpd.GeoDataFrame({"t": np.arange(30.0)}, geometry=geometry, crs="EPSG:4326")
     frame.to_parquet(tmp_path / "lines.parquet")
-    with pytest.raises(InputError, match=r"row 5.*geometry|geometry.*row 5") as info:
-        read_fixes(tmp_path / "lines.parquet")
+    path = tmp_path / "lines.parquet"
+    read = (lambda: list(table_chunks(path, 10))) if chunked else (lambda: read_fixes(path))
+    with pytest.raises(InputError, match=r"row 25.*geometry|geometry.*row 25") as info:
+        read()
     assert "a LineString, not a Point" in str(info.value)
+
+
+@pytest.mark.parametrize("crs", ["EPSG:4326", "EPSG:25832"])
+@pytest.mark.parametrize("suffix", [".parquet", ".csv"])
+def test_geoparquet_is_read_in_chunks_with_the_whole_file_results(
+    tmp_path: Path, crs: str, suffix: str
+) -> None:
+    """Issue 18: GeoParquet is read a record batch at a time (row groups of 7 rows here,
+    chunks of 4), its points decoded chunk by chunk: the output of --chunk-size 0 (the file
+    read whole), values, geometry and ``geo`` metadata alike."""
+    import pyarrow.parquet as pq
+
+    path = _geoparquet(tmp_path / "drive.parquet", crs)
+    table = pq.read_table(path)
+    pq.write_table(table, path, row_group_size=7)
+    assert pq.ParquetFile(path).metadata.num_row_groups == 5
+    chunked, whole = tmp_path / f"chunked{suffix}", tmp_path / f"whole{suffix}"
+    _detect([str(path), "-o", str(chunked), "--chunk-size", "4"])
+    _detect([str(path), "-o", str(whole), "--chunk-size", "0"])
+    if suffix == ".csv":
+        assert chunked.read_bytes() == whole.read_bytes()
+        return
+    pd.testing.assert_frame_equal(pd.read_parquet(chunked), pd.read_parquet(whole))
+    assert pq.read_schema(chunked).metadata[b"geo"] == pq.read_schema(path).metadata[b"geo"]
+    back = gpd.read_parquet(chunked)
+    assert back.crs == gpd.read_parquet(path).crs
+    assert back["lat_clean"].to_numpy() == pytest.approx(LAT, abs=1e-5)

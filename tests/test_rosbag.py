@@ -115,3 +115,35 @@ def test_a_damaged_metadata_yaml_is_one_error_line(tmp_path):
     assert result.exit_code == 2  # bad input, as click's usage errors
     assert result.output.strip().startswith("error: ")
     assert len(result.output.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("chunk", [1, 4, 7, 1000])
+def test_a_bag_read_in_chunks_gives_the_whole_bag(tmp_path, chunk):
+    """Issue 18: a bag is read message by message into chunks (two passes: twist speeds
+    first, then the fixes), so memory is one chunk and the twists, not the bag; the chunks
+    join to the whole-bag table (two receivers interleaved, speeds from twists that come
+    after their fix in the bag), and detect gives the bytes of --chunk-size 0."""
+    import pandas as pd
+
+    from gradgps._io.read import table_chunks
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    path = tmp_path / "two"
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        write_drive(writer, store, store.serialize_cdr, extra_topic=True)
+    whole = read_table(path)
+    chunks = table_chunks(path, chunk)
+    assert chunks.n_rows == len(whole.frame) == N + 5
+    tables = list(chunks)
+    assert [t.row_offset for t in tables] == list(range(0, N + 5, chunk))
+    assert all(t.columns == whole.columns for t in tables)
+    pd.testing.assert_frame_equal(
+        pd.concat([t.frame for t in tables], ignore_index=True), whole.frame
+    )
+    outputs = []
+    for size in (str(chunk), "0"):
+        out = tmp_path / f"out{size}.csv"
+        done = CliRunner().invoke(main, ["detect", str(path), "-o", str(out), "--chunk-size", size])
+        assert done.exit_code == 0, done.output
+        outputs.append(out.read_bytes())
+    assert outputs[0] == outputs[1]

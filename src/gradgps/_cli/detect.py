@@ -5,11 +5,13 @@ column kept, plus the detector's columns: ``anomaly`` (0/1), ``score``
 (0..1), ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
 ``alert`` (0/1) and ``invalid_reason`` (empty for a usable fix).
 
-CSV, Parquet, GPX and NMEA input is processed ``--chunk-size`` rows at a time
-in bounded memory (:mod:`gradgps._run.chunked`; Parquet by record batches of one
-row group at a time; GPX and NMEA in two streaming passes,
-:func:`gradgps._io.read.table_chunks`); ``--chunk-size 0``, GeoParquet, GeoJSON
-and ROS bags read the whole file. Both read each track in row order with one rule (see
+CSV, Parquet (GeoParquet too), GPX, NMEA and ROS bag input is processed
+``--chunk-size`` rows at a time in bounded memory (:mod:`gradgps._run.chunked`;
+Parquet by record batches of one row group at a time; GPX, NMEA and ROS bags in
+two streaming passes, :func:`gradgps._io.read.table_chunks`), and ``--geojson``
+and ``--gpx`` are written as results come
+(:class:`gradgps._io.export_streamed.StreamedExports`); ``--chunk-size 0`` and
+GeoJSON input read the whole file. Both read each track in row order with one rule (see
 :func:`gradgps._tracks.preprocess.stream_reasons`): a fix whose time is not
 after the previous usable fix of its track is flagged invalid, never merged,
 so every mode, ``--report`` included, gives the same rows flagged and the
@@ -33,7 +35,7 @@ if TYPE_CHECKING:
 
 __all__ = ["WHOLE_FILE_WARN_BYTES", "detect"]
 
-#: A file read whole (``--chunk-size 0``, GeoParquet, GeoJSON, a ROS bag) larger than this
+#: A file read whole (``--chunk-size 0``, GeoJSON) larger than this
 #: gets a warning first: its memory grows with it (docs/reliability.md, "Bounded memory").
 WHOLE_FILE_WARN_BYTES = 100_000_000
 
@@ -88,7 +90,8 @@ WHOLE_FILE_WARN_BYTES = 100_000_000
     "--chunk-size",
     minimum=0,
     default=200_000,
-    help="CSV, Parquet, GPX or NMEA rows per chunk (bounded memory); 0 = read the whole "
+    help="rows per chunk of CSV, Parquet, GPX, NMEA or ROS bag input (bounded memory); "
+    "0 = read the whole "
     "file at once (memory grows with the file). "
     "Same results either way",
 )
@@ -113,9 +116,9 @@ def detect(
     Every mode gives the same answer: each track is read in row order, and a
     fix whose time is not after the previous usable fix of its track (a
     repeated or backward timestamp) is flagged invalid, never merged. CSV,
-    Parquet, GPX and NMEA input is processed in chunks of --chunk-size rows
-    (memory stays bounded however large the file, unless --geojson/--gpx
-    need the whole track). With --follow, INPUT is read as a live stream (e.g. 'tail
+    Parquet, GPX, NMEA and ROS bag input is processed in chunks of --chunk-size rows
+    (memory stays bounded however large the file, --report, --geojson and
+    --gpx included). With --follow, INPUT is read as a live stream (e.g. 'tail
     -f log.nmea | gradgps detect --follow -') and results go to standard
     output.
     """
@@ -148,6 +151,7 @@ def detect(
 
     from .._grad.detector import Detector
     from .._grad.events import EventBuilder
+    from .._io.export_streamed import StreamedExports
     from .._io.read import chunkable, load_table, write_table
     from .._io.times import output_time_text
     from .._result import ResultCounts
@@ -159,9 +163,10 @@ def detect(
     exports = geojson_path is not None or gpx_path is not None
     chunked = chunk_size > 0 and chunkable(input_path, settings.fmt)
     # The report and plots draw from a collection of bounded size (report_data), unless
-    # --geojson/--gpx keep every fix anyway or the whole file is read at once.
-    collector = ReportCollector() if drawing and chunked and not exports else None
-    whole = exports or (drawing and collector is None)
+    # the whole file is read at once; --geojson/--gpx are written as results come.
+    collector = ReportCollector() if drawing and chunked else None
+    whole = drawing and collector is None
+    exporter = StreamedExports(geojson_path, gpx_path) if exports else None
     events = EventBuilder() if (events_path or report_path or geojson_path) else None
     kept: list[tuple[pd.DataFrame, pd.DataFrame]] = []
     # The time column as the output writes it, for the report's tables (None: numbers).
@@ -176,6 +181,8 @@ def detect(
                 time_column = _time_column(frame, fixes)
             if events is not None:
                 events.add(fixes, result)
+            if exporter is not None:
+                exporter.add(fixes, result)
             if whole:
                 kept.append((fixes, result))
                 time_texts.append(output_time_text(frame, _time_name(fixes)))
@@ -215,6 +222,8 @@ def detect(
                 )
         if events is not None:
             events.add(fixes, result)
+        if exporter is not None:
+            exporter.add(fixes, result)
         kept.append((fixes, result))
         time_texts.append(output_time_text(table.frame, _time_name(fixes)))
         counts = ResultCounts.of(result)
@@ -226,7 +235,7 @@ def detect(
     for warning in warnings:
         # Once, on standard error: the input is outside what the model was validated on.
         click.echo(f"warning: {warning}", err=True)
-    if not whole and events is None and collector is None:
+    if not whole and events is None and collector is None and exporter is None:
         return
     fixes_all = pd.concat([f for f, _ in kept], ignore_index=True) if whole else None
     result_all = pd.concat([r for _, r in kept], ignore_index=True) if whole else None
@@ -234,22 +243,14 @@ def detect(
     if events_path is not None and table_events is not None:
         write_table(_events_in_input_form(table_events, time_column), events_path)
         click.echo(f"events: {events_path} ({len(table_events):,} fault events)")
-    geojson = None
-    if fixes_all is not None and result_all is not None and (geojson_path or report_path):
-        from .._io.export import geojson_document, write_geojson_document
-
-        # Built once: the --geojson file and the report's embedded copy are the same document.
-        geojson = geojson_document(fixes_all, result_all, table_events)
+    if exporter is not None:
+        with exporter, _steps() as step:
+            step("write " + " and ".join(str(p) for p in (geojson_path, gpx_path) if p))
+            exporter.finish(table_events)
         if geojson_path is not None:
-            write_geojson_document(geojson_path, geojson)
             click.echo(f"geojson: {geojson_path}")
-    if gpx_path is not None:
-        from .._io.export import write_gpx
-
-        assert fixes_all is not None
-        assert result_all is not None
-        write_gpx(gpx_path, fixes_all, result_all)
-        click.echo(f"gpx: {gpx_path} (the repaired track)")
+        if gpx_path is not None:
+            click.echo(f"gpx: {gpx_path} (the repaired track)")
     if drawing:
         from .report import write_report_outputs
 
@@ -290,7 +291,6 @@ def detect(
                     events=table_events,
                     warnings=warnings,
                     time_text=drawn[2],
-                    geojson=geojson,
                     thinned=thinned,
                 )
 
@@ -306,7 +306,7 @@ def _warn_whole(path: Path, chunk_size: int) -> None:
     why, hint = (
         ("--chunk-size 0", "leave --chunk-size at its default to keep memory bounded")
         if chunk_size == 0
-        else ("this format is not read in chunks", "convert it to CSV or Parquet to stream it")
+        else ("GeoJSON is not read in chunks", "convert it to CSV or Parquet to stream it")
     )
     click.echo(
         f"warning: {path} ({size / 1e6:,.0f} MB) is read whole ({why}): memory grows with "
@@ -415,16 +415,24 @@ def _detect_in_chunks(
         done = progress.tasks[0].completed
         progress.update(task, rate=f"{done / elapsed:,.0f}" if elapsed > 0 else "-")
 
-    with progress:
+    def start(total: int) -> None:
+        # Shown once the file's structure is checked: a file refused before (a damaged
+        # bag, a CSV without a header) gets its one error line and no empty bar.
+        progress.update(task, total=total)
+        progress.start()
+
+    try:
         return detect_csv_in_chunks(
             input_path,
             output,
             settings=settings,
             chunk_size=chunk_size,
-            on_start=lambda total: progress.update(task, total=total),
+            on_start=start,
             on_chunk=advance,
             on_result=on_result,
         )
+    finally:
+        progress.stop()
 
 
 def _run_follow(input_path: Path, output: Path | None, settings: RunSettings) -> None:

@@ -40,6 +40,13 @@ __all__ = ["detect_fleet"]
     minimum=1,
     help="local cluster size in single-thread worker processes (default: one per CPU)",
 )
+@option(
+    "--chunk-size",
+    minimum=1,
+    default=200_000,
+    help="rows per chunk: each vehicle's files are read one after the other, this many "
+    "rows at a time (a worker's memory is one chunk, whatever the vehicle's size)",
+)
 @model_options
 @column_options
 def detect_fleet(
@@ -47,6 +54,7 @@ def detect_fleet(
     output_dir: Path,
     scheduler: str | None,
     workers: int | None,
+    chunk_size: int,
     model_dir: Path | None,
     threshold: float | None,
     fmt: str | None,
@@ -62,6 +70,7 @@ def detect_fleet(
     )
 
     from .._grad.detector import load_grad_model
+    from .._run.chunked import detect_partition
     from .._run.fleet_dask import dask_client
     from .._run.fleet_dask import detect_fleet as run_on_cluster
     from .._run.settings import RunSettings
@@ -83,7 +92,9 @@ def detect_fleet(
             input_dir,
             output_dir,
             client,
+            task=detect_partition,
             settings=settings,
+            chunk_size=chunk_size,
             on_start=lambda n: progress.update(task, total=n),
             on_partition=lambda _: progress.advance(task),
         )

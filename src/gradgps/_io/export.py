@@ -17,12 +17,15 @@ label is ``null``, never ``NaN``), longitudes wrapped into [-180, 180], and a
 line that crosses the antimeridian cut there into a MultiLineString (3.1.9),
 or geojson.io and QGIS draw it the long way round the globe. Unusable fixes
 have no trustworthy position and are left out (they are in the CSV with
-their reason). Both files are written atomically.
+their reason).
 
-The HTML report (``--report``) embeds the same document, built by
-:func:`geojson_document` and serialised by :func:`geojson_text`, and draws
-its repaired lines and flagged fixes; ``detect`` builds it once for both, so
-the file and the report cannot disagree.
+The files are written by :mod:`gradgps._io.export_streamed` as results come, in
+bounded memory, with the text :func:`geojson_text` gives for
+:func:`geojson_document` of the whole result (and the GPX of :data:`GPX_HEADER`,
+:func:`gpx_point` and :data:`GPX_FOOTER`): the pieces here are shared by both. The
+HTML report (``--report``) embeds :func:`geojson_document` of what it draws (the
+whole result, or past 250,000 rows its thinned sample) and draws its repaired
+lines and flagged fixes.
 """
 
 from __future__ import annotations
@@ -30,10 +33,8 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import os
-from pathlib import Path
+from collections.abc import Iterator, Sequence
 from typing import Any
-from xml.sax.saxutils import escape
 
 import numpy as np
 import pandas as pd
@@ -41,24 +42,22 @@ import pandas as pd
 from .times import iso_utc_one
 
 __all__ = [
+    "GPX_FOOTER",
+    "GPX_HEADER",
+    "LINE_GAP_S",
+    "antimeridian_crossing",
+    "event_feature",
+    "flagged_features",
     "geojson_document",
     "geojson_text",
-    "write_geojson",
-    "write_geojson_document",
-    "write_gpx",
+    "gpx_point",
+    "iso_or_none",
+    "usable_repairs",
+    "wrap_lon",
 ]
 
 #: A repaired track is split where two usable fixes are further apart in time than this.
 LINE_GAP_S = 60.0
-
-
-def _atomic_write(path: str | os.PathLike[str], text: str) -> Path:
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    partial = out.with_name(out.name + ".partial")
-    partial.write_text(text, encoding="utf-8")
-    partial.replace(out)
-    return out
 
 
 def _num(value: Any) -> float | None:
@@ -73,25 +72,34 @@ def _label(value: Any) -> str | None:
     return str(value)
 
 
-def _wrap(lon: np.ndarray) -> np.ndarray:
+def wrap_lon(lon: np.ndarray) -> np.ndarray:
     """Longitudes in [-180, 180): a repair may step just past 180, the same place written otherwise."""
     return np.asarray((lon + 180.0) % 360.0 - 180.0, dtype=np.float64)
 
 
-def _cut_at_antimeridian(coords: list[list[float]]) -> list[list[list[float]]]:
-    """Split a line where a step crosses 180 degrees, ending and restarting it on the meridian.
+def antimeridian_crossing(a: Sequence[float], b: Sequence[float]) -> tuple[float, float] | None:
+    """Where the step from position ``a`` to ``b`` ([lon, lat]) crosses 180 degrees:
+    (the meridian's longitude on ``a``'s side, the latitude there); None when it does not.
 
     A step of more than 180 degrees of longitude is the short way across the
     antimeridian; GIS tools would draw it across the whole map (RFC 7946 3.1.9).
     """
+    step = b[0] - a[0]
+    if abs(step) <= 180.0:
+        return None
+    edge = 180.0 if step < 0 else -180.0  # eastward crossing: the jump is negative
+    unwrapped = b[0] + (360.0 if step < 0 else -360.0)
+    frac = (edge - a[0]) / (unwrapped - a[0])
+    return edge, a[1] + frac * (b[1] - a[1])
+
+
+def _cut_at_antimeridian(coords: list[list[float]]) -> list[list[list[float]]]:
+    """Split a line where a step crosses 180 degrees, ending and restarting it on the meridian."""
     parts: list[list[list[float]]] = [[coords[0]]]
     for a, b in itertools.pairwise(coords):
-        step = b[0] - a[0]
-        if abs(step) > 180.0:
-            edge = 180.0 if step < 0 else -180.0  # eastward crossing: the jump is negative
-            unwrapped = b[0] + (360.0 if step < 0 else -360.0)
-            frac = (edge - a[0]) / (unwrapped - a[0])
-            lat = a[1] + frac * (b[1] - a[1])
+        crossing = antimeridian_crossing(a, b)
+        if crossing is not None:
+            edge, lat = crossing
             parts[-1].append([edge, lat])
             parts.append([[-edge, lat]])
         parts[-1].append(b)
@@ -110,12 +118,26 @@ def _geometry(coords: list[list[float]]) -> dict[str, Any] | None:
     return {"type": "MultiLineString", "coordinates": parts}
 
 
-def _iso(t: float) -> str | None:
+def iso_or_none(t: float) -> str | None:
     """One time as every other output writes it (:func:`gradgps._io.times.iso_utc`);
     ``None`` for a missing or absurd one."""
     if not math.isfinite(t) or abs(t) > 1e11:
         return None
     return iso_utc_one(t)
+
+
+def usable_repairs(result: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which rows have a usable repaired position (a valid fix, a finite one in range), and
+    the repaired latitudes and (wrapped) longitudes of every row."""
+    lat_c = result["lat_clean"].to_numpy(np.float64)
+    lon_c = result["lon_clean"].to_numpy(np.float64)
+    usable = (
+        (result["invalid_reason"].to_numpy() == "")
+        & np.isfinite(lat_c)
+        & (np.abs(lat_c) <= 90.0)
+        & np.isfinite(lon_c)
+    )
+    return usable, lat_c, wrap_lon(lon_c)
 
 
 def _lines(
@@ -127,13 +149,7 @@ def _lines(
     sample of a longer result (:mod:`gradgps._run.report_data`) whose time gaps are
     no longer the track's; ``None`` cuts where usable fixes are more than
     :data:`LINE_GAP_S` apart."""
-    lat_c = result["lat_clean"].to_numpy(np.float64)
-    usable = (
-        (result["invalid_reason"].to_numpy() == "")
-        & np.isfinite(lat_c)
-        & (np.abs(lat_c) <= 90.0)
-        & np.isfinite(result["lon_clean"].to_numpy(np.float64))
-    )
+    usable = usable_repairs(result)[0]
     tracks = fixes["track"].to_numpy(object)
     t = fixes["t"].to_numpy(np.float64)
     out: list[tuple[str, np.ndarray]] = []
@@ -163,10 +179,10 @@ def geojson_document(
     """
     numbers = np.arange(len(fixes)) if rows is None else np.asarray(rows, dtype=np.int64)
     lat = fixes["lat"].to_numpy(np.float64)
-    lon = _wrap(fixes["lon"].to_numpy(np.float64))
+    lon = wrap_lon(fixes["lon"].to_numpy(np.float64))
     t = fixes["t"].to_numpy(np.float64)
     lat_c = result["lat_clean"].to_numpy(np.float64)
-    lon_c = _wrap(result["lon_clean"].to_numpy(np.float64))
+    lon_c = wrap_lon(result["lon_clean"].to_numpy(np.float64))
     features: list[dict[str, Any]] = []
     for track, line in _lines(fixes, result, parts):
         coords = [[float(lon_c[i]), float(lat_c[i])] for i in line]
@@ -178,24 +194,56 @@ def geojson_document(
                     "kind": "repaired track",
                     "track": track,
                     "fixes": len(coords),
-                    "start": _iso(t[line[0]]),
-                    "end": _iso(t[line[-1]]),
+                    "start": iso_or_none(t[line[0]]),
+                    "end": iso_or_none(t[line[-1]]),
                 },
             }
         )
-    flagged = np.flatnonzero(
+    features.extend(f for _, f in flagged_features(fixes, result, numbers))
+    if events is not None:
+        tracks = fixes["track"].to_numpy(object)
+        flagged = _flagged(result, lat, lon)
+        records: list[dict[Any, Any]] = events.to_dict("records")
+        for ev in records:
+            first, last = np.searchsorted(numbers, [int(ev["first_row"]), int(ev["last_row"])])
+            if last < len(numbers) and numbers[last] == int(ev["last_row"]):
+                last += 1
+            within = np.arange(first, last)
+            within = within[(tracks[within] == ev["track"]) & flagged[within]]
+            coords = [[float(lon[i]), float(lat[i])] for i in within]
+            features.append(event_feature(ev, coords))
+    return {"type": "FeatureCollection", "features": features}
+
+
+def _flagged(result: pd.DataFrame, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
+    """Flagged usable fixes with a position to draw (as received: ``lat``, wrapped ``lon``)."""
+    flagged: np.ndarray = (
         (result["anomaly"].to_numpy() == 1)
         & (result["invalid_reason"].to_numpy() == "")
         & (np.abs(lat) <= 90.0)
         & np.isfinite(lon)
     )
+    return flagged
+
+
+def flagged_features(
+    fixes: pd.DataFrame, result: pd.DataFrame, numbers: np.ndarray
+) -> Iterator[tuple[int, dict[str, Any]]]:
+    """The ``"flagged fix"`` features of a result (or a chunk of one), in row order, each
+    with its row position in ``fixes``; ``numbers``: each row's input row number."""
+    lat = fixes["lat"].to_numpy(np.float64)
+    lon = wrap_lon(fixes["lon"].to_numpy(np.float64))
+    t = fixes["t"].to_numpy(np.float64)
     tracks = fixes["track"].to_numpy(object)
     score = result["score"].to_numpy(np.float64)
     bias = result["bias_type"].to_numpy(object)
     time_type = result["time_type"].to_numpy(object)
     alert = result["alert"].to_numpy()
-    for i in flagged.tolist():
-        features.append(
+    lat_c = result["lat_clean"].to_numpy(np.float64)
+    lon_c = wrap_lon(result["lon_clean"].to_numpy(np.float64))
+    for i in np.flatnonzero(_flagged(result, lat, lon)).tolist():
+        yield (
+            i,
             {
                 "type": "Feature",
                 "geometry": {"type": "Point", "coordinates": [float(lon[i]), float(lat[i])]},
@@ -204,7 +252,7 @@ def geojson_document(
                     "row": int(numbers[i]),
                     "track": str(tracks[i]),
                     "t": _num(t[i]),
-                    "time": _iso(t[i]),
+                    "time": iso_or_none(t[i]),
                     "score": _num(score[i]),
                     "bias_type": _label(bias[i]),
                     "time_type": _label(time_type[i]),
@@ -212,51 +260,29 @@ def geojson_document(
                     "lat_clean": _num(lat_c[i]),
                     "lon_clean": _num(lon_c[i]),
                 },
-            }
+            },
         )
-    if events is not None:
-        records: list[dict[Any, Any]] = events.to_dict("records")
-        for ev in records:
-            first, last = np.searchsorted(numbers, [int(ev["first_row"]), int(ev["last_row"])])
-            if last < len(numbers) and numbers[last] == int(ev["last_row"]):
-                last += 1
-            within = np.arange(first, last)
-            within = within[
-                (tracks[within] == ev["track"])
-                & (result["anomaly"].to_numpy()[within] == 1)
-                & (result["invalid_reason"].to_numpy()[within] == "")
-                & np.isfinite(lat[within])
-                & (np.abs(lat[within]) <= 90.0)
-                & np.isfinite(lon[within])
-            ]
-            coords = [[float(lon[i]), float(lat[i])] for i in within]
-            props = {
-                "kind": "event",
-                "track": str(ev["track"]),
-                "start": _iso(float(ev["start"])),
-                "end": _iso(float(ev["end"])),
-                "duration_s": _num(ev["duration_s"]),
-                "fixes": int(ev["fixes"]),
-                "bias_type": _label(ev["bias_type"]),
-                "time_type": _label(ev["time_type"]),
-                "peak_offset_m": _num(ev["peak_offset_m"]),
-                "peak_score": _num(ev["peak_score"]),
-                "alert": int(ev["alert"]),
-                "first_row": int(ev["first_row"]),
-                "last_row": int(ev["last_row"]),
-            }
-            features.append({"type": "Feature", "geometry": _geometry(coords), "properties": props})
-    return {"type": "FeatureCollection", "features": features}
 
 
-def write_geojson(
-    path: str | os.PathLike[str],
-    fixes: pd.DataFrame,
-    result: pd.DataFrame,
-    events: pd.DataFrame | None = None,
-) -> Path:
-    """Write :func:`geojson_document` to ``path`` (strict JSON, atomically)."""
-    return write_geojson_document(path, geojson_document(fixes, result, events))
+def event_feature(ev: dict[Any, Any], coords: list[list[float]]) -> dict[str, Any]:
+    """The ``"event"`` feature of one fault event (a row of the event table) through
+    ``coords``, its flagged fixes ([lon, lat] as received)."""
+    props = {
+        "kind": "event",
+        "track": str(ev["track"]),
+        "start": iso_or_none(float(ev["start"])),
+        "end": iso_or_none(float(ev["end"])),
+        "duration_s": _num(ev["duration_s"]),
+        "fixes": int(ev["fixes"]),
+        "bias_type": _label(ev["bias_type"]),
+        "time_type": _label(ev["time_type"]),
+        "peak_offset_m": _num(ev["peak_offset_m"]),
+        "peak_score": _num(ev["peak_score"]),
+        "alert": int(ev["alert"]),
+        "first_row": int(ev["first_row"]),
+        "last_row": int(ev["last_row"]),
+    }
+    return {"type": "Feature", "geometry": _geometry(coords), "properties": props}
 
 
 def geojson_text(doc: dict[str, Any]) -> str:
@@ -264,34 +290,16 @@ def geojson_text(doc: dict[str, Any]) -> str:
     return json.dumps(doc, allow_nan=False, separators=(",", ":"))
 
 
-def write_geojson_document(path: str | os.PathLike[str], doc: dict[str, Any]) -> Path:
-    """Write a built :func:`geojson_document` to ``path`` as :func:`geojson_text` (atomically)."""
-    return _atomic_write(path, geojson_text(doc))
+#: The start and end of the GPX file of the repaired tracks.
+GPX_HEADER = (
+    '<?xml version="1.0" encoding="UTF-8"?>\n'
+    '<gpx version="1.1" creator="gradgps" xmlns="http://www.topografix.com/GPX/1/1">\n'
+)
+GPX_FOOTER = "</gpx>\n"
 
 
-def write_gpx(path: str | os.PathLike[str], fixes: pd.DataFrame, result: pd.DataFrame) -> Path:
-    """The repaired track as GPX 1.1: one ``trk`` per track, one ``trkseg`` per run of usable fixes."""
-    t = fixes["t"].to_numpy(np.float64)
-    lat_c = result["lat_clean"].to_numpy(np.float64)
-    lon_c = _wrap(result["lon_clean"].to_numpy(np.float64))  # GPX also wants [-180, 180]
-    parts = [
-        '<?xml version="1.0" encoding="UTF-8"?>\n'
-        '<gpx version="1.1" creator="gradgps" xmlns="http://www.topografix.com/GPX/1/1">\n'
-    ]
-    by_track: dict[str, list[np.ndarray]] = {}
-    for track, rows in _lines(fixes, result):
-        by_track.setdefault(track, []).append(rows)
-    for track, runs in by_track.items():
-        parts.append(f"<trk><name>{escape(track)}</name>\n")
-        for rows in runs:
-            parts.append("<trkseg>\n")
-            for i in rows.tolist():
-                when = _iso(t[i])
-                time_el = f"<time>{when}</time>" if when is not None else ""
-                parts.append(
-                    f'<trkpt lat="{lat_c[i]:.8f}" lon="{lon_c[i]:.8f}">{time_el}</trkpt>\n'
-                )
-            parts.append("</trkseg>\n")
-        parts.append("</trk>\n")
-    parts.append("</gpx>\n")
-    return _atomic_write(path, "".join(parts))
+def gpx_point(t: float, lat: float, lon: float) -> str:
+    """One repaired fix as a GPX ``trkpt`` line (``lon`` already in [-180, 180))."""
+    when = iso_or_none(t)
+    time_el = f"<time>{when}</time>" if when is not None else ""
+    return f'<trkpt lat="{lat:.8f}" lon="{lon:.8f}">{time_el}</trkpt>\n'

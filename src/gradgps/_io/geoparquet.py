@@ -47,8 +47,9 @@ def geo_metadata(path: Path) -> bytes | None:
     return bytes(value) if value is not None else None
 
 
-def read_geoparquet(path: Path, frame: pd.DataFrame, metadata: bytes) -> Table:
-    """A Table of ``frame`` (the file as pandas read it) with its point geometry decoded."""
+def read_geoparquet(path: Path, frame: pd.DataFrame, metadata: bytes, row_offset: int = 0) -> Table:
+    """A Table of ``frame`` (the file as pandas read it, or the chunk of it that starts after
+    ``row_offset`` rows) with its point geometry decoded."""
     source = str(path)
     try:
         geo = json.loads(metadata)
@@ -70,7 +71,7 @@ def read_geoparquet(path: Path, frame: pd.DataFrame, metadata: bytes) -> Table:
         )
     if column not in frame.columns:
         raise InputError(f"the geometry column {column!r} is missing", source=source)
-    x, y = _points(frame[column], source, column)
+    x, y = _points(frame[column], source, column, row_offset)
     crs = spec.get("crs", "OGC:CRS84")
     points = GeoPoints(column=column, x=x, y=y, crs=crs, metadata=metadata)
     return Table(
@@ -78,10 +79,13 @@ def read_geoparquet(path: Path, frame: pd.DataFrame, metadata: bytes) -> Table:
         source=source,
         columns=ColumnMap(lat=column, lon=column),
         geometry=points,
+        row_offset=row_offset,
     )
 
 
-def _points(values: pd.Series, source: str, column: str) -> tuple[np.ndarray, np.ndarray]:
+def _points(
+    values: pd.Series, source: str, column: str, row_offset: int
+) -> tuple[np.ndarray, np.ndarray]:
     n = len(values)
     x = np.full(n, np.nan)
     y = np.full(n, np.nan)
@@ -94,7 +98,7 @@ def _points(values: pd.Series, source: str, column: str) -> tuple[np.ndarray, np
             raise InputError(
                 f"geometry is not a WKB point: {exc}",
                 source=source,
-                row=i + 1,
+                row=row_offset + i + 1,
                 column=column,
                 hint="gradgps reads tracks of points; convert lines to their vertices first",
             ) from None

@@ -54,12 +54,12 @@ from .._tracks.track import (
     resolve_columns,
     to_fixes,
 )
-from .files import READ_ERRORS, check_readable, open_bytes, text_lines
+from .files import READ_ERRORS, StreamedChunks, check_readable, open_bytes, text_lines
 from .geojson import read_geojson
 from .geoparquet import geo_metadata, read_geoparquet, wkt_points, write_geoparquet
 from .gpx import gpx_tables, read_gpx
 from .nmea import nmea_tables, read_nmea
-from .rosbag import is_rosbag, read_rosbag
+from .rosbag import is_rosbag, read_rosbag, rosbag_tables
 from .times import csv_ready
 
 __all__ = [
@@ -322,6 +322,7 @@ class TableWriter:
         self._parquet: Any = None
         self._working = self.partial  # the Parquet file being written (changes when widened)
         self._rewrites = 0
+        self._geo: bytes | None = None  # the ``geo`` metadata of a GeoParquet output
 
     def __enter__(self) -> TableWriter:
         return self
@@ -339,8 +340,17 @@ class TableWriter:
         """Whether a frame (perhaps an empty one, fixing the columns) was written."""
         return self._columns is not None
 
-    def write(self, frame: pd.DataFrame) -> None:
-        """Append ``frame``'s rows (without its index)."""
+    def write(self, frame: pd.DataFrame, geometry: GeoPoints | None = None) -> None:
+        """Append ``frame``'s rows (without its index). ``geometry``: the chunk's points of
+        a GeoParquet input (``Table.geometry``), whose column ``frame`` holds as WKB: written
+        as :func:`write_table` writes them (WKT in a CSV; a Parquet output keeps the WKB and
+        gets the input's ``geo`` metadata)."""
+        if geometry is not None and geometry.column in frame.columns:
+            if self.kind == "csv":
+                frame = frame.copy()
+                frame[geometry.column] = wkt_points(geometry.x, geometry.y)
+            elif self._geo is None:
+                self._geo = geometry.metadata
         columns = [str(c) for c in frame.columns]
         if self._columns is None:
             self._columns = columns
@@ -402,7 +412,10 @@ class TableWriter:
                     ) from None
             arrays.append(array)
             types.append(target)
-        schema = pa.schema([pa.field(n, t) for n, t in zip(names, types, strict=True)])
+        schema = pa.schema(
+            [pa.field(n, t) for n, t in zip(names, types, strict=True)],
+            metadata=None if self._geo is None else {b"geo": self._geo},
+        )
         if old is None:
             self._parquet = pq.ParquetWriter(self._working, schema)
         elif not schema.equals(old):
@@ -748,7 +761,10 @@ def _parquet_tables(
     except ImportError as exc:
         raise _no_pyarrow(exc) from None
     try:
-        file = pq.ParquetFile(path)
+        # pre_buffer off: on, pyarrow reads ahead the column chunks of every row group
+        # still to come and holds them (84 MB more at 4.69 M fixes, a 103 MB file; the
+        # peak grew with the file, docs/reliability.md "Round two").
+        file = pq.ParquetFile(path, pre_buffer=False)
         schema = file.schema_arrow
         stored_index = [
             c for c in (schema.pandas_metadata or {}).get("index_columns", []) if isinstance(c, str)
@@ -756,8 +772,10 @@ def _parquet_tables(
         n_rows = int(file.metadata.num_rows)
     except (ValueError, OSError, TypeError) as exc:
         raise _unreadable_parquet(exc, source) from None
+    geo = geo_metadata(path)
     if stored_index:
-        whole = replace(_read_parquet(path), columns=columns, options=options)
+        whole = _read_parquet(path)
+        whole = replace(whole, columns=_override(whole.columns, columns), options=options)
         return CsvChunks(
             n_rows=len(whole.frame), header=tuple(whole.frame.columns), chunks=iter([whole])
         )
@@ -773,30 +791,28 @@ def _parquet_tables(
                 frame = _arrow_to_pandas(pa.Table.from_batches([batch], schema=schema))
             except (ValueError, OSError, TypeError) as exc:
                 raise _unreadable_parquet(exc, source) from None
-            yield Table(
-                frame=frame.reset_index(drop=True),
-                source=source,
-                columns=columns,
-                row_offset=offset,
-                options=options,
-            )
+            frame = frame.reset_index(drop=True)
+            if geo is None:
+                yield Table(
+                    frame=frame, source=source, columns=columns, row_offset=offset, options=options
+                )
+            else:  # GeoParquet: each chunk's points decoded as the whole file's would be
+                table = read_geoparquet(path, frame, geo, row_offset=offset)
+                yield replace(table, columns=_override(table.columns, columns), options=options)
             offset += len(frame)
 
     return CsvChunks(n_rows=n_rows, header=tuple(schema.names), chunks=chunks())
 
 
-#: The formats :func:`table_chunks` reads chunk by chunk (GeoParquet aside: read whole).
-CHUNKED_FORMATS: Final = ("csv", "parquet", "gpx", "nmea")
+#: The formats :func:`table_chunks` reads chunk by chunk (GeoParquet included).
+CHUNKED_FORMATS: Final = ("csv", "parquet", "gpx", "nmea", "rosbag")
 
 
 def chunkable(path: str | Path, fmt: str | None = None) -> bool:
-    """Whether ``path`` is read chunk by chunk (:func:`table_chunks`): CSV, GPX, NMEA, and
-    Parquet that is not GeoParquet (a GeoParquet file is read whole, by :func:`load_table`,
-    so its output keeps the geometry column and the ``geo`` metadata)."""
-    kind = resolve_format(path, fmt)
-    return kind in ("csv", "gpx", "nmea") or (
-        kind == "parquet" and geo_metadata(Path(path)) is None
-    )
+    """Whether ``path`` is read chunk by chunk (:func:`table_chunks`): CSV, Parquet
+    (GeoParquet too, its points decoded chunk by chunk), GPX, NMEA and ROS bags: every
+    format but GeoJSON."""
+    return resolve_format(path, fmt) in CHUNKED_FORMATS
 
 
 def table_chunks(
@@ -809,8 +825,9 @@ def table_chunks(
     """A track file of one of :data:`CHUNKED_FORMATS` (``fmt``, or as :func:`resolve_format`
     finds it; any other format is read as CSV) as a stream of Tables of at most
     ``chunksize`` rows: a CSV as :func:`iter_csv_tables` describes, a Parquet file a row
-    group at a time, GPX and NMEA in two streaming passes
-    (:func:`gradgps._io.gpx.gpx_tables`, :func:`gradgps._io.nmea.nmea_tables`); the rows,
+    group at a time, GPX, NMEA and ROS bags in two streaming passes
+    (:func:`gradgps._io.gpx.gpx_tables`, :func:`gradgps._io.nmea.nmea_tables`,
+    :func:`gradgps._io.rosbag.rosbag_tables`); the rows,
     values and column roles :func:`load_table` gives for the whole file, in chunks, in
     bounded memory. ``options``: the reader options as one object (see :func:`load_table`)."""
     found = resolve_format(path, fmt)
@@ -818,9 +835,12 @@ def table_chunks(
     path, options = _chunked_read(path, chunksize, options, kind)
     if kind == "parquet":
         return _parquet_tables(path, chunksize, columns or ColumnMap(), options)
-    if kind in ("gpx", "nmea"):
-        check_readable(path)
-        reader = gpx_tables(path, chunksize) if kind == "gpx" else nmea_tables(path, chunksize)
+    if kind in ("gpx", "nmea", "rosbag"):
+        if kind == "rosbag":  # a file or a ROS 2 bag directory
+            reader: StreamedChunks = rosbag_tables(path, chunksize)
+        else:
+            check_readable(path)
+            reader = gpx_tables(path, chunksize) if kind == "gpx" else nmea_tables(path, chunksize)
         cmap = reader.columns if columns is None else _override(reader.columns, columns)
         return CsvChunks(
             n_rows=reader.n_rows,

@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
+import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,9 +38,10 @@ from .._io.read import TableWriter, table_chunks
 from .._result import RESULT_DTYPES
 from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import to_fixes
+from .fleet_dask import PartitionSummary, VehiclePartition
 from .settings import DEFAULT_SETTINGS, RunSettings
 
-__all__ = ["DetectSummary", "detect_csv_in_chunks", "no_fixes"]
+__all__ = ["DetectSummary", "detect_csv_in_chunks", "detect_partition", "no_fixes"]
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,7 @@ def detect_csv_in_chunks(
     on_start: Callable[[int], None] | None = None,
     on_chunk: Callable[[int], None] | None = None,
     on_result: Callable[[pd.DataFrame, pd.DataFrame, pd.DataFrame], None] | None = None,
+    streams: MultiTrackDetector | None = None,
 ) -> DetectSummary:
     """Detect faults in every row of a CSV, Parquet, GPX or NMEA file (``settings.fmt``, or
     as :func:`gradgps._io.read.resolve_format` finds it), ``chunk_size`` rows at a time,
@@ -82,9 +85,13 @@ def detect_csv_in_chunks(
     ``on_chunk(rows)`` after each chunk (for progress bars), ``on_result(fixes,
     result, frame)`` with each chunk's canonical fixes, result and input rows
     (for events, a report or exports). ``output`` ``None`` writes no table.
+    ``streams``: the per-track detectors to continue (a vehicle whose fixes are split
+    over several files, :func:`detect_partition`); ``None``:
+    fresh ones, from ``settings``.
     """
     started = time.perf_counter()
-    streams = MultiTrackDetector(settings.model, threshold=settings.threshold)
+    if streams is None:
+        streams = MultiTrackDetector(settings.model, threshold=settings.threshold)
     chunks = table_chunks(
         Path(input_path), chunk_size, settings.columns, settings.options, settings.fmt
     )
@@ -120,7 +127,7 @@ def detect_csv_in_chunks(
                 out = pd.concat(
                     [table.frame.reset_index(drop=True), result.reset_index(drop=True)], axis=1
                 )
-                writer.write(out)
+                writer.write(out, geometry=table.geometry)
             if on_result is not None:
                 on_result(fixes, result, table.frame)
             if on_chunk is not None:
@@ -137,6 +144,40 @@ def detect_csv_in_chunks(
         seconds=time.perf_counter() - started,
         warnings=tuple(checks.warnings()),
     )
+
+
+def detect_partition(
+    partition: VehiclePartition,
+    output_dir: str,
+    settings: RunSettings = DEFAULT_SETTINGS,
+    chunk_size: int = 200_000,
+) -> PartitionSummary:
+    """Run the detector on one vehicle's files and write its output files (one Dask task).
+
+    The files are read one after the other, ``chunk_size`` rows at a time
+    (:func:`gradgps._run.chunked.detect_csv_in_chunks`), with one set of per-track
+    detectors carried from chunk to chunk and file to file: the results of the files
+    joined and detected as one table, in the memory of one chunk (issue 18: a task
+    used to hold its vehicle's every file and batch features at once). Each output
+    file holds its input file's rows. ``settings``: the detector and how the files
+    are read.
+    """
+    streams = MultiTrackDetector(settings.model, threshold=settings.threshold)
+    counts = [0, 0, 0, 0]
+    for path, relative in zip(partition.files, partition.outputs, strict=True):
+        target = Path(output_dir) / relative
+        target.parent.mkdir(parents=True, exist_ok=True)
+        partial = target.parent / f".partial-{uuid.uuid4().hex}-{target.name}"
+        try:
+            done = detect_csv_in_chunks(
+                path, partial, settings=settings, chunk_size=chunk_size, streams=streams
+            )
+            partial.replace(target)
+        finally:
+            partial.unlink(missing_ok=True)
+        for k, n in enumerate((done.rows, done.anomalies, done.invalid, done.alerts)):
+            counts[k] += n
+    return PartitionSummary(partition.vehicle, *counts)
 
 
 def no_fixes() -> pd.DataFrame:

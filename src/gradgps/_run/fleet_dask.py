@@ -14,8 +14,10 @@ Why one task per vehicle and not a Dask DataFrame: GRAD is a sequential
 filter over each vehicle's fixes in time order, so a vehicle must be
 processed whole, by one task. The data is already partitioned that way, so
 a ``groupby`` (a full shuffle of terabytes) would only move rows to where
-they already are. Each task reads its own files, runs
-:meth:`gradgps.Detector.detect` and writes its own output files; the only
+they already are. Each task reads its own files one after the other, in
+chunks, with streaming detectors that carry over from chunk to chunk and file
+to file (memory of one chunk, whatever the vehicle's size), and writes its
+own output files; the only
 thing that travels back to the client is a row count. The output mirrors
 the input: the same relative paths, each output file holding its input
 file's rows (every input column kept, in the same order) followed by the
@@ -26,10 +28,10 @@ place, so a crashed or cancelled run never leaves a truncated file under a
 real name (and :func:`find_partitions` skips hidden names when the output is
 read back as a fleet).
 
-Threads: :func:`detect_partition` runs ``Detector.detect`` with its default
-``threads=1``, the *serial* batch kernel (a separate compiled function from
-the parallel one, see :mod:`gradgps._grad.pipeline`), so it needs no lock
-and leaves numba's thread setting alone; tasks in threads of one worker run
+Threads: a task (:func:`gradgps._run.chunked.detect_partition`) runs
+streaming detectors, whose compiled step is serial (never the parallel batch kernel, see
+:mod:`gradgps._grad.pipeline`), so it needs no lock and leaves numba's
+thread setting alone; tasks in threads of one worker run
 side by side. Parallelism comes from Dask *processes* (``LocalCluster`` with
 one thread per worker, or ``dask worker --nthreads 1`` on a real cluster).
 """
@@ -37,15 +39,12 @@ one thread per worker, or ``dask worker --nthreads 1`` on a real cluster).
 from __future__ import annotations
 
 import os
-import uuid
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import unquote
-
-import pandas as pd
 
 from .._exceptions import ConfigError, InputError
 from .settings import DEFAULT_SETTINGS, RunSettings
@@ -59,7 +58,6 @@ __all__ = [
     "VehiclePartition",
     "dask_client",
     "detect_fleet",
-    "detect_partition",
     "find_partitions",
 ]
 
@@ -183,56 +181,6 @@ def find_partitions(input_dir: str | os.PathLike[str]) -> list[VehiclePartition]
     return [found[v] for v in sorted(found)]
 
 
-def detect_partition(
-    partition: VehiclePartition, output_dir: str, settings: RunSettings = DEFAULT_SETTINGS
-) -> PartitionSummary:
-    """Run the detector on one vehicle's files and write its output files (one Dask task).
-
-    The files are joined (rows in file order) and detected as one table,
-    then the output is cut back into one file per input file. ``settings``:
-    the detector and how the files are read.
-    """
-    from .._grad.detector import Detector
-    from .._io.read import load_table, write_table
-    from .._tracks.track import to_fixes
-
-    tables = [
-        load_table(path, settings.fmt, settings.columns, settings.options)
-        for path in partition.files
-    ]
-    # to_fixes per file, so an error names the file and row it is about.
-    fixes = pd.concat([to_fixes(t) for t in tables], ignore_index=True)
-    detector = Detector(settings.model, threshold=settings.threshold)
-    result = detector.detect(fixes).reset_index(drop=True)
-    start = 0
-    for table, relative in zip(tables, partition.outputs, strict=True):
-        frame = table.frame.reset_index(drop=True)
-        clash = [c for c in result.columns if c in frame.columns]
-        if clash:
-            raise InputError(
-                f"already has columns {clash}",
-                source=table.source,
-                hint="rename them before detection",
-            )
-        part = result.iloc[start : start + len(frame)].reset_index(drop=True)
-        start += len(frame)
-        target = Path(output_dir) / relative
-        target.parent.mkdir(parents=True, exist_ok=True)
-        partial = target.parent / f".partial-{uuid.uuid4().hex}-{target.name}"
-        try:
-            write_table(pd.concat([frame, part], axis=1), partial)
-            partial.replace(target)
-        finally:
-            partial.unlink(missing_ok=True)
-    return PartitionSummary(
-        vehicle=partition.vehicle,
-        rows=len(result),
-        anomalies=int(result["anomaly"].sum()),
-        invalid=int((result["invalid_reason"] != "").sum()),
-        alerts=int(result["alert"].sum()),
-    )
-
-
 def _check_output_dir(input_dir: Path, output_dir: Path) -> None:
     if output_dir.exists():
         if not output_dir.is_dir():
@@ -255,13 +203,19 @@ def detect_fleet(
     output_dir: str | os.PathLike[str],
     client: Client,
     *,
+    task: Callable[..., PartitionSummary],
     settings: RunSettings = DEFAULT_SETTINGS,
     on_partition: Callable[[PartitionSummary], None] | None = None,
     on_start: Callable[[int], None] | None = None,
+    chunk_size: int = 200_000,
 ) -> FleetSummary:
     """Detect every vehicle of ``input_dir`` on ``client``'s cluster with the detector and
     reading of ``settings``; write ``output_dir``.
 
+    ``task(partition, output_dir, settings, chunk_size)`` detects one vehicle
+    (:func:`gradgps._run.chunked.detect_partition`; passed in, so that this module
+    imports nothing of the detector and the CLI's import chains stay within nine
+    modules, ``tests/test_layers.py``); ``chunk_size``: rows per chunk of each task.
     ``on_start(n_vehicles)`` is called once the partitions are known and
     ``on_partition(summary)`` after each vehicle (progress bars). The first
     failing vehicle's error is raised here and the remaining tasks are
@@ -282,10 +236,11 @@ def detect_fleet(
     model = settings.model
     task_settings = replace(settings, model=None if model is None else str(Path(model).resolve()))
     futures = client.map(
-        detect_partition,
+        task,
         partitions,
         output_dir=str(target.resolve()),
         settings=task_settings,
+        chunk_size=chunk_size,
         pure=False,
     )
     summaries: list[PartitionSummary] = []
