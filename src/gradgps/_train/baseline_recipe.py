@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypedDict, cast
 
 import numpy as np
 import pandas as pd
@@ -39,6 +40,17 @@ SENSOR_EXTRA = ["accel_x_mps2", "gyro_z_dps"]
 WINDOW = 20
 
 
+class LoopSettings(TypedDict):
+    """The training loop's settings a :class:`BaselineRecipe` fixes (``TrainConfig`` keywords)."""
+
+    max_samples_per_epoch: int
+    time_budget_s: float
+    seed: int
+    patience: int
+    learning_rate: float
+    max_epochs: int
+
+
 @dataclass(frozen=True)
 class BaselineRecipe:
     """Everything that decides a trained baseline; its hash keys the cache.
@@ -64,6 +76,13 @@ class BaselineRecipe:
     row: str = "mixed"
     constant: str = "stuck"
     fix_speed: bool = False
+
+    def loop_settings(self) -> LoopSettings:
+        """The training loop's settings this recipe fixes (``TrainConfig`` keywords)."""
+        # the TypedDict's keys are the recipe's field names
+        return cast(
+            LoopSettings, {name: getattr(self, name) for name in LoopSettings.__annotations__}
+        )
 
 
 def inputs_for(protocol: str, recipe: BaselineRecipe | None = None) -> str:

@@ -171,15 +171,10 @@ def dataset_channel_grad(
             bias_classes=SENSOR_BIAS_CLASSES,
             mode="window",
             window=GRU_WINDOW,
-            max_samples_per_epoch=rec.max_samples_per_epoch,
-            time_budget_s=rec.time_budget_s,
-            seed=rec.seed,
             progress=False,
             early_stopping="floor-f1",
             normal_recall_floor=NORMAL_RECALL_FLOOR,
-            patience=rec.patience,
-            learning_rate=rec.learning_rate,
-            max_epochs=rec.max_epochs,
+            **rec.loop_settings(),
         )
         val_seqs = _sequences(val, (rec.val_seed,), features, rema, rec)
         trained = train_model(_sequences(train, rec.seeds, features, rema, rec), val_seqs, config)
