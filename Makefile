@@ -63,8 +63,10 @@ bench: $(VENV)/.stamp-test
 # epochs, so anyone with the data can reproduce it byte for byte (docs/model-card.md).
 default-model: $(VENV)/.stamp-test
 	$(VENV)/bin/gradgps train --dataset recipe --max-epochs $(DEFAULT_EPOCHS) --time-budget 3600 \
-		-o src/gradgps/models/default
+		--members $(DEFAULT_MEMBERS) -o src/gradgps/models/default
 DEFAULT_EPOCHS ?= 30
+# Networks trained with seeds 0, 1, ... and shipped as one, their mean (docs/model-card.md).
+DEFAULT_MEMBERS ?= 2
 
 # numba caches compiled kernels next to the sources and does not notice when a
 # kernel's callee in another module changes: clear them after editing kernels.

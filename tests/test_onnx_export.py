@@ -100,12 +100,14 @@ def test_cli_exports_the_shipped_model_and_it_runs_on_real_features(tmp_path):
         columns["speed"],
         columns["heading"],
     ).features
-    ours = gru_model(*load_model(loaded.path)).predict_stream(features)[0]
+    weights, config = load_model(loaded.path)
+    ours = gru_model(weights, config).predict_stream(features)[0]
+    arch = config["architecture"]  # the shipped network's own sizes (two members: 64, 32)
     anomaly, bias, _, _ = _run(
         _session(proto),
         features[:, None, :],
-        np.zeros((1, 1, 32), np.float32),
-        np.zeros((1, 1, 16), np.float32),
+        np.zeros((1, 1, arch["hidden1"]), np.float32),
+        np.zeros((1, 1, arch["hidden2"]), np.float32),
     )
     np.testing.assert_allclose(anomaly[:, 0], ours.anomaly, atol=1e-5)
     np.testing.assert_allclose(bias[:, 0, :], ours.bias, atol=1e-5)

@@ -71,6 +71,13 @@ RECIPE_SEEDS = (101, 102, 103, 104, 105)
     "reproducible byte for byte)",
 )
 @option("--seed", type=int, default=0, help="training seed")
+@option(
+    "--members",
+    type=click.IntRange(min=1),
+    default=1,
+    help="networks to train (seeds --seed, --seed + 1, ...) and ship as one, their mean "
+    "(the shipped model: 3); each gets --time-budget",
+)
 @column_options
 def train(
     data_paths: tuple[Path, ...],
@@ -82,6 +89,7 @@ def train(
     time_budget: float,
     max_epochs: int,
     seed: int,
+    members: int,
     fmt: str | None,
     **cols: Any,
 ) -> None:
@@ -141,6 +149,7 @@ def train(
         validated=validated,
         time_budget_s=time_budget,
         seed=seed,
+        members=members,
         max_epochs=max_epochs,
         notes={"source": source, "protocol": protocol},
         **schedule,
@@ -149,6 +158,12 @@ def train(
         f"wrote {output}: {report.n_train_points:,} training points, "
         f"{report.n_val_points:,} validation points; best epoch {report.best_epoch} "
         f"({report.stop_reason}); threshold {report.threshold:.2f}"
+        + (
+            f"; {len(report.member_epochs)} members, best epochs "
+            + ", ".join(map(str, report.member_epochs))
+            if report.member_epochs
+            else ""
+        )
     )
 
 

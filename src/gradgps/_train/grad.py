@@ -127,6 +127,8 @@ class TrainReport:
     stop_reason: str
     threshold: float
     history: list[dict[str, Any]] = field(default_factory=list)
+    #: Each member's best epoch when an ensemble was trained (``members`` > 1).
+    member_epochs: list[int] = field(default_factory=list)
 
 
 def _sequences(
@@ -176,6 +178,7 @@ def train_grad(
     lr_schedule: str = "constant",
     grad_clip: float = 0.0,
     normal_recall_floor: float = 0.0,
+    members: int = 1,
 ) -> TrainReport:
     """Train on clean tables with injected ``grad`` faults and write a model directory.
 
@@ -194,11 +197,15 @@ def train_grad(
     loss 0.103 vs 0.121). ``time_budget_s``
     bounds the network's training loop only; injection and features add
     10-25 s, so the default 150 s keeps a whole run under 3 minutes.
+    ``members`` > 1 trains that many networks (seeds ``seed``, ``seed + 1``, ...)
+    on the same features and ships their merged mean
+    (:func:`gradgps._train.torch_gru.train_ensemble`); the time budget is each
+    member's.
     """
     import torch
 
     from .._grad.model_io import export_torch
-    from .torch_gru import TrainConfig, train_model
+    from .torch_gru import TrainConfig, train_ensemble
 
     prm = params or PipelineParams()
     spec = data or GradTrainingSet()
@@ -223,7 +230,7 @@ def train_grad(
         normal_recall_floor=normal_recall_floor,
     )
     with torch.random.fork_rng():
-        trained = train_model(train, val, config)
+        trained = train_ensemble(train, val, config, members)
     threshold = float(trained.anomaly_threshold)
     tuned = PipelineParams(**{**prm.__dict__, "threshold": threshold})
     cfg = trained.model_config(
@@ -247,6 +254,7 @@ def train_grad(
         stop_reason=trained.stop_reason,
         threshold=threshold,
         history=[h.__dict__ for h in trained.history],
+        member_epochs=[m.best_epoch for m in trained.members],
     )
 
 

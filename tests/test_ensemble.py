@@ -1,0 +1,114 @@
+"""Several GRAD networks shipped as one: the merged network is exactly their mean."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from gradgps._exceptions import ConfigError  # noqa: E402
+from gradgps._grad.gru import GRUModel  # noqa: E402
+from gradgps._grad.model_io import export_torch  # noqa: E402
+from gradgps._train.torch_gru import GRADNet, TrainConfig, merge_networks, train_ensemble  # noqa: E402
+
+
+def _nets(k: int, n_features: int = 7, n_bias: int = 4) -> list[GRADNet]:
+    nets = []
+    for seed in range(k):
+        torch.manual_seed(seed)
+        net = GRADNet(n_features, n_bias, 5, 3)
+        net.scaler_mean.copy_(torch.linspace(-1, 1, n_features))
+        net.scaler_std.copy_(torch.linspace(0.5, 2, n_features))
+        nets.append(net)
+    return nets
+
+
+@pytest.mark.parametrize("k", [1, 2, 3])
+def test_merged_logits_are_the_members_mean(k: int) -> None:
+    nets = _nets(k)
+    merged = merge_networks(nets)
+    assert (merged.gru1.hidden_size, merged.gru2.hidden_size) == (5 * k, 3 * k)
+    x = torch.randn(4, 30, 7) * 3
+    with torch.no_grad():
+        got_a, got_b, _ = merged(x)
+        want_a = torch.stack([net(x)[0] for net in nets]).mean(0)
+        want_b = torch.stack([net(x)[1] for net in nets]).mean(0)
+    torch.testing.assert_close(got_a, want_a, rtol=1e-5, atol=1e-5)
+    torch.testing.assert_close(got_b, want_b, rtol=1e-5, atol=1e-5)
+
+
+def test_the_detector_kernel_runs_a_merged_network_as_torch_does() -> None:
+    """No inference code knows about ensembles: the numba GRU on the merged weights
+    gives the merged torch network's probabilities."""
+    nets = _nets(3)
+    merged = merge_networks(nets)
+    feats = np.random.default_rng(0).normal(0, 2, (50, 7))
+    model = GRUModel(
+        export_torch(merged),
+        merged.scaler_mean.numpy().astype(np.float64),
+        merged.scaler_std.numpy().astype(np.float64),
+        mode="stream",
+    )
+    with torch.no_grad():
+        la, _, _ = merged(torch.from_numpy(feats.astype(np.float32))[None])
+    want = torch.softmax(la[0], -1)[:, 1].numpy()
+    np.testing.assert_allclose(model.predict(feats).anomaly, want, rtol=1e-4, atol=1e-5)
+
+
+def test_members_must_share_architecture_and_scaler() -> None:
+    a, b = _nets(2)
+    b.scaler_mean.add_(1.0)
+    with pytest.raises(ConfigError, match="scaler"):
+        merge_networks([a, b])
+    with pytest.raises(ConfigError, match="architecture"):
+        merge_networks([a, GRADNet(7, 4, 6, 3)])
+    with pytest.raises(ConfigError):
+        merge_networks([])
+
+
+def _sequences(n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        x = rng.normal(0, 1, (60, 5)).astype(np.float32)
+        y = (rng.random(60) < 0.2).astype(np.int64)
+        x[y == 1] += 3.0
+        out.append((x, y, y.copy()))
+    return out
+
+
+def test_an_ensemble_is_its_members_as_trained_alone_merged() -> None:
+    """Member k is the network train_model gives for seed + k (nothing shared but the
+    data), the merged network is merge_networks of them, and its record names each."""
+    from gradgps._train.torch_gru import train_model
+
+    config = TrainConfig(
+        bias_classes=("none", "noise"),
+        mode="stream",
+        hidden1=4,
+        hidden2=3,
+        max_epochs=2,
+        batch_size=4,
+        chunk_length=20,
+        progress=False,
+        seed=5,
+    )
+    train, val = _sequences(8, 0), _sequences(3, 1)
+    ensemble = train_ensemble(train, val, config, 2)
+    alone = train_model(train, val, TrainConfig(**{**config.__dict__, "seed": 6}))
+    for name, value in export_torch(alone.network).items():
+        np.testing.assert_array_equal(export_torch(ensemble.members[1].network)[name], value)
+    merged = merge_networks([m.network for m in ensemble.members])
+    for name, value in export_torch(merged).items():
+        np.testing.assert_array_equal(export_torch(ensemble.network)[name], value)
+    cfg = ensemble.model_config([f"f{i}" for i in range(5)], {}, {})
+    assert cfg["architecture"]["hidden1"] == 8
+    assert cfg["architecture"]["hidden2"] == 6
+    assert [m["seed"] for m in cfg["training"]["members"]] == [5, 6]
+    # the members' mean threshold
+    assert ensemble.anomaly_threshold == pytest.approx(
+        (ensemble.members[0].anomaly_threshold + ensemble.members[1].anomaly_threshold) / 2
+    )
+    with pytest.raises(ConfigError):
+        train_ensemble(train, val, config, 0)
