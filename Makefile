@@ -60,7 +60,8 @@ bench: $(VENV)/.stamp-test
 # The model shipped in the package: the training recipe (src/gradgps/_train/recipe.py:
 # simulated drives at 0.5-10 Hz plus the train splits of the real drives in
 # ../shared/data, columns withheld at random, dropouts, frozen fixes), fixed
-# epochs, so anyone with the data can reproduce it byte for byte (docs/model-card.md).
+# epochs, so anyone with the data can reproduce it byte for byte on the same processor
+# (torch's CPU kernels round differently across processors: docs/model-card.md).
 default-model: $(VENV)/.stamp-test
 	$(VENV)/bin/gradgps train --dataset recipe --max-epochs $(DEFAULT_EPOCHS) --time-budget 3600 \
 		--members $(DEFAULT_MEMBERS) -o src/gradgps/models/default
