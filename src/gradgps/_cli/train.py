@@ -76,7 +76,7 @@ RECIPE_SEEDS = (101, 102, 103, 104, 105)
     type=click.IntRange(min=1),
     default=1,
     help="networks to train (seeds --seed, --seed + 1, ...) and ship as one, their mean "
-    "(the shipped model: 3); each gets --time-budget",
+    "(the shipped model: 2); each gets --time-budget",
 )
 @column_options
 def train(

@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -684,19 +684,14 @@ def _train(
                 break
 
     best.restore()
-    threshold = _packed_threshold(net, val, config)
-    return TrainedModel(net, config, n_features, threshold, best.epoch, best.stop_reason, history)
-
-
-def _packed_threshold(net: GRADNet, val: _Packed, config: TrainConfig) -> float:
-    """The anomaly threshold a trained network gets: on validation, the best F1 that keeps
-    normal recall at ``normal_recall_floor`` (when set), else the best F1."""
     net.eval()
     la, _, a_true, _ = _predict_packed(net, val, config)
     probability = torch.softmax(la, -1)[:, 1].numpy()
     if config.normal_recall_floor > 0:
-        return recall_floor_threshold(a_true == 1, probability, config.normal_recall_floor)
-    return best_f1_threshold(a_true == 1, probability)
+        threshold = recall_floor_threshold(a_true == 1, probability, config.normal_recall_floor)
+    else:
+        threshold = best_f1_threshold(a_true == 1, probability)
+    return TrainedModel(net, config, n_features, threshold, best.epoch, best.stop_reason, history)
 
 
 def train_ensemble(
@@ -712,8 +707,8 @@ def train_ensemble(
 
     Why: networks trained on the same data with different seeds disagree most
     where the data say least (a fix just after a fault ends, a hard stop at
-    0.5 Hz), and which seed is shipped moved validation F1 by up to 0.1 and
-    clean false alarms by several times. The mean of a few members' logits
+    0.5 Hz), and which seed is shipped moved a validation drive's F1 by up to
+    0.045 and its clean false alarms from 0.24 to 0.91 %. The mean of a few members' logits
     keeps what they agree on. Each member is exactly the network
     ``train_model`` returns for its seed, so an ensemble's members can be
     checked one by one.
@@ -721,7 +716,7 @@ def train_ensemble(
     if members < 1:
         raise ConfigError(f"members must be at least 1, got {members}")
     trained = [
-        train_model(sequences, val_sequences, _with_seed(config, config.seed + k))
+        train_model(sequences, val_sequences, replace(config, seed=config.seed + k))
         for k in range(members)
     ]
     if members == 1:
@@ -743,10 +738,6 @@ def train_ensemble(
         first.history,
         members=tuple(trained),
     )
-
-
-def _with_seed(config: TrainConfig, seed: int) -> TrainConfig:
-    return TrainConfig(**{**asdict(config), "seed": seed})
 
 
 def merge_networks(nets: Sequence[GRADNet]) -> GRADNet:
@@ -813,7 +804,7 @@ def _side_by_side(parts: Sequence[torch.Tensor], hidden: int, block: int) -> tor
         for g in range(3):
             rows = slice((g * k + j) * hidden, (g * k + j + 1) * hidden)
             src = w[g * hidden : (g + 1) * hidden]
-            if w.dim() == 1 or not block:
+            if not block:  # shared inputs, or a bias
                 out[rows] = src
             else:
                 out[rows, j * block : (j + 1) * block] = src
