@@ -100,6 +100,32 @@ def test_checksum_valid_nmea_with_huge_fields_is_a_rejected_sentence(tmp_path: P
     assert result.exit_code == 0, result.output
 
 
+def test_gga_counts_too_big_for_their_column_are_a_rejected_sentence(tmp_path: Path) -> None:
+    """Found by ``make fuzz`` (2,500 cases): a checksum-valid GGA whose fix quality is
+    2**63 or 2**64 raised TypeError / OverflowError from pandas' Int64 column; a
+    superscript digit passed ``isdigit`` and raised ValueError from ``int``."""
+    good = [
+        _nmea_line(f"GPGGA,1200{i:02d}.00,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,")
+        for i in range(5)
+    ]
+    bad = [
+        _nmea_line(
+            "GPGGA,120010.00,4807.038,N,01131.000,E,9223372036854775808,08,0.9,545.4,M,,M,,"
+        ),
+        _nmea_line("GPGGA,120011.00,4807.038,N,01131.000,E,18446744073709551616,08,0.9,5.4,M,,M,,"),
+        _nmea_line("GPGGA,120012.00,4807.038,N,01131.000,E,1,99999999999999999999,0.9,5.4,M,,M,,"),
+        _nmea_line("GPGGA,120013.00,4807.038,N,01131.000,E,\u00b2,08,0.9,5.4,M,,M,,"),
+        _nmea_line("GPGGA,120014.00,4807.038,N,01131.000,E,1,\u00b2,0.9,5.4,M,,M,,"),
+    ]
+    path = tmp_path / "counts.nmea"
+    path.write_text("".join(good + bad), encoding="utf-8")
+    table = read_table(path)
+    assert len(table.frame) == 5
+    assert table.frame["fix_quality"].tolist() == [1] * 5
+    result = CliRunner().invoke(main, ["detect", str(path), "-o", str(tmp_path / "o.csv")])
+    assert result.exit_code == 0, result.output
+
+
 def test_gpx_and_parquet_times_in_year_1_or_3000_are_read(tmp_path: Path) -> None:
     """On main: OutOfBoundsDatetime tracebacks (year 1 is a common logger placeholder)."""
     import numpy as np

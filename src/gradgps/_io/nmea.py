@@ -181,16 +181,25 @@ def _midnight(text: str) -> float:
     return float((date - dt.date(1970, 1, 1)).days) * _DAY
 
 
+def _small_count(text: str, digits: int) -> bool:
+    """Whether ``text`` is 1 to ``digits`` ASCII digits (``str.isdigit`` alone takes
+    ``'²'``, which ``int`` refuses)."""
+    return 0 < len(text) <= digits and text.isascii() and text.isdigit()
+
+
 def parse_gga(fields: list[str], line: int) -> Epoch:
     if len(fields) < 9:
         raise Malformed(f"GGA has {len(fields)} fields, needs at least 9")
+    # Both are small counts (quality one digit 0-8, satellites two digits in NMEA 0183):
+    # anything longer than a few ASCII digits is damage, and read as such, since a
+    # 20-digit "count" would not even fit the int64 column it is stored in.
     quality_text = fields[5]
-    if not quality_text.isdigit():
-        raise Malformed(f"fix quality is not a digit: {quality_text!r}")
+    if not _small_count(quality_text, digits=2):
+        raise Malformed(f"fix quality is not a one- or two-digit number: {quality_text[:20]!r}")
     quality = int(quality_text)
-    satellites = int(fields[6]) if fields[6].isdigit() else None
+    satellites = int(fields[6]) if _small_count(fields[6], digits=3) else None
     if fields[6] and satellites is None:
-        raise Malformed(f"satellite count is not a number: {fields[6]!r}")
+        raise Malformed(f"satellite count is not a number up to 999: {fields[6][:20]!r}")
     epoch = Epoch(
         line=line,
         tod=_time_of_day(fields[0]),
