@@ -392,3 +392,17 @@ def test_memory_of_chunks_does_not_grow_with_the_file(
         peaks.append(_peak_mb(path, 500))
     small, big = peaks
     assert big < 1.2 * small + 0.5, peaks
+
+
+def test_a_big_lat_property_of_a_point_is_skipped_like_a_small_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Found by make fuzz: with every container streamed, a Point's big ``lat`` property
+    # (not a column) was looked up among the big values fetched for it (KeyError).
+    path = tmp_path / "lat.geojson"
+    feature = _point(0, t=["2024-05-01T10:00:00Z"] * 6, lat=[], time=None)
+    path.write_text(json.dumps(feature))
+    whole = read_geojson(path).frame
+    monkeypatch.setattr(geojson_rows, "FEATURE_EVENTS", 0)
+    pd.testing.assert_frame_equal(read_geojson(path).frame, whole)
+    assert list(whole.columns) == ["t", "time", "lon", "lat", "alt"]

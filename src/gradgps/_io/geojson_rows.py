@@ -292,7 +292,9 @@ class _Reader:
         far = [v for k, v in props.items() if type(v) is _Far and k not in _SKIPPED]
         if far:
             built = self.navigator("properties").values(scanned.index, far)
-            props = {k: built[v] if type(v) is _Far else v for k, v in props.items()}
+            props = {
+                k: built[v] if type(v) is _Far else v for k, v in props.items() if k not in _SKIPPED
+            }
         row = {
             k: json.dumps(v) if type(v) in _NESTED else v
             for k, v in props.items()
