@@ -25,8 +25,9 @@ mode:
   ``detect-fleet --workers 1`` (peak: the larger of the process and its Dask
   worker processes, ``ru_maxrss`` of the children, which needs the processes
   ended; for this mode only, since ``VmHWM`` does not see the workers);
-* ``geojson``: the fixes as GeoJSON Point features (read whole: run it at
-  small sizes only).
+* ``geojson``: the fixes as GeoJSON Point features (read in chunks since
+  issue 18, two streaming passes with ijson; about twice a CSV's size, and
+  slow: a few MB/s of GeoJSON per pass on the 2-core machine).
 
 Each command runs in a child Python process that calls the CLI and reports its
 own peak resident set size (``VmHWM`` in ``/proc/self/status``: the kernel's

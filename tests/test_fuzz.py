@@ -1,7 +1,7 @@
 """Fuzzing: hostile tracks and file bytes may only ever raise gradgps's own errors.
 
 Every case goes through the whole path a user's file takes: read (CSV,
-GPX, NMEA), convert to fixes, batch detection, streaming detection and, for
+GPX, NMEA, GeoJSON), convert to fixes, batch detection, streaming detection and, for
 CSV, chunked detection to a file. The only exceptions allowed are
 :class:`gradgps.GradGPSError` subclasses, whose messages name the problem;
 anything else (a ``KeyError`` from deep inside pandas, a warning, which
@@ -9,7 +9,7 @@ pytest turns into an error) is a bug. When no error is raised, every input
 row must come back as exactly one result row.
 
 ``make test`` runs a few dozen cases per test; ``make fuzz`` sets
-``GRADGPS_FUZZ_EXAMPLES`` (2,500 per test, 32,500 in all) and builds the compiled
+``GRADGPS_FUZZ_EXAMPLES`` (2,500 per test, 35,000 in all) and builds the compiled
 kernels with bounds checks (an out-of-bounds index is then an IndexError, not a
 silent read or a SIGSEGV). Beyond files: ROS 1 and ROS 2 bags, Redis messages and
 state keys (end to end and at the function level), and checkpoint states.
@@ -18,6 +18,7 @@ state keys (end to end and at the function level), and checkpoint states.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import signal
 from collections.abc import Callable, Iterator
@@ -33,6 +34,7 @@ from hypothesis import strategies as st
 from _track_strategies import expected_reasons, messy_tracks
 from gradgps import GradGPSError, iter_csv_tables, read_table, to_fixes
 from gradgps._grad.detector import Detector, MultiTrackDetector
+from gradgps._io import geojson_rows
 from gradgps._io.nmea import nmea_checksum
 from gradgps._io.read import resolve_format, table_chunks
 from gradgps._run.chunked import detect_csv_in_chunks
@@ -282,6 +284,100 @@ def _nmea_document(draw: st.DrawFn) -> bytes:
     return "\r\n".join(lines).encode()
 
 
+_JSON_SCALAR = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(2**63), 2**63 - 1),
+    st.floats(allow_nan=False, allow_infinity=False),
+    _JUNK,
+    _TIME,
+)
+# Raw JSON text: what json.dumps never writes but files hold (the parser must refuse it).
+_RAW = st.sampled_from(["NaN", "Infinity", "1e400", "18446744073709551616", "01", "'x'", ""])
+# True about once in 60 draws (hypothesis favours the ends of an integer range).
+_RARELY = st.sampled_from([False] * 59 + [True])
+
+
+@st.composite
+def _json_text(draw: st.DrawFn, value: object) -> str:
+    """``value`` as JSON text; an object is a list of (key, value) pairs (a key may come
+    twice), and now and then a scalar is raw text."""
+    if isinstance(value, tuple):  # an object: its pairs
+        members = [f"{json.dumps(k)}: {draw(_json_text(v))}" for k, v in value]
+        return "{" + ", ".join(members) + "}"
+    if isinstance(value, list):
+        return "[" + ", ".join(draw(_json_text(v)) for v in value) + "]"
+    if draw(_RARELY):
+        return draw(_RAW)
+    return json.dumps(value)
+
+
+_NESTED_VALUE = st.recursive(
+    _JSON_SCALAR,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=3),
+        st.lists(st.tuples(_COLUMN, inner), max_size=3).map(tuple),
+    ),
+    max_leaves=6,
+)
+_POSITION = st.one_of(
+    *[st.lists(st.floats(-200, 200), min_size=2, max_size=3)] * 6,
+    st.lists(st.one_of(st.floats(-200, 200), _JSON_SCALAR), min_size=2, max_size=4),
+    st.lists(_NESTED_VALUE, max_size=3),
+)
+_TIMES = st.lists(st.one_of(_TIME, _JSON_SCALAR, st.lists(_TIME, max_size=3)), max_size=8)
+_GEOMETRY_TYPE = st.sampled_from(["Point", "LineString", "MultiLineString", "Polygon", "Point"])
+
+
+@st.composite
+def _geojson_feature(draw: st.DrawFn) -> object:
+    kind = draw(_GEOMETRY_TYPE)
+    vertices = st.lists(_POSITION, max_size=6)
+    coordinates = {
+        "Point": _POSITION,
+        "LineString": vertices,
+        "MultiLineString": st.lists(vertices, max_size=3),
+        "Polygon": st.lists(vertices, max_size=2),
+    }[kind]
+    geometry = [
+        ("type", kind),
+        ("coordinates", draw(st.one_of(*[coordinates] * 8, _NESTED_VALUE))),
+    ]
+    props = draw(
+        st.lists(
+            st.tuples(
+                st.one_of(_COLUMN, st.sampled_from(["name", "coordTimes", "times", "time"])),
+                st.one_of(_NESTED_VALUE, _TIMES),
+            ),
+            max_size=5,
+        )
+    )
+    members = [
+        ("type", "Feature"),
+        ("geometry", draw(st.sampled_from([tuple(geometry), tuple(reversed(geometry)), None]))),
+        ("properties", draw(st.sampled_from([tuple(props)] * 8 + [None, []]))),
+    ]
+    if draw(_RARELY):  # a key given twice
+        members.append(draw(st.sampled_from(members)))
+    order = draw(st.permutations(members))
+    if draw(_RARELY):  # not a feature
+        return draw(st.sampled_from([None, 3, []]))
+    return tuple(order)
+
+
+@st.composite
+def _geojson_document(draw: st.DrawFn) -> bytes:
+    features = draw(st.lists(_geojson_feature(), max_size=6))
+    if draw(st.integers(0, 4)) == 0 and features and isinstance(features[0], tuple):
+        doc: object = features[0]  # a single Feature
+    else:
+        kind = draw(st.sampled_from(["FeatureCollection"] * 5 + ["Topology"]))
+        members = [("type", kind), ("features", features)]
+        doc = tuple(draw(st.permutations(members)))
+    bom = draw(st.sampled_from(["", "", "\ufeff"]))
+    return (bom + draw(_json_text(doc))).encode()
+
+
 # --- the one property ---------------------------------------------------------------
 
 
@@ -324,24 +420,29 @@ def test_fuzz_csv_bytes(tmp_path: Path, data: bytes) -> None:
     _survives_chunked(path, output)
 
 
-def _same_in_chunks(path: Path) -> None:
-    """GPX and NMEA read in chunks of 3 rows (issue 18): a gradgps error exactly where the
-    whole-file reader gives one (perhaps another of the file's errors: the chunks check
-    values chunk by chunk), else the whole-file table, row for row."""
-    if resolve_format(path) not in ("gpx", "nmea"):  # mutated into CSV: typed per chunk
+def _same_in_chunks(path: Path, feature_events: int | None = None) -> None:
+    """GPX, NMEA and GeoJSON read in chunks of 3 rows (issue 18): a gradgps error exactly
+    where the whole-file reader gives one (perhaps another of the file's errors: the
+    chunks check values chunk by chunk), else the whole-file table, row for row.
+    ``feature_events``: for GeoJSON, the events of a feature the chunks build in memory
+    (fewer: more of its containers streamed by cursors of their own)."""
+    if resolve_format(path) not in ("gpx", "nmea", "geojson"):  # mutated into CSV
         return
     whole = _gradgps_error(lambda: read_table(path))
-    chunks = _gradgps_error(lambda: list(table_chunks(path, 3)))
+    with pytest.MonkeyPatch.context() as patch:
+        if feature_events is not None:
+            patch.setattr(geojson_rows, "FEATURE_EVENTS", feature_events)
+        chunks = _gradgps_error(lambda: list(table_chunks(path, 3)))
     if isinstance(whole, GradGPSError):
         assert isinstance(chunks, GradGPSError), "read whole: error; read in chunks: none"
         return
     assert not isinstance(chunks, GradGPSError), str(chunks)
     frame = pd.concat([t.frame for t in chunks], ignore_index=True)
     pd.testing.assert_frame_equal(frame, whole.frame)
-    assert whole.times is not None
-    np.testing.assert_array_equal(
-        np.concatenate([np.asarray(t.times) for t in chunks]), whole.times
-    )
+    if whole.times is not None:
+        np.testing.assert_array_equal(
+            np.concatenate([np.asarray(t.times) for t in chunks]), whole.times
+        )
 
 
 @fuzz
@@ -360,6 +461,15 @@ def test_fuzz_nmea_bytes(tmp_path: Path, data: bytes) -> None:
     path.write_bytes(data)
     _survives(path)
     _same_in_chunks(path)
+
+
+@fuzz
+@given(data=_mutated(_geojson_document()), feature_events=st.sampled_from([None, 0, 1, 5]))
+def test_fuzz_geojson_bytes(tmp_path: Path, data: bytes, feature_events: int | None) -> None:
+    path = tmp_path / "in.geojson"
+    path.write_bytes(data)
+    _survives(path)
+    _same_in_chunks(path, feature_events)
 
 
 @fuzz

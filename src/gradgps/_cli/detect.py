@@ -5,13 +5,13 @@ column kept, plus the detector's columns: ``anomaly`` (0/1), ``score``
 (0..1), ``bias_type``, ``time_type``, ``lat_clean``, ``lon_clean``,
 ``alert`` (0/1) and ``invalid_reason`` (empty for a usable fix).
 
-CSV, Parquet (GeoParquet too), GPX, NMEA and ROS bag input is processed
-``--chunk-size`` rows at a time in bounded memory (:mod:`gradgps._run.chunked`;
-Parquet by record batches of one row group at a time; GPX, NMEA and ROS bags in
+Input of every format (CSV, Parquet and GeoParquet, GPX, NMEA, GeoJSON, ROS bags) is
+processed ``--chunk-size`` rows at a time in bounded memory (:mod:`gradgps._run.chunked`;
+Parquet by record batches of one row group at a time; GPX, NMEA, GeoJSON and ROS bags in
 two streaming passes, :func:`gradgps._io.read.table_chunks`), and ``--geojson``
 and ``--gpx`` are written as results come
-(:class:`gradgps._io.export_streamed.StreamedExports`); ``--chunk-size 0`` and
-GeoJSON input read the whole file. Both read each track in row order with one rule (see
+(:class:`gradgps._io.export_streamed.StreamedExports`); ``--chunk-size 0`` reads the
+whole file. Both read each track in row order with one rule (see
 :func:`gradgps._tracks.preprocess.stream_reasons`): a fix whose time is not
 after the previous usable fix of its track is flagged invalid, never merged,
 so every mode, ``--report`` included, gives the same rows flagged and the
@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
 __all__ = ["WHOLE_FILE_WARN_BYTES", "detect"]
 
-#: A file read whole (``--chunk-size 0``, GeoJSON) larger than this
+#: A file read whole (``--chunk-size 0``) larger than this
 #: gets a warning first: its memory grows with it (docs/reliability.md, "Bounded memory").
 WHOLE_FILE_WARN_BYTES = 100_000_000
 
@@ -90,7 +90,7 @@ WHOLE_FILE_WARN_BYTES = 100_000_000
     "--chunk-size",
     minimum=0,
     default=200_000,
-    help="rows per chunk of CSV, Parquet, GPX, NMEA or ROS bag input (bounded memory); "
+    help="rows per chunk of the input, any format (bounded memory); "
     "0 = read the whole "
     "file at once (memory grows with the file). "
     "Same results either way",
@@ -115,8 +115,8 @@ def detect(
 
     Every mode gives the same answer: each track is read in row order, and a
     fix whose time is not after the previous usable fix of its track (a
-    repeated or backward timestamp) is flagged invalid, never merged. CSV,
-    Parquet, GPX, NMEA and ROS bag input is processed in chunks of --chunk-size rows
+    repeated or backward timestamp) is flagged invalid, never merged. Input of
+    any format is processed in chunks of --chunk-size rows
     (memory stays bounded however large the file, --report, --geojson and
     --gpx included). With --follow, INPUT is read as a live stream (e.g. 'tail
     -f log.nmea | gradgps detect --follow -') and results go to standard
@@ -195,7 +195,7 @@ def detect(
         elapsed = summary.seconds
         rate = summary.rows_per_second
     else:
-        _warn_whole(input_path, chunk_size)
+        _warn_whole(input_path)
         with _steps() as step:
             step("read")
             table = load_table(input_path, settings.fmt, settings.columns, settings.options)
@@ -295,22 +295,19 @@ def detect(
                 )
 
 
-def _warn_whole(path: Path, chunk_size: int) -> None:
-    """Say, before reading, that a big file read whole needs memory in proportion to it."""
+def _warn_whole(path: Path) -> None:
+    """Say, before reading, that a big file read whole (``--chunk-size 0``: every format
+    is read in chunks otherwise) needs memory in proportion to it."""
     try:
         size = sum(p.stat().st_size for p in (path.rglob("*") if path.is_dir() else [path]))
     except OSError:
         return
     if size <= WHOLE_FILE_WARN_BYTES:
         return
-    why, hint = (
-        ("--chunk-size 0", "leave --chunk-size at its default to keep memory bounded")
-        if chunk_size == 0
-        else ("GeoJSON is not read in chunks", "convert it to CSV or Parquet to stream it")
-    )
     click.echo(
-        f"warning: {path} ({size / 1e6:,.0f} MB) is read whole ({why}): memory grows with "
-        "the file, about 0.65 GB per million fixes (10 times a CSV's size); " + hint,
+        f"warning: {path} ({size / 1e6:,.0f} MB) is read whole (--chunk-size 0): memory "
+        "grows with the file, about 0.65 GB per million fixes (10 times a CSV's size); "
+        "leave --chunk-size at its default to keep memory bounded",
         err=True,
     )
 

@@ -55,7 +55,7 @@ from .._tracks.track import (
     to_fixes,
 )
 from .files import READ_ERRORS, StreamedChunks, check_readable, open_bytes, text_lines
-from .geojson import read_geojson
+from .geojson import geojson_tables, read_geojson
 from .geoparquet import geo_metadata, read_geoparquet, wkt_points, write_geoparquet
 from .gpx import gpx_tables, read_gpx
 from .nmea import nmea_tables, read_nmea
@@ -805,13 +805,13 @@ def _parquet_tables(
 
 
 #: The formats :func:`table_chunks` reads chunk by chunk (GeoParquet included).
-CHUNKED_FORMATS: Final = ("csv", "parquet", "gpx", "nmea", "rosbag")
+CHUNKED_FORMATS: Final = ("csv", "parquet", "gpx", "nmea", "geojson", "rosbag")
 
 
 def chunkable(path: str | Path, fmt: str | None = None) -> bool:
     """Whether ``path`` is read chunk by chunk (:func:`table_chunks`): CSV, Parquet
-    (GeoParquet too, its points decoded chunk by chunk), GPX, NMEA and ROS bags: every
-    format but GeoJSON."""
+    (GeoParquet too, its points decoded chunk by chunk), GPX, NMEA, GeoJSON and ROS bags:
+    every format."""
     return resolve_format(path, fmt) in CHUNKED_FORMATS
 
 
@@ -825,9 +825,10 @@ def table_chunks(
     """A track file of one of :data:`CHUNKED_FORMATS` (``fmt``, or as :func:`resolve_format`
     finds it; any other format is read as CSV) as a stream of Tables of at most
     ``chunksize`` rows: a CSV as :func:`iter_csv_tables` describes, a Parquet file a row
-    group at a time, GPX, NMEA and ROS bags in two streaming passes
+    group at a time, GPX, NMEA, GeoJSON and ROS bags in two streaming passes
     (:func:`gradgps._io.gpx.gpx_tables`, :func:`gradgps._io.nmea.nmea_tables`,
-    :func:`gradgps._io.rosbag.rosbag_tables`); the rows,
+    :func:`gradgps._io.geojson.geojson_tables`, :func:`gradgps._io.rosbag.rosbag_tables`);
+    the rows,
     values and column roles :func:`load_table` gives for the whole file, in chunks, in
     bounded memory. ``options``: the reader options as one object (see :func:`load_table`)."""
     found = resolve_format(path, fmt)
@@ -835,12 +836,13 @@ def table_chunks(
     path, options = _chunked_read(path, chunksize, options, kind)
     if kind == "parquet":
         return _parquet_tables(path, chunksize, columns or ColumnMap(), options)
-    if kind in ("gpx", "nmea", "rosbag"):
+    if kind in ("gpx", "nmea", "geojson", "rosbag"):
         if kind == "rosbag":  # a file or a ROS 2 bag directory
             reader: StreamedChunks = rosbag_tables(path, chunksize)
         else:
             check_readable(path)
-            reader = gpx_tables(path, chunksize) if kind == "gpx" else nmea_tables(path, chunksize)
+            streamed = {"gpx": gpx_tables, "nmea": nmea_tables, "geojson": geojson_tables}
+            reader = streamed[kind](path, chunksize)
         cmap = reader.columns if columns is None else _override(reader.columns, columns)
         return CsvChunks(
             n_rows=reader.n_rows,
