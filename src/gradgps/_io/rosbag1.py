@@ -1,8 +1,9 @@
 """ROS 1 bags (format 2.0) read in bounded memory, in the order ``rosbags`` gives.
 
 Why not ``rosbags.rosbag1.Reader``: on open it builds a Python object for every
-message of the bag (about 160 bytes a message), so a 1 GB bag of ``NavSatFix``
-messages cost about 1.5 GB before a message was read (issue 18). This reader
+message of the bag (about 150 bytes a message: tracemalloc gave 9.8 MB for a bag
+of 64,000), so gradgps reading a 1 GB bag of ``NavSatFix`` messages would have
+peaked near 1.5 GB (issue 18; ``docs/reliability.md``). This reader
 parses the bag's records itself and keeps per *chunk* state only (a few
 integers a chunk: a bag chunk holds hundreds of kilobytes of messages), while
 the deserialiser and type store stay ``rosbags``' (same classes, same values).
@@ -12,17 +13,18 @@ Order. ``rosbags`` yields the messages of the connections asked for sorted by
 entries were read: chunk-info order, then the order of the index records after
 each chunk), a stable sort of every connection's index followed by
 ``heapq.merge`` over the connections, whose ties fall to the earlier list. The
-same key is used here, a group of chunks at a time: chunks sorted by their
-earliest wanted message and swept into groups whose time ranges overlap or touch
-(a later group starts strictly after everything before it), so only the index
-entries of one group are held, as NumPy arrays (time int64, rank int32, chunk
-int32, offset uint32: 20 bytes an entry, and 8 more for the sort's permutation).
-A bag recorded in time order (``rosbag record``) makes groups of one or two
-chunks; a bag whose chunks all overlap (one message with an early time written
-last is enough) makes one group of every message: 23 bytes a message more at
-the peak then (tracemalloc: 14.8 against 10.3 MB reading 200,000 ``NavSatFix``
-messages, 35 MB of bag, one group against groups of one chunk), about 130 MB
-for a 1 GB bag.
+same key is used here without an index of the bag: each chunk's entries are
+sorted on their own (NumPy arrays, 16 bytes an entry: time int64, rank int32,
+offset uint32) and the chunks merged with a heap, a chunk being opened only
+when the merge reaches its earliest message (no message of a chunk not yet
+open can come first). So the entries held are those of the chunks whose time
+ranges span the merge's time: one or two for a bag recorded in time order
+(``rosbag record``), a few for a bag of a few time-ordered runs written one
+after the other, and every chunk only for a bag whose chunks all overlap (16
+bytes a message then: about 90 MB for the 5.6 million messages of a 1 GB bag
+of ``NavSatFix``, computed; and such a bag is slow, its chunks decompressed
+again whenever the merge comes back to one the cache has let go). Before the
+merge, one pass over the index records finds each chunk's earliest message.
 
 Chunks are decompressed (``none``, ``bz2``, ``lz4`` frames, as ``rosbags``
 reads them) into a small LRU cache, bounded in count and bytes.
@@ -39,6 +41,7 @@ stops at the chunk's declared size, and every failure is a
 from __future__ import annotations
 
 import bz2
+import heapq
 import os
 import re
 import struct
@@ -74,7 +77,6 @@ _CACHE_CHUNKS: Final = 8
 _CACHE_BYTES: Final = 64 << 20
 _COMPRESSIONS: Final = ("none", "bz2", "lz4")
 _NS: Final = 1_000_000_000
-_BLOCK: Final = 4096
 _U32: Final = struct.Struct("<L")
 
 
@@ -362,7 +364,8 @@ class Ros1Bag:
         self, connections: Sequence[Connection] = ()
     ) -> Iterator[tuple[Connection, int, bytes]]:
         """``(connection, record time ns, raw message)`` of ``connections`` (all when empty) in
-        rosbags' order (see the module docstring)."""
+        rosbags' order: a merge of the chunks, each sorted on its own, opened when the merge
+        reaches its earliest message (see the module docstring)."""
         asked = list(connections) or self.connections
         rank: dict[int, int] = {}
         for k, connection in enumerate(asked):
@@ -370,53 +373,53 @@ class Ros1Bag:
         ids = np.array(sorted(rank), np.int64)
         ranks = np.array([rank[i] for i in sorted(rank)], np.int32)
         by_id = {c.id: c for c in self.connections}
-        for group in self._groups(ids):
-            yield from self._group_messages(group, ids, ranks, by_id)
+        starts, chunks = self._starts(ids)
+        heap: list[tuple[int, int, int, int]] = []  # (time, rank, chunk, place in its order)
+        opened: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        waiting = 0
+        while True:
+            # Every chunk that may hold the next message is open: the rest start later.
+            while waiting < len(chunks) and (not heap or starts[waiting] <= heap[0][0]):
+                i = chunks[waiting]
+                waiting += 1
+                time, order, offset = opened[i] = self._sorted(i, ids, ranks)
+                heapq.heappush(heap, (int(time[0]), int(order[0]), i, 0))
+            if not heap:
+                return
+            ns, _, i, k = heap[0]
+            time, order, offset = opened[i]
+            yield self._message(i, int(offset[k]), ns, by_id)
+            if k + 1 < time.size:
+                heapq.heapreplace(heap, (int(time[k + 1]), int(order[k + 1]), i, k + 1))
+            else:
+                heapq.heappop(heap)
+                del opened[i]
 
-    def _groups(self, ids: np.ndarray) -> Iterator[list[int]]:
-        """Chunks in groups whose wanted messages overlap in time; every message of a group is
-        later than every message of the groups before it."""
-        starts, ends, chunks = array("q"), array("q"), array("q")
+    def _starts(self, ids: np.ndarray) -> tuple[list[int], list[int]]:
+        """The earliest wanted message time of each chunk holding any, and those chunks, sorted
+        by that time (then chunk-info order)."""
+        starts, chunks = array("q"), array("q")
         for i in range(len(self._chunk_pos)):
             conns, times, _ = self._index(i)
             times = times[np.isin(conns, ids)]
             if times.size:
                 starts.append(int(times.min()))
-                ends.append(int(times.max()))
                 chunks.append(i)
-        first, last, chunk = (np.frombuffer(a, np.int64) for a in (starts, ends, chunks))
-        group: list[int] = []
-        reach = 0
-        for k in np.argsort(first, kind="stable"):
-            if group and first[k] > reach:
-                yield sorted(group)
-                group = []
-            reach = max(reach, int(last[k])) if group else int(last[k])
-            group.append(int(chunk[k]))
-        if group:
-            yield sorted(group)
+        first = np.frombuffer(starts, np.int64)
+        order = np.argsort(first, kind="stable")
+        return first[order].tolist(), np.frombuffer(chunks, np.int64)[order].tolist()
 
-    def _group_messages(
-        self, group: list[int], ids: np.ndarray, ranks: np.ndarray, by_id: dict[int, Connection]
-    ) -> Iterator[tuple[Connection, int, bytes]]:
-        parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
-        for i in group:  # chunk-info order: the tie-break after time and rank
-            conns, times, offsets = self._index(i)
-            keep = np.isin(conns, ids)
-            where = np.searchsorted(ids, conns[keep])
-            parts.append(
-                (times[keep], ranks[where], np.full(int(keep.sum()), i, np.int32), offsets[keep])
-            )
-        time, rank, chunk, offset = (np.concatenate(p) for p in zip(*parts, strict=True))
-        del parts
-        order = np.lexsort((rank, time))  # stable: ties keep chunk-info and index order
-        del rank
-        for start in range(0, order.size, _BLOCK):  # Python ints a block at a time, not all
-            block = order[start : start + _BLOCK]
-            for i, at, ns in zip(
-                chunk[block].tolist(), offset[block].tolist(), time[block].tolist(), strict=True
-            ):
-                yield self._message(i, at, ns, by_id)
+    def _sorted(
+        self, i: int, ids: np.ndarray, ranks: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Chunk ``i``'s wanted entries sorted by (time, rank), ties in index order: times,
+        ranks, offsets (16 bytes an entry)."""
+        conns, times, offsets = self._index(i)
+        keep = np.isin(conns, ids)
+        time, offset = times[keep], offsets[keep]
+        rank = ranks[np.searchsorted(ids, conns[keep])]
+        order = np.lexsort((rank, time))  # stable
+        return time[order], rank[order], offset[order]
 
     def _message(
         self, i: int, offset: int, time: int, by_id: dict[int, Connection]
