@@ -1,9 +1,11 @@
 """ROS bags -> a Table of fixes, from ``sensor_msgs/NavSatFix`` (and ``TwistStamped`` speed).
 
 Robots and research cars record GNSS in ROS bags rather than in CSV or NMEA.
-The pure-Python ``rosbags`` package (extra ``ros``) reads ROS 1 ``.bag``
-files and ROS 2 bags (a directory with ``metadata.yaml``, or a bare ``.mcap``
-or ``.db3`` storage file) without a ROS installation.
+The pure-Python ``rosbags`` package (extra ``ros``) reads ROS 2 bags (a
+directory with ``metadata.yaml``, or a bare ``.mcap`` or ``.db3`` storage file)
+without a ROS installation, and deserialises ROS 1 messages; a ROS 1 ``.bag``'s
+records are read by :mod:`gradgps._io.rosbag1` (``rosbags``' own ROS 1 reader
+holds an index entry for every message of the bag: issue 18), in the same order.
 
 What is read:
 
@@ -41,6 +43,7 @@ import pandas as pd
 from .._exceptions import InputError
 from .._tracks.track import ColumnMap, Table
 from .files import StreamedChunks
+from .rosbag1 import Ros1Bag, Ros1BagError
 
 __all__ = [
     "NAVSATFIX",
@@ -288,8 +291,10 @@ def _table(
 
 @contextmanager
 def _open_bag(bag: Path) -> Iterator[Any]:
-    """The bag open in rosbags' ``AnyReader`` (a message of the standard types can be read
-    without definitions in the bag: ROS 2 bags may not embed them)."""
+    """A ROS 1 ``.bag`` open in :class:`~gradgps._io.rosbag1.Ros1Bag` (bounded memory, the
+    messages and values of rosbags' reader: issue 18), anything else in rosbags'
+    ``AnyReader`` (a message of the standard types can be read without definitions in the
+    bag: ROS 2 bags may not embed them). ``.bag`` exactly, as ``AnyReader`` tells them apart."""
     try:
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
@@ -299,6 +304,10 @@ def _open_bag(bag: Path) -> Iterator[Any]:
             source=str(bag),
             hint="pip install 'gradgps[ros]'",
         ) from None
+    if bag.suffix == ".bag":
+        with Ros1Bag(bag) as ros1:
+            yield ros1
+        return
     with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
         yield reader
 
@@ -308,7 +317,6 @@ def _bag_errors(source: str) -> Iterator[None]:
     """Any failure of the bag library as one :class:`InputError` naming the bag."""
     try:
         from rosbags.highlevel import AnyReaderError
-        from rosbags.rosbag1 import ReaderError as Ros1ReaderError
         from rosbags.rosbag2 import ReaderError as Ros2ReaderError
         from rosbags.serde import SerdeError
     except ImportError:
@@ -321,7 +329,19 @@ def _bag_errors(source: str) -> Iterator[None]:
         yield
     except InputError:
         raise
-    except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, SerdeError, OSError, KeyError) as exc:
+    except Ros1BagError as exc:
+        raise InputError(
+            f"cannot read the ROS 1 bag: {_one_line(exc)}",
+            source=source,
+            hint="a damaged bag may be repaired with rosbag reindex",
+        ) from None
+    except (
+        AnyReaderError,
+        Ros2ReaderError,
+        SerdeError,
+        OSError,
+        KeyError,
+    ) as exc:
         raise InputError(
             f"cannot read the ROS bag: {_one_line(exc)}",
             source=source,
