@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
+from _whole_file import detect_whole
 from gradgps import InputError, read_fixes
 from gradgps._cli import main
 
@@ -97,21 +98,26 @@ def test_geoparquet_is_read_in_chunks_with_the_whole_file_results(
     tmp_path: Path, crs: str, suffix: str
 ) -> None:
     """Issue 18: GeoParquet is read a record batch at a time (row groups of 7 rows here,
-    chunks of 4), its points decoded chunk by chunk: the output of --chunk-size 0 (the file
-    read whole), values, geometry and ``geo`` metadata alike."""
+    chunks of 4, and the largest chunks, --chunk-size 0), its points decoded chunk by chunk:
+    the output of the file read whole and detected at once (``detect_whole``), values,
+    geometry and ``geo`` metadata alike."""
     import pyarrow.parquet as pq
 
     path = _geoparquet(tmp_path / "drive.parquet", crs)
     table = pq.read_table(path)
     pq.write_table(table, path, row_group_size=7)
     assert pq.ParquetFile(path).metadata.num_row_groups == 5
-    chunked, whole = tmp_path / f"chunked{suffix}", tmp_path / f"whole{suffix}"
+    chunked, largest = tmp_path / f"chunked{suffix}", tmp_path / f"largest{suffix}"
+    whole = tmp_path / f"whole{suffix}"
     _detect([str(path), "-o", str(chunked), "--chunk-size", "4"])
-    _detect([str(path), "-o", str(whole), "--chunk-size", "0"])
+    _detect([str(path), "-o", str(largest), "--chunk-size", "0"])
+    detect_whole(path, whole)
     if suffix == ".csv":
         assert chunked.read_bytes() == whole.read_bytes()
+        assert largest.read_bytes() == whole.read_bytes()
         return
     pd.testing.assert_frame_equal(pd.read_parquet(chunked), pd.read_parquet(whole))
+    pd.testing.assert_frame_equal(pd.read_parquet(largest), pd.read_parquet(whole))
     assert pq.read_schema(chunked).metadata[b"geo"] == pq.read_schema(path).metadata[b"geo"]
     back = gpd.read_parquet(chunked)
     assert back.crs == gpd.read_parquet(path).crs

@@ -10,8 +10,11 @@ CSV, Parquet (GeoParquet too), GPX, NMEA and ROS bag input is processed
 Parquet by record batches of one row group at a time; GPX, NMEA and ROS bags in
 two streaming passes, :func:`gradgps._io.read.table_chunks`), and ``--geojson``
 and ``--gpx`` are written as results come
-(:class:`gradgps._io.export_streamed.StreamedExports`); ``--chunk-size 0`` and
-GeoJSON input read the whole file. Both read each track in row order with one rule (see
+(:class:`gradgps._io.export_streamed.StreamedExports`). ``--chunk-size 0`` asks for
+the largest chunks the memory bound allows (:func:`gradgps._io.read.chunk_rows`), not
+for the whole file: no mode of this command holds a chunkable file, since the chunks'
+outputs are byte for byte those of whole-file detection (issue 18). GeoJSON input is
+read whole. Both read each track in row order with one rule (see
 :func:`gradgps._tracks.preprocess.stream_reasons`): a fix whose time is not
 after the previous usable fix of its track is flagged invalid, never merged,
 so every mode, ``--report`` included, gives the same rows flagged and the
@@ -35,7 +38,7 @@ if TYPE_CHECKING:
 
 __all__ = ["WHOLE_FILE_WARN_BYTES", "detect"]
 
-#: A file read whole (``--chunk-size 0``, GeoJSON) larger than this
+#: A file read whole (GeoJSON) larger than this
 #: gets a warning first: its memory grows with it (docs/reliability.md, "Bounded memory").
 WHOLE_FILE_WARN_BYTES = 100_000_000
 
@@ -90,10 +93,9 @@ WHOLE_FILE_WARN_BYTES = 100_000_000
     "--chunk-size",
     minimum=0,
     default=200_000,
-    help="rows per chunk of CSV, Parquet, GPX, NMEA or ROS bag input (bounded memory); "
-    "0 = read the whole "
-    "file at once (memory grows with the file). "
-    "Same results either way",
+    help="rows per chunk of CSV, Parquet, GPX, NMEA or ROS bag input (bounded memory: at "
+    "most 500,000 rows and 4,000,000 cells, whatever is asked); 0 = the largest chunks "
+    "that bound allows. Same results at any size",
 )
 @column_options
 def detect(
@@ -118,7 +120,7 @@ def detect(
     repeated or backward timestamp) is flagged invalid, never merged. CSV,
     Parquet, GPX, NMEA and ROS bag input is processed in chunks of --chunk-size rows
     (memory stays bounded however large the file, --report, --geojson and
-    --gpx included). With --follow, INPUT is read as a live stream (e.g. 'tail
+    --gpx included; 0 asks for the largest chunks, never the whole file). With --follow, INPUT is read as a live stream (e.g. 'tail
     -f log.nmea | gradgps detect --follow -') and results go to standard
     output.
     """
@@ -152,7 +154,7 @@ def detect(
     from .._grad.detector import Detector
     from .._grad.events import EventBuilder
     from .._io.export_streamed import StreamedExports
-    from .._io.read import chunkable, load_table, write_table
+    from .._io.read import chunk_rows, chunkable, load_table, write_table
     from .._io.times import output_time_text
     from .._result import ResultCounts
     from .._run.report_data import ReportCollector
@@ -161,9 +163,10 @@ def detect(
 
     drawing = report_path is not None or plots_dir is not None
     exports = geojson_path is not None or gpx_path is not None
-    chunked = chunk_size > 0 and chunkable(input_path, settings.fmt)
+    chunk_size = chunk_rows(chunk_size)
+    chunked = chunkable(input_path, settings.fmt)
     # The report and plots draw from a collection of bounded size (report_data), unless
-    # the whole file is read at once; --geojson/--gpx are written as results come.
+    # the whole file is read at once (GeoJSON); --geojson/--gpx are written as results come.
     collector = ReportCollector() if drawing and chunked else None
     whole = drawing and collector is None
     exporter = StreamedExports(geojson_path, gpx_path) if exports else None
@@ -195,7 +198,7 @@ def detect(
         elapsed = summary.seconds
         rate = summary.rows_per_second
     else:
-        _warn_whole(input_path, chunk_size)
+        _warn_whole(input_path)
         with _steps() as step:
             step("read")
             table = load_table(input_path, settings.fmt, settings.columns, settings.options)
@@ -295,22 +298,19 @@ def detect(
                 )
 
 
-def _warn_whole(path: Path, chunk_size: int) -> None:
-    """Say, before reading, that a big file read whole needs memory in proportion to it."""
+def _warn_whole(path: Path) -> None:
+    """Say, before reading, that a big file read whole (GeoJSON, the one format not read in
+    chunks) needs memory in proportion to it."""
     try:
         size = sum(p.stat().st_size for p in (path.rglob("*") if path.is_dir() else [path]))
     except OSError:
         return
     if size <= WHOLE_FILE_WARN_BYTES:
         return
-    why, hint = (
-        ("--chunk-size 0", "leave --chunk-size at its default to keep memory bounded")
-        if chunk_size == 0
-        else ("GeoJSON is not read in chunks", "convert it to CSV or Parquet to stream it")
-    )
     click.echo(
-        f"warning: {path} ({size / 1e6:,.0f} MB) is read whole ({why}): memory grows with "
-        "the file, about 0.65 GB per million fixes (10 times a CSV's size); " + hint,
+        f"warning: {path} ({size / 1e6:,.0f} MB) is read whole (GeoJSON is not read in "
+        "chunks): memory grows with the file, about 0.65 GB per million fixes (10 times a "
+        "CSV's size); convert it to CSV or Parquet to stream it",
         err=True,
     )
 

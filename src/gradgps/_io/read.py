@@ -97,8 +97,37 @@ _EXTENSIONS: Final = {
 
 # Delimiters tried on the header line; the most frequent one wins.
 _DELIMITERS: Final = (",", ";", "\t", "|")
-#: Most cells (rows x columns) of one CSV chunk: a chunk of a very wide file has fewer rows.
+#: Most cells (rows x columns) of one chunk: a chunk of a very wide file has fewer rows.
 MAX_CHUNK_CELLS: Final = 4_000_000
+#: Most rows of one chunk, however narrow the file: detection holds far more per row of a
+#: chunk than its cells (features, states, the result, the output's text). Measured peaks
+#: of ``gradgps detect`` on CSVs of 1.4 M simulated fixes (2-core machine, VmHWM): 3
+#: columns, 200,000 rows a chunk 493 MB, 1.33 M (the cell bound alone) 925 MB; 4 columns,
+#: 1 M rows 924 MB; 8 columns, 500,000 rows 733 MB. So the cell bound alone would let a
+#: 2-column file pass 1 GB; half a million rows leaves room for ``--report`` and exports.
+MAX_CHUNK_ROWS: Final = 500_000
+#: Columns of the widest table the GPX, NMEA and ROS bag readers give (every optional
+#: column filled), which cut their chunks before the first pass has learned the header:
+#: 10 today (GPX track, time, lat, lon, alt, speed, course, hdop, satellites, fix; NMEA
+#: time, lat, lon, speed, course, alt, hdop, fix_quality, satellites, line; a bag 8), with
+#: room for a reader that gains a column. ``tests/test_bounded_chunks.py`` checks it.
+STREAMED_WIDEST_ROW: Final = 12
+
+
+def chunk_rows(chunk_size: int) -> int:
+    """The rows per chunk that ``--chunk-size`` asks for: itself, or for 0 the largest chunk
+    the memory bound allows (:data:`MAX_CHUNK_ROWS`; the readers cut it further by
+    :data:`MAX_CHUNK_CELLS` for a wide file). ``gradgps detect`` has no mode holding the
+    file: 0 used to read it whole, about 10 GB for a 1 GB CSV, for outputs byte for byte
+    those of the chunks (issue 18), and stays accepted for the scripts that pass it."""
+    return chunk_size if chunk_size > 0 else MAX_CHUNK_ROWS
+
+
+def _bounded_rows(chunksize: int, columns: int) -> int:
+    """Rows of one chunk asked for ``chunksize`` of a table of ``columns`` columns: never
+    more than :data:`MAX_CHUNK_ROWS`, nor than :data:`MAX_CHUNK_CELLS` cells, in every
+    chunked format (a ``--chunk-size`` of 100 million must not hold the file either)."""
+    return max(1, min(chunksize, MAX_CHUNK_ROWS, MAX_CHUNK_CELLS // max(1, columns)))
 
 
 def resolve_format(path: str | Path, fmt: str | None = None) -> str:
@@ -496,7 +525,8 @@ def iter_csv_tables(
 ) -> CsvChunks:
     """Read a big CSV as a stream of Tables of at most ``chunksize`` rows each.
 
-    Memory stays bounded by the chunk size. Each chunk's ``row_offset`` and
+    Memory stays bounded by the chunk size (at most :data:`MAX_CHUNK_ROWS` rows and
+    :data:`MAX_CHUNK_CELLS` cells, whatever is asked). Each chunk's ``row_offset`` and
     ``first_line`` say where it sits in the file, so value errors found in a
     later chunk name the right row and line. The structure of the whole file
     is checked here, before any chunk is handed out (one streaming pass), so
@@ -547,7 +577,7 @@ def _csv_chunks(
     source = str(path)
     offset = 0
     # Memory is rows x columns: a very wide file is read in fewer rows at a time.
-    chunksize = max(1, min(chunksize, MAX_CHUNK_CELLS // max(1, len(layout.header))))
+    chunksize = _bounded_rows(chunksize, len(layout.header))
     with _pandas_errors(source):
         reader = _pandas_csv(path, layout, columns, source, chunksize=chunksize)
         with reader:
@@ -782,7 +812,8 @@ def _parquet_tables(
 
     def chunks() -> Iterator[Table]:
         offset = 0
-        batches = file.iter_batches(batch_size=chunksize, use_pandas_metadata=True)
+        rows = _bounded_rows(chunksize, len(schema.names))
+        batches = file.iter_batches(batch_size=rows, use_pandas_metadata=True)
         while True:
             try:
                 batch = next(batches, None)
@@ -829,13 +860,17 @@ def table_chunks(
     (:func:`gradgps._io.gpx.gpx_tables`, :func:`gradgps._io.nmea.nmea_tables`,
     :func:`gradgps._io.rosbag.rosbag_tables`); the rows,
     values and column roles :func:`load_table` gives for the whole file, in chunks, in
-    bounded memory. ``options``: the reader options as one object (see :func:`load_table`)."""
+    bounded memory. Whatever ``chunksize`` asks, a chunk has at most :data:`MAX_CHUNK_ROWS`
+    rows and :data:`MAX_CHUNK_CELLS` cells in every format (GPX, NMEA and bags counted at
+    their widest row, :data:`STREAMED_WIDEST_ROW`), so no size holds the file. ``options``:
+    the reader options as one object (see :func:`load_table`)."""
     found = resolve_format(path, fmt)
     kind = found if found in CHUNKED_FORMATS else "csv"
     path, options = _chunked_read(path, chunksize, options, kind)
     if kind == "parquet":
         return _parquet_tables(path, chunksize, columns or ColumnMap(), options)
     if kind in ("gpx", "nmea", "rosbag"):
+        chunksize = _bounded_rows(chunksize, STREAMED_WIDEST_ROW)
         if kind == "rosbag":  # a file or a ROS 2 bag directory
             reader: StreamedChunks = rosbag_tables(path, chunksize)
         else:
