@@ -56,7 +56,13 @@ from .._tracks.track import (
 )
 from .files import READ_ERRORS, StreamedChunks, check_readable, open_bytes, text_lines
 from .geojson import read_geojson
-from .geoparquet import geo_metadata, read_geoparquet, wkt_points, write_geoparquet
+from .geoparquet import (
+    geo_metadata,
+    primary_column,
+    read_geoparquet,
+    wkt_points,
+    write_geoparquet,
+)
 from .gpx import gpx_tables, read_gpx
 from .nmea import nmea_tables, read_nmea
 from .rosbag import is_rosbag, read_rosbag, rosbag_tables
@@ -803,6 +809,7 @@ def _parquet_tables(
     except (ValueError, OSError, TypeError) as exc:
         raise _unreadable_parquet(exc, source) from None
     geo = geo_metadata(path)
+    geometry = None if geo is None else primary_column(geo)
     if stored_index:
         whole = _read_parquet(path)
         whole = replace(whole, columns=_override(whole.columns, columns), options=options)
@@ -819,7 +826,9 @@ def _parquet_tables(
                 batch = next(batches, None)
                 if batch is None:
                     return
-                frame = _arrow_to_pandas(pa.Table.from_batches([batch], schema=schema))
+                frame = _arrow_to_pandas(
+                    pa.Table.from_batches([batch], schema=schema), keep_binary=geometry
+                )
             except (ValueError, OSError, TypeError) as exc:
                 raise _unreadable_parquet(exc, source) from None
             frame = frame.reset_index(drop=True)
@@ -890,12 +899,23 @@ def table_chunks(
     )
 
 
-def _arrow_to_pandas(table: Any) -> pd.DataFrame:
+def _arrow_to_pandas(table: Any, keep_binary: str | None = None) -> pd.DataFrame:
     """A pyarrow table as :func:`pandas.read_parquet` converts one, so a file read chunk by
     chunk gives the frame it gives read whole: pandas 3 names its converter
     (``pandas.io._util.arrow_table_to_pandas``); pandas 2.2, which ``pyproject.toml``
     allows, has none and calls ``to_pandas`` itself (Arrow strings only under
-    ``future.infer_string``)."""
+    ``future.infer_string``).
+
+    ``keep_binary``: a column (a GeoParquet chunk's WKB geometry) kept as Arrow binary
+    (``pd.ArrowDtype``) in its place, not made a Python ``bytes`` per row: those, made and
+    dropped chunk after chunk, kept Python's allocator growing with the file (issue 18,
+    docs/reliability.md "Round three"); the output writes the same values either way."""
+    if keep_binary is not None and keep_binary in table.column_names:
+        at = table.column_names.index(keep_binary)
+        rest = _arrow_to_pandas(table.remove_column(at))
+        values = pd.arrays.ArrowExtensionArray(table.column(at))
+        rest.insert(at, keep_binary, pd.Series(values, index=rest.index))
+        return rest
     try:
         from pandas.io._util import (  # type: ignore[import-not-found]
             arrow_table_to_pandas,
