@@ -38,8 +38,8 @@ test: $(VENV)/.stamp-test
 	$(PY) -m mypy
 	$(PY) -m pytest -q
 
-# The long fuzz run (tests/test_fuzz.py): 2,500 cases for each of its 13 tests,
-# 32,500 in all; make test runs the same tests with 30 cases each. The compiled
+# The long fuzz run (tests/test_fuzz.py): 2,500 cases for each of its 14 tests,
+# 35,000 in all; make test runs the same tests with 30 cases each. The compiled
 # kernels are built with bounds checks here (NUMBA_BOUNDSCHECK=1, cached apart from
 # the normal build, about 25 s the first time): an out-of-bounds index, which a
 # normal build reads or writes silently (or ends in SIGSEGV), is an IndexError

@@ -13,7 +13,8 @@ one after another, RMC sentences). Then ``gradgps detect`` runs on it in each
 mode:
 
 * ``csv chunked``: the default (``--chunk-size 200000``);
-* ``csv --chunk-size 0``: the whole file at once;
+* ``csv --chunk-size 0``: the largest chunks the memory bound allows (it read the
+  whole file at once before issue 18's round three);
 * ``parquet``, ``gpx``, ``nmea``: those inputs (same fixes; the files'
   sizes differ, each is recorded);
 * ``csv --report``: chunked detection plus the HTML report;

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from _whole_file import detect_whole
 from gradgps._grad.events import EventBuilder, fault_events
 from gradgps._io import export_streamed
 from gradgps._io.export import _lines, geojson_document, geojson_text, iso_or_none
@@ -129,7 +130,8 @@ def test_an_error_leaves_no_file_and_no_spool(tmp_path: Path) -> None:
 
 def test_detect_writes_the_same_geojson_and_gpx_in_chunks_as_whole(tmp_path: Path) -> None:
     """``gradgps detect --geojson --gpx`` in chunks of 7 rows (tracks and fault events across
-    chunk boundaries) gives the bytes of ``--chunk-size 0``, which reads the file whole."""
+    chunk boundaries) and in the largest chunks (``--chunk-size 0``) gives the bytes of the
+    file read whole and detected at once (``detect_whole``)."""
     from click.testing import CliRunner
 
     from gradgps._cli import main
@@ -146,7 +148,9 @@ def test_detect_writes_the_same_geojson_and_gpx_in_chunks_as_whole(tmp_path: Pat
         done = CliRunner().invoke(main, [*args, "--chunk-size", size])
         assert done.exit_code == 0, done.output
         texts.append((geo.read_bytes(), gpx.read_bytes()))
-    assert texts[0] == texts[1]
+    geo, gpx = tmp_path / "whole.geojson", tmp_path / "whole.gpx"
+    detect_whole(source, geojson=geo, gpx=gpx)
+    assert texts[0] == texts[1] == (geo.read_bytes(), gpx.read_bytes())
     assert texts[0][0].count(b'"kind":"event"') > 2
 
 

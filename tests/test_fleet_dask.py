@@ -198,3 +198,29 @@ def test_a_partition_in_chunks_equals_batch_detection_of_its_files_joined(
     )
     assert summary.rows == len(want) == len(got)
     pd.testing.assert_frame_equal(got[RESULT_COLUMNS], want[RESULT_COLUMNS], check_dtype=False)
+
+
+def test_detect_fleet_chunk_size_0_asks_for_the_largest_bounded_chunks(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--chunk-size 0`` means one thing in ``detect`` and ``detect-fleet``: the largest
+    chunks the memory bound allows (issue 18; ``detect-fleet`` refused 0). The cluster is
+    left out: what matters is the chunk size each vehicle's task gets."""
+    import contextlib
+
+    from gradgps._io.read import MAX_CHUNK_ROWS
+    from gradgps._run import fleet_dask
+
+    asked: list[int] = []
+
+    def run(*_: object, chunk_size: int, **__: object) -> fleet_dask.FleetSummary:
+        asked.append(chunk_size)
+        return fleet_dask.FleetSummary(0, 0, 0, 0, 0, 1.0)
+
+    monkeypatch.setattr(fleet_dask, "dask_client", lambda *_: contextlib.nullcontext())
+    monkeypatch.setattr(fleet_dask, "detect_fleet", run)
+    for given, rows in (("0", MAX_CHUNK_ROWS), ("1234", 1234)):
+        args = ["detect-fleet", str(tmp_path), "-o", str(tmp_path / "out"), "--chunk-size", given]
+        done = CliRunner().invoke(main, args)
+        assert done.exit_code == 0, done.output
+        assert asked.pop() == rows

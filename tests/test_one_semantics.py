@@ -1,5 +1,6 @@
-"""One answer in every mode: chunked, whole file, report, follow, Python, for repeated,
-equal and backward timestamps; invalid rows counted the same everywhere."""
+"""One answer in every mode: chunked, the largest chunks (``--chunk-size 0``), report,
+follow, Python on the whole file, for repeated, equal and backward timestamps; invalid
+rows counted the same everywhere."""
 
 from __future__ import annotations
 
@@ -57,9 +58,9 @@ def test_repeated_equal_and_backward_times_give_one_answer_in_every_mode(tmp_pat
     outs = {}
     for name, extra in (
         ("chunked", ["--chunk-size", "997"]),
-        ("whole", ["--chunk-size", "0"]),
+        ("largest", ["--chunk-size", "0"]),
         ("report", ["--report", str(tmp_path / "r.html")]),
-        ("report_whole", ["--chunk-size", "0", "--report", str(tmp_path / "r2.html")]),
+        ("report_largest", ["--chunk-size", "0", "--report", str(tmp_path / "r2.html")]),
     ):
         out = tmp_path / f"{name}.csv"
         _cli(["detect", str(source), "-o", str(out), *extra])

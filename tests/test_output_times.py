@@ -1,7 +1,7 @@
 """Output times in the input's own form, the same text in every mode (issue 14, item 6).
 
-One input, every mode: chunked CSV, whole file (``--chunk-size 0``),
-Parquet output, ``--follow``, and the report's anomaly table must write the
+One input, every mode: chunked CSV, whole file (the file read whole and
+detected at once, ``tests/_whole_file.py``: ``--chunk-size 0`` reads in chunks), Parquet output, ``--follow``, and the report's anomaly table must write the
 same ``time`` text for the same fix. NMEA and GPX (times assembled from
 fields) are written as ISO-8601 UTC; CSV times stay as the input wrote them.
 """
@@ -17,6 +17,7 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
+from _whole_file import detect_whole
 from gradgps import ColumnMap, read_fixes, read_table, to_fixes
 from gradgps._cli import main
 from gradgps._io.nmea import nmea_checksum
@@ -187,7 +188,7 @@ def test_csv_times_are_the_same_text_in_every_mode(
     chunked, whole = tmp_path / "chunked.csv", tmp_path / "whole.csv"
     report = tmp_path / "report.html"
     _run(["detect", str(data), "-o", str(chunked), "--chunk-size", "7", "--report", str(report)])
-    _run(["detect", str(data), "-o", str(whole), "--chunk-size", "0"])
+    detect_whole(data, whole)
     _run(["detect", str(data), "-o", str(tmp_path / "out.parquet")])
     assert _times_csv(chunked, "time") == times
     assert _times_csv(whole, "time") == times

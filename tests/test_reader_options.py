@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
-from gradgps import ConfigError, InputError, iter_csv_tables, read_fixes
+from gradgps import ConfigError, InputError, iter_csv_tables, read_fixes, read_table
 from gradgps._cli import main
 
 READER_FLAGS = ("--decimal", "--time-format", "--skip-rows", "--speed-unit")
@@ -174,11 +174,14 @@ def test_follow_and_inject_refuse_what_they_cannot_honour(tmp_path: Path) -> Non
 
 
 def test_an_option_that_does_not_apply_is_refused_in_chunked_mode_too(tmp_path: Path) -> None:
-    """Parquet is read chunk by chunk by default; --skip-rows (CSV only) must be refused
-    there exactly as in whole-file mode, never silently ignored."""
+    """Parquet is read chunk by chunk (in the largest chunks with --chunk-size 0); --skip-rows
+    (CSV only) must be refused there exactly as the whole-file reader refuses skip_rows=,
+    never silently ignored."""
     path = tmp_path / "t.parquet"
     pd.DataFrame({"t": [0.0, 1.0, 2.0], "lat": 48.1, "lon": 11.5}).to_parquet(path)
     out = str(tmp_path / "o.csv")
     for chunked in ([], ["--chunk-size", "0"]):
         text = one_error_line(run("detect", str(path), "-o", out, "--skip-rows", "1", *chunked))
         assert "--skip-rows applies to CSV files, not to parquet" in text
+    with pytest.raises(ConfigError, match="skip_rows= applies to CSV files, not to parquet"):
+        read_table(path, skip_rows=1)

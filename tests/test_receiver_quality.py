@@ -257,7 +257,7 @@ def test_every_mode_gives_one_answer(tmp_path: Path) -> None:
     source = tmp_path / "drive.csv"
     frame.to_csv(source, index=False)
     outs = {}
-    for name, extra in (("chunked", ["--chunk-size", "37"]), ("whole", ["--chunk-size", "0"])):
+    for name, extra in (("chunked", ["--chunk-size", "37"]), ("largest", ["--chunk-size", "0"])):
         out = tmp_path / f"{name}.csv"
         res = CliRunner().invoke(main, ["detect", str(source), "-o", str(out), *extra])
         assert res.exit_code == 0, res.output
@@ -271,7 +271,7 @@ def test_every_mode_gives_one_answer(tmp_path: Path) -> None:
     base = outs["chunked"]
     assert (base.loc[bad, "invalid_reason"] != "").all()
     assert (base.loc[~bad, "invalid_reason"].fillna("") == "").all()
-    for other in (outs["whole"], python, streamed, followed):
+    for other in (outs["largest"], python, streamed, followed):
         _same(base, other)
     redis = _redis_results(frame)
     assert redis["invalid_reason"].fillna("").tolist() == base["invalid_reason"].fillna("").tolist()

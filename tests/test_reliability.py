@@ -20,6 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from _track_strategies import expected_reasons, messy_tracks
+from _whole_file import detect_whole
 from gradgps import InputError, simulate_fleet, to_fixes
 from gradgps._cli import main
 from gradgps._grad.detector import Detector, MultiTrackDetector
@@ -75,9 +76,10 @@ def test_mixed_bad_csv_gives_one_row_per_input_row_with_reasons(
 
 
 def test_mixed_bad_csv_in_batch_keeps_every_row(tmp_path: Path) -> None:
+    """The file read whole and detected at once (the library: ``--chunk-size 0`` reads in
+    chunks, issue 18) keeps every row, with the chunked stream's verdicts."""
     out = tmp_path / "out.csv"
-    result = CliRunner().invoke(main, ["detect", str(MIXED), "-o", str(out), "--chunk-size", "0"])
-    assert result.exit_code == 0, result.output
+    detect_whole(MIXED, out)
     got = _read_output(out)
     assert len(got) == len(pd.read_csv(MIXED))
     # One semantics: the whole file gives the verdicts of the chunked stream, row for row.

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from _whole_file import detect_whole
 from gradgps import InputError, iter_csv_tables, read_table
 from gradgps._cli import main
 from gradgps._io.files import MAX_LINE_BYTES
@@ -228,8 +229,9 @@ def test_a_header_only_file_with_repeated_column_names_is_written(tmp_path: Path
 def test_parquet_is_read_in_chunks_with_the_same_results(tmp_path: Path) -> None:
     """Parquet input goes through the chunked path (record batches, one row group at a time):
     on main it was read whole, its memory growing with the file. The output equals
-    whole-file detection (--chunk-size 0) byte for byte at any chunk size, with several
-    tracks interleaved, text ids, datetime times, a repeated and a backward timestamp."""
+    whole-file detection (the library's on the file read whole, ``detect_whole``) byte for
+    byte at any chunk size, 0 (the largest) included, with several tracks interleaved, text
+    ids, datetime times, a repeated and a backward timestamp."""
     import numpy as np
     import pandas as pd
 
@@ -253,17 +255,16 @@ def test_parquet_is_read_in_chunks_with_the_same_results(tmp_path: Path) -> None
     chunks = list(table_chunks(source, 97, fmt="parquet"))
     assert max(len(c.frame) for c in chunks) == 97
     assert sum(len(c.frame) for c in chunks) == n
-    outputs = {}
+    whole = tmp_path / "whole.csv"
+    detect_whole(source, whole)
     for size in (0, 1000, 97):
         out = tmp_path / f"out_{size}.csv"
         result = CliRunner().invoke(
             main, ["detect", str(source), "-o", str(out), "--chunk-size", str(size)]
         )
         assert result.exit_code == 0, result.output
-        outputs[size] = out.read_bytes()
-    assert outputs[97] == outputs[0]
-    assert outputs[1000] == outputs[0]
-    assert pd.read_csv(tmp_path / "out_0.csv")["invalid_reason"].notna().sum() == 2
+        assert out.read_bytes() == whole.read_bytes(), size
+    assert pd.read_csv(whole)["invalid_reason"].notna().sum() == 2
 
 
 def test_parquet_chunks_read_without_pandas_3s_converter(

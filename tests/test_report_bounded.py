@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
+from _whole_file import detect_whole
 from gradgps._cli import main
 from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import simulate_fleet
@@ -107,14 +108,19 @@ def test_a_long_run_is_thinned_with_exact_counts_and_tables(
 
 
 def test_a_short_run_gives_the_whole_file_report(fleet: Path, tmp_path: Path) -> None:
+    """Chunks of 997 rows, or the largest (``--chunk-size 0``), give the page of the file
+    read whole and detected at once (``detect_whole``)."""
     chunked = _report(fleet, tmp_path / "chunked.html")
-    whole = _report(fleet, tmp_path / "whole.html", "--chunk-size", "0")
+    largest = _report(fleet, tmp_path / "largest.html", "--chunk-size", "0")
+    detect_whole(fleet, report=tmp_path / "whole.html")
+    whole = (tmp_path / "whole.html").read_text(encoding="utf-8")
 
     def steady(page: str) -> str:  # the throughput and the figures' pixels aside
         page = re.sub(r"<tr><td>throughput</td><td>[^<]*</td></tr>", "", page)
         return re.sub(r"data:image/png;base64,[A-Za-z0-9+/=]*", "", page)
 
     assert steady(chunked) == steady(whole)
+    assert steady(largest) == steady(whole)
 
 
 def _chunk(offset: int, n: int, tracks: int) -> tuple[pd.DataFrame, pd.DataFrame, None]:

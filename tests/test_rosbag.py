@@ -22,6 +22,7 @@ from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
 
 from _rosbag_support import T0, N, write_drive
+from _whole_file import detect_whole
 
 
 def _check(table):
@@ -123,7 +124,8 @@ def test_a_bag_read_in_chunks_gives_the_whole_bag(tmp_path, chunk):
     """Issue 18: a bag is read message by message into chunks (two passes: twist speeds
     first, then the fixes), so memory is one chunk and the twists, not the bag; the chunks
     join to the whole-bag table (two receivers interleaved, speeds from twists that come
-    after their fix in the bag), and detect gives the bytes of --chunk-size 0."""
+    after their fix in the bag), and detect gives the bytes of the bag read whole and
+    detected at once (``detect_whole``; --chunk-size 0 reads the largest chunks)."""
     import pandas as pd
 
     from gradgps._io.read import table_chunks
@@ -141,13 +143,13 @@ def test_a_bag_read_in_chunks_gives_the_whole_bag(tmp_path, chunk):
     pd.testing.assert_frame_equal(
         pd.concat([t.frame for t in tables], ignore_index=True), whole.frame
     )
-    outputs = []
+    whole_out = tmp_path / "whole.csv"
+    detect_whole(path, whole_out)
     for size in (str(chunk), "0"):
         out = tmp_path / f"out{size}.csv"
         done = CliRunner().invoke(main, ["detect", str(path), "-o", str(out), "--chunk-size", size])
         assert done.exit_code == 0, done.output
-        outputs.append(out.read_bytes())
-    assert outputs[0] == outputs[1]
+        assert out.read_bytes() == whole_out.read_bytes(), size
 
 
 # --- ROS 1 bags read by gradgps._io.rosbag1 (issue 18: bounded memory) -------------------

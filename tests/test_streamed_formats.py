@@ -6,7 +6,9 @@ from __future__ import annotations
 import calendar
 import importlib
 import math
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -15,13 +17,14 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from _whole_file import detect_whole
 from gradgps import InputError
 from gradgps._cli import main
 from gradgps._io import read as read_module
 from gradgps._io.gpx import read_gpx
 from gradgps._io.nmea import Epoch, _Clock, _Offsets, epoch_times, nmea_checksum, read_nmea
 from gradgps._io.read import load_table, table_chunks
-from gradgps._tracks.track import ColumnMap
+from gradgps._tracks.track import ColumnMap, Table
 
 
 def _sentence(body: str) -> str:
@@ -222,17 +225,18 @@ def _detect(args: list[str]) -> str:
 
 @pytest.mark.parametrize("kind", ["gpx", "nmea"])
 def test_detect_gives_the_same_output_chunked_and_whole(tmp_path: Path, kind: str) -> None:
+    """Chunks of 3 rows give the output, events and counts of detection on the file read
+    whole (the library's, :func:`detect_whole`: ``--chunk-size 0`` reads in chunks too)."""
     path = _gpx(tmp_path) if kind == "gpx" else _nmea(tmp_path)
-    outputs = {}
-    for chunk in ("3", "0"):
-        out, events = tmp_path / f"out{chunk}.csv", tmp_path / f"events{chunk}.csv"
-        text = _detect([str(path), "-o", str(out), "--events", str(events), "--chunk-size", chunk])
-        wrote = next(s for s in text.splitlines() if s.startswith("wrote")).split(": ", 1)[1]
-        outputs[chunk] = (out.read_bytes(), events.read_bytes(), wrote)
-    assert outputs["3"][0] == outputs["0"][0]
-    assert outputs["3"][1] == outputs["0"][1]
+    out, events = tmp_path / "out.csv", tmp_path / "events.csv"
+    text = _detect([str(path), "-o", str(out), "--events", str(events), "--chunk-size", "3"])
+    wrote = next(s for s in text.splitlines() if s.startswith("wrote")).split(": ", 1)[1]
+    whole, whole_events = tmp_path / "whole.csv", tmp_path / "whole_events.csv"
+    counts = detect_whole(path, whole, events=whole_events)
+    assert out.read_bytes() == whole.read_bytes()
+    assert events.read_bytes() == whole_events.read_bytes()
     # The summary line, throughput aside.
-    assert outputs["3"][2].rsplit(";", 1)[0] == outputs["0"][2].rsplit(";", 1)[0]
+    assert wrote.rsplit(";", 1)[0] == counts
 
 
 @pytest.mark.parametrize("kind", ["gpx", "nmea"])
@@ -250,21 +254,42 @@ def test_detect_streams_gpx_and_nmea_without_reading_them_whole(
     assert len(pd.read_csv(out)) == len(_joined(path, 4)[0])
 
 
-def test_a_big_file_read_whole_says_its_memory_grows_with_it(
+def test_chunk_size_0_reads_in_the_largest_bounded_chunks_not_the_whole_file(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    detect_module = importlib.import_module("gradgps._cli.detect")
+    """Issue 18: ``--chunk-size 0`` read the whole file (about 10 GB for a 1 GB CSV) for
+    outputs byte for byte those of the chunks. It now asks for the largest chunks the
+    memory bound allows (here made 4 rows, to see them): the file is never read whole, no
+    warning says it is, and the output is the whole-file detection's."""
     path = _gpx(tmp_path)
-    monkeypatch.setattr(detect_module, "WHOLE_FILE_WARN_BYTES", path.stat().st_size - 1)
-    whole = _detect([str(path), "-o", str(tmp_path / "a.csv"), "--chunk-size", "0"])
-    assert "is read whole (--chunk-size 0): memory grows with the file" in whole
-    assert "leave --chunk-size at its default" in whole
-    chunked = _detect([str(path), "-o", str(tmp_path / "b.csv")])
-    assert "read whole" not in chunked
-    monkeypatch.setattr(detect_module, "WHOLE_FILE_WARN_BYTES", path.stat().st_size)
-    assert "read whole" not in _detect(
-        [str(path), "-o", str(tmp_path / "c.csv"), "--chunk-size", "0"]
-    )
+    monkeypatch.setattr(read_module, "MAX_CHUNK_ROWS", 4, raising=False)  # new in issue 18
+    chunked_module = importlib.import_module("gradgps._run.chunked")
+    sizes: list[int] = []
+
+    def counted(*args: Any, **kwargs: Any) -> read_module.CsvChunks:
+        found = table_chunks(*args, **kwargs)
+
+        def each() -> Iterator[Table]:
+            for table in found:
+                sizes.append(len(table.frame))
+                yield table
+
+        return read_module.CsvChunks(found.n_rows, found.header, each())
+
+    def whole(*_: object, **__: object) -> None:
+        raise AssertionError("read whole")
+
+    monkeypatch.setattr(chunked_module, "table_chunks", counted)
+    monkeypatch.setattr(read_module, "load_table", whole)
+    out = tmp_path / "out.csv"
+    text = _detect([str(path), "-o", str(out), "--chunk-size", "0"])
+    assert "read whole" not in text
+    assert "memory grows" not in text
+    assert sizes == [4] * 13 + [2]
+    monkeypatch.undo()
+    reference = tmp_path / "whole.csv"
+    detect_whole(path, reference)
+    assert out.read_bytes() == reference.read_bytes()
 
 
 def _traced_peak_mb(read: object) -> float:
@@ -349,3 +374,98 @@ def test_parquet_chunks_do_not_read_ahead_the_whole_file(tmp_path: Path) -> None
     rows, peak = (int(v) for v in done.stdout.split())
     assert rows == n
     assert peak < 0.3 * path.stat().st_size, (peak, path.stat().st_size)
+
+
+def _track_file(tmp_path: Path, kind: str) -> Path:
+    """A small file of ``kind`` (every format ``table_chunks`` reads in chunks)."""
+    if kind == "gpx":
+        return _gpx(tmp_path)
+    if kind == "nmea":
+        return _nmea(tmp_path)
+    if kind == "rosbag":
+        pytest.importorskip("rosbags")
+        from rosbags.rosbag2 import StoragePlugin
+        from rosbags.rosbag2 import Writer as Writer2
+        from rosbags.typesys import Stores, get_typestore
+
+        from _rosbag_support import write_drive
+
+        store = get_typestore(Stores.ROS2_HUMBLE)
+        path = tmp_path / "bag"
+        with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            write_drive(writer, store, store.serialize_cdr, extra_topic=True)
+        return path
+    n = 40
+    frame = pd.DataFrame(
+        {
+            "track": np.tile(["a", "b"], n // 2),
+            "t": 1.7e9 + np.repeat(np.arange(n // 2, dtype=float), 2),
+            "lat": 48.1 + 1e-5 * np.arange(n),
+            "lon": 11.5,
+            "note": "x",
+        }
+    )
+    if kind == "csv":
+        path = tmp_path / "fixes.csv"
+        frame.to_csv(path, index=False)
+        return path
+    if kind == "geojson":  # Point features whose properties make 30 columns
+        import json
+
+        props = {f"p{k}": k for k in range(26)}
+        features = [
+            {
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": [r.lon, r.lat]},
+                "properties": {"track": r.track, "time": r.t, **props},
+            }
+            for r in frame.itertuples()
+        ]
+        path = tmp_path / "fixes.geojson"
+        path.write_text(json.dumps({"type": "FeatureCollection", "features": features}))
+        return path
+    pytest.importorskip("pyarrow")
+    path = tmp_path / "fixes.parquet"
+    if kind == "parquet":
+        frame.to_parquet(path, index=False)
+        return path
+    gpd = pytest.importorskip("geopandas")
+    points = gpd.points_from_xy(frame.pop("lon"), frame.pop("lat"))
+    gpd.GeoDataFrame(frame, geometry=points, crs="EPSG:4326").to_parquet(path)
+    return path
+
+
+@pytest.mark.parametrize(
+    "kind", ["csv", "parquet", "geoparquet", "gpx", "nmea", "geojson", "rosbag"]
+)
+def test_every_chunked_format_holds_a_huge_chunk_size_to_the_memory_bound(
+    tmp_path: Path, kind: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 18: ``--chunk-size 100000000`` (or 0, the largest) must not hold the file in
+    any format. A chunk has at most ``MAX_CHUNK_ROWS`` rows and ``MAX_CHUNK_CELLS`` cells
+    (made 9 rows and 36 cells here to see them) whatever is asked; only the CSV reader
+    cut its chunks by cells before, Parquet, GPX, NMEA and ROS bags took the chunk size
+    as given. GPX, NMEA and bags cut by their widest row, whose width is checked too;
+    GeoJSON, as wide as its properties (30 columns here), by the width its first pass finds."""
+    path = _track_file(tmp_path, kind)
+    rows = len(load_table(path).frame)
+    for most_rows, most_cells in ((9, 10**6), (10**6, 36)):
+        monkeypatch.setattr(read_module, "MAX_CHUNK_ROWS", most_rows, raising=False)
+        monkeypatch.setattr(read_module, "MAX_CHUNK_CELLS", most_cells)
+        chunks = list(table_chunks(path, 100_000_000))
+        assert sum(len(c.frame) for c in chunks) == rows
+        assert len(chunks) > 1
+        for chunk in chunks:
+            assert len(chunk.frame) <= most_rows
+            assert len(chunk.frame) * len(chunk.frame.columns) <= most_cells
+            if kind != "geojson":
+                assert len(chunk.frame.columns) <= read_module.STREAMED_WIDEST_ROW
+
+
+@pytest.mark.parametrize("command", ["detect", "detect-fleet"])
+def test_the_chunk_size_help_names_the_bound_the_readers_apply(command: str) -> None:
+    """The help quotes the bound as numbers (the CLI does not import the readers to build
+    it): they must be the readers' own."""
+    text = " ".join(CliRunner().invoke(main, [command, "--help"]).output.split())
+    bound = f"{read_module.MAX_CHUNK_ROWS:,} rows and {read_module.MAX_CHUNK_CELLS:,} cells"
+    assert bound in text

@@ -20,7 +20,7 @@ from gradgps._cli import main
 from gradgps._io import geojson_rows
 from gradgps._io import read as read_module
 from gradgps._io.geojson import read_geojson
-from gradgps._io.read import chunkable, load_table, table_chunks
+from gradgps._io.read import load_table, table_chunks
 
 
 def _point(i: int, **props: Any) -> dict[str, Any]:
@@ -199,7 +199,6 @@ def test_chunks_hold_what_the_whole_file_reader_gives(
     streamed by a cursor of its own; ``None``: as shipped)."""
     path = _write(tmp_path, name, how)
     whole = load_table(path)
-    assert chunkable(path)
     _with_budget(budget, monkeypatch)
     pd.testing.assert_frame_equal(read_geojson(path).frame, whole.frame)
     chunks = table_chunks(path, chunk)

@@ -10,8 +10,11 @@ processed ``--chunk-size`` rows at a time in bounded memory (:mod:`gradgps._run.
 Parquet by record batches of one row group at a time; GPX, NMEA, GeoJSON and ROS bags in
 two streaming passes, :func:`gradgps._io.read.table_chunks`), and ``--geojson``
 and ``--gpx`` are written as results come
-(:class:`gradgps._io.export_streamed.StreamedExports`); ``--chunk-size 0`` reads the
-whole file. Both read each track in row order with one rule (see
+(:class:`gradgps._io.export_streamed.StreamedExports`). ``--chunk-size 0`` asks for
+the largest chunks the memory bound allows (:func:`gradgps._io.read.chunk_rows`), not
+for the whole file: no mode of this command holds the file, since the chunks' outputs
+are byte for byte those of whole-file detection (issue 18). Every mode reads each
+track in row order with one rule (see
 :func:`gradgps._tracks.preprocess.stream_reasons`): a fix whose time is not
 after the previous usable fix of its track is flagged invalid, never merged,
 so every mode, ``--report`` included, gives the same rows flagged and the
@@ -33,11 +36,7 @@ from .options import READER_FLAGS, column_map, column_options, model_options, op
 if TYPE_CHECKING:
     from .._run.settings import RunSettings
 
-__all__ = ["WHOLE_FILE_WARN_BYTES", "detect"]
-
-#: A file read whole (``--chunk-size 0``) larger than this
-#: gets a warning first: its memory grows with it (docs/reliability.md, "Bounded memory").
-WHOLE_FILE_WARN_BYTES = 100_000_000
+__all__ = ["detect"]
 
 
 @click.command()
@@ -90,10 +89,9 @@ WHOLE_FILE_WARN_BYTES = 100_000_000
     "--chunk-size",
     minimum=0,
     default=200_000,
-    help="rows per chunk of the input, any format (bounded memory); "
-    "0 = read the whole "
-    "file at once (memory grows with the file). "
-    "Same results either way",
+    help="rows per chunk of the input, any format (bounded memory: at "
+    "most 500,000 rows and 4,000,000 cells, whatever is asked); 0 = the largest chunks "
+    "that bound allows. Same results at any size",
 )
 @column_options
 def detect(
@@ -118,7 +116,8 @@ def detect(
     repeated or backward timestamp) is flagged invalid, never merged. Input of
     any format is processed in chunks of --chunk-size rows
     (memory stays bounded however large the file, --report, --geojson and
-    --gpx included). With --follow, INPUT is read as a live stream (e.g. 'tail
+    --gpx included; 0 asks for the largest chunks, never the whole file). With
+    --follow, INPUT is read as a live stream (e.g. 'tail
     -f log.nmea | gradgps detect --follow -') and results go to standard
     output.
     """
@@ -145,89 +144,44 @@ def detect(
         raise click.UsageError("reading standard input ('-') needs --follow")
     if report_path is not None or plots_dir is not None:
         _need_matplotlib()
-    import time
-
     import pandas as pd
 
     from .._grad.detector import Detector
     from .._grad.events import EventBuilder
     from .._io.export_streamed import StreamedExports
-    from .._io.read import chunkable, load_table, write_table
+    from .._io.read import chunk_rows, write_table
     from .._io.times import output_time_text
     from .._result import ResultCounts
     from .._run.report_data import ReportCollector
-    from .._tracks.input_checks import input_warnings, validated_rates
     from .._tracks.track import to_fixes
 
     drawing = report_path is not None or plots_dir is not None
     exports = geojson_path is not None or gpx_path is not None
-    chunked = chunk_size > 0 and chunkable(input_path, settings.fmt)
-    # The report and plots draw from a collection of bounded size (report_data), unless
-    # the whole file is read at once; --geojson/--gpx are written as results come.
-    collector = ReportCollector() if drawing and chunked else None
-    whole = drawing and collector is None
+    chunk_size = chunk_rows(chunk_size)
+    # Every format is read in chunks; the report and plots draw from a collection of
+    # bounded size (report_data), --geojson/--gpx are written as results come.
+    collector = ReportCollector() if drawing else None
     exporter = StreamedExports(geojson_path, gpx_path) if exports else None
     events = EventBuilder() if (events_path or report_path or geojson_path) else None
-    kept: list[tuple[pd.DataFrame, pd.DataFrame]] = []
-    # The time column as the output writes it, for the report's tables (None: numbers).
-    time_texts: list[Any] = []
     detector = Detector(model_dir, threshold=threshold)
     time_column: Any = None
-    if chunked:
 
-        def collect(fixes: pd.DataFrame, result: pd.DataFrame, frame: pd.DataFrame) -> None:
-            nonlocal time_column
-            if time_column is None:  # the first chunk's rows say how the input writes time
-                time_column = _time_column(frame, fixes)
-            if events is not None:
-                events.add(fixes, result)
-            if exporter is not None:
-                exporter.add(fixes, result)
-            if whole:
-                kept.append((fixes, result))
-                time_texts.append(output_time_text(frame, _time_name(fixes)))
-            if collector is not None:
-                collector.add(fixes, result, output_time_text(frame, _time_name(fixes)))
-
-        summary = _detect_in_chunks(input_path, output, settings, chunk_size, collect)
-        counts = ResultCounts(summary.rows, summary.anomalies, summary.invalid, summary.alerts)
-        warnings: list[str] = list(summary.warnings)
-        elapsed = summary.seconds
-        rate = summary.rows_per_second
-    else:
-        _warn_whole(input_path)
-        with _steps() as step:
-            step("read")
-            table = load_table(input_path, settings.fmt, settings.columns, settings.options)
-            fixes = to_fixes(table)
-            lowest, highest = validated_rates(detector.model_.config)
-            warnings = input_warnings(fixes, min_rate_hz=lowest, max_rate_hz=highest)
-            time_column = _time_column(table.frame, fixes)
-            step(f"detect {len(fixes):,} fixes")
-            started = time.perf_counter()
-            result = detector.detect_fixes(fixes)
-            elapsed = time.perf_counter() - started
-            frame = table.frame.reset_index(drop=True)
-            clash = [c for c in result.columns if c in frame.columns]
-            if clash:
-                raise click.UsageError(
-                    f"{input_path} already has columns {clash}; rename them first"
-                )
-            if output is not None:
-                step("write")
-                write_table(
-                    pd.concat([frame, result.reset_index(drop=True)], axis=1),
-                    output,
-                    geometry=table.geometry,
-                )
+    def collect(fixes: pd.DataFrame, result: pd.DataFrame, frame: pd.DataFrame) -> None:
+        nonlocal time_column
+        if time_column is None:  # the first chunk's rows say how the input writes time
+            time_column = _time_column(frame, fixes)
         if events is not None:
             events.add(fixes, result)
         if exporter is not None:
             exporter.add(fixes, result)
-        kept.append((fixes, result))
-        time_texts.append(output_time_text(table.frame, _time_name(fixes)))
-        counts = ResultCounts.of(result)
-        rate = counts.rows / elapsed if elapsed > 0 else float("inf")
+        if collector is not None:
+            collector.add(fixes, result, output_time_text(frame, _time_name(fixes)))
+
+    summary = _detect_in_chunks(input_path, output, settings, chunk_size, collect)
+    counts = ResultCounts(summary.rows, summary.anomalies, summary.invalid, summary.alerts)
+    warnings: list[str] = list(summary.warnings)
+    elapsed = summary.seconds
+    rate = summary.rows_per_second
     what = str(output) if output is not None else str(input_path)
     click.echo(
         f"{'wrote ' if output is not None else ''}{what}: {counts.text()}; {rate:,.0f} fixes/s"
@@ -235,10 +189,8 @@ def detect(
     for warning in warnings:
         # Once, on standard error: the input is outside what the model was validated on.
         click.echo(f"warning: {warning}", err=True)
-    if not whole and events is None and collector is None and exporter is None:
+    if events is None and collector is None and exporter is None:
         return
-    fixes_all = pd.concat([f for f, _ in kept], ignore_index=True) if whole else None
-    result_all = pd.concat([r for _, r in kept], ignore_index=True) if whole else None
     table_events = events.events() if events is not None else None
     if events_path is not None and table_events is not None:
         write_table(_events_in_input_form(table_events, time_column), events_path)
@@ -251,14 +203,12 @@ def detect(
             click.echo(f"geojson: {geojson_path}")
         if gpx_path is not None:
             click.echo(f"gpx: {gpx_path} (the repaired track)")
-    if drawing:
+    if collector is not None:
         from .report import write_report_outputs
 
         thinned = None
         drawn: Any = None
-        if collector is None:
-            drawn = (fixes_all, result_all, _joined(time_texts))
-        elif collector.rows == 0:  # no chunk at all (an empty Parquet file): an empty report
+        if collector.rows == 0:  # no chunk at all (an empty Parquet file): an empty report
             from .._run.chunked import no_fixes
 
             drawn = (no_fixes(), detector.detect_fixes(no_fixes()), None)
@@ -295,26 +245,10 @@ def detect(
                 )
 
 
-def _warn_whole(path: Path) -> None:
-    """Say, before reading, that a big file read whole (``--chunk-size 0``: every format
-    is read in chunks otherwise) needs memory in proportion to it."""
-    try:
-        size = sum(p.stat().st_size for p in (path.rglob("*") if path.is_dir() else [path]))
-    except OSError:
-        return
-    if size <= WHOLE_FILE_WARN_BYTES:
-        return
-    click.echo(
-        f"warning: {path} ({size / 1e6:,.0f} MB) is read whole (--chunk-size 0): memory "
-        "grows with the file, about 0.65 GB per million fixes (10 times a CSV's size); "
-        "leave --chunk-size at its default to keep memory bounded",
-        err=True,
-    )
-
-
 @contextlib.contextmanager
 def _steps() -> Iterator[Callable[[str], None]]:
-    """A spinner with the current step and the elapsed time on stderr (whole-file runs)."""
+    """A spinner with the current step and the elapsed time on stderr (the steps after
+    detection: exports and the report)."""
     from rich.console import Console
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
@@ -342,15 +276,6 @@ def _need_matplotlib() -> None:
 def _time_name(fixes: Any) -> str | None:
     cmap = fixes.attrs.get("columns")
     return None if cmap is None else cmap.time
-
-
-def _joined(texts: list[Any]) -> Any:
-    """The chunks' time texts as one array; None when any chunk's times are numbers."""
-    import numpy as np
-
-    if not texts or any(t is None for t in texts):
-        return None
-    return np.concatenate(texts)
 
 
 def _time_column(frame: Any, fixes: Any) -> Any:

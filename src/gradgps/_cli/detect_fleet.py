@@ -42,10 +42,11 @@ __all__ = ["detect_fleet"]
 )
 @option(
     "--chunk-size",
-    minimum=1,
+    minimum=0,
     default=200_000,
     help="rows per chunk: each vehicle's files are read one after the other, this many "
-    "rows at a time (a worker's memory is one chunk, whatever the vehicle's size)",
+    "rows at a time (a worker's memory is one chunk, whatever the vehicle's size; at most "
+    "500,000 rows and 4,000,000 cells); 0 = the largest chunks, as for detect",
 )
 @model_options
 @column_options
@@ -70,6 +71,7 @@ def detect_fleet(
     )
 
     from .._grad.detector import load_grad_model
+    from .._io.read import chunk_rows
     from .._run.chunked import detect_partition
     from .._run.fleet_dask import dask_client
     from .._run.fleet_dask import detect_fleet as run_on_cluster
@@ -94,7 +96,7 @@ def detect_fleet(
             client,
             task=detect_partition,
             settings=settings,
-            chunk_size=chunk_size,
+            chunk_size=chunk_rows(chunk_size),
             on_start=lambda n: progress.update(task, total=n),
             on_partition=lambda _: progress.advance(task),
         )

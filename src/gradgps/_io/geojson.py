@@ -54,9 +54,12 @@ def read_geojson(path: str | Path) -> Table:
     return Table(frame=frame, source=str(path), columns=_column_map("alt" in frame.columns))
 
 
-def geojson_tables(path: str | Path, chunksize: int) -> StreamedChunks:
-    """The rows of a GeoJSON file as Tables of at most ``chunksize`` rows, in two streaming
-    passes, so memory is bounded by the chunk, not by the file.
+def geojson_tables(
+    path: str | Path, chunksize: int, max_cells: int | None = None
+) -> StreamedChunks:
+    """The rows of a GeoJSON file as Tables of at most ``chunksize`` rows (and, given
+    ``max_cells``, of at most that many cells: a file's properties can make it as wide as
+    they like), in two streaming passes, so memory is bounded by the chunk, not by the file.
 
     The first pass reads and checks every feature (a bad file fails before any
     output) and learns what only the whole file tells: the columns in the order the
@@ -73,6 +76,8 @@ def geojson_tables(path: str | Path, chunksize: int) -> StreamedChunks:
     samples = kinds.samples()
     header = tuple(kinds.columns)
     columns = _column_map("alt" in kinds.columns)
+    if max_cells is not None:
+        chunksize = max(1, min(chunksize, max_cells // max(1, len(header))))
 
     def chunks() -> Iterator[Table]:
         offset = 0

@@ -28,7 +28,7 @@ import pandas as pd
 from .._exceptions import ConfigError, InputError
 from .._tracks.track import ColumnMap, GeoPoints, Table
 
-__all__ = ["geo_metadata", "read_geoparquet", "wkt_points", "write_geoparquet"]
+__all__ = ["geo_metadata", "primary_column", "read_geoparquet", "wkt_points", "write_geoparquet"]
 
 _TYPES = {1: "Point", 2: "LineString", 3: "Polygon", 4: "MultiPoint", 5: "MultiLineString"}
 
@@ -45,6 +45,15 @@ def geo_metadata(path: Path) -> bytes | None:
         return None
     value = meta.get(b"geo")
     return bytes(value) if value is not None else None
+
+
+def primary_column(metadata: bytes) -> str | None:
+    """The name of the primary geometry column in ``geo`` metadata; None when damaged (then
+    :func:`read_geoparquet` says so)."""
+    try:
+        return str(json.loads(metadata)["primary_column"])
+    except (ValueError, KeyError, TypeError):
+        return None
 
 
 def read_geoparquet(path: Path, frame: pd.DataFrame, metadata: bytes, row_offset: int = 0) -> Table:
@@ -86,6 +95,13 @@ def read_geoparquet(path: Path, frame: pd.DataFrame, metadata: bytes, row_offset
 def _points(
     values: pd.Series, source: str, column: str, row_offset: int
 ) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's point (NaN where the geometry is null), decoded from the WKB of ``values``
+    (Python ``bytes`` as pandas reads a file whole, or Arrow binary as a chunk holds it):
+    vectorised (:func:`_points_at_once`), else row by row, so that a value that is not a
+    point is an error naming its row."""
+    found = _points_at_once(values)
+    if found is not None:
+        return found
     n = len(values)
     x = np.full(n, np.nan)
     y = np.full(n, np.nan)
@@ -102,6 +118,59 @@ def _points(
                 column=column,
                 hint="gradgps reads tracks of points; convert lines to their vertices first",
             ) from None
+    return x, y
+
+
+def _points_at_once(values: pd.Series) -> tuple[np.ndarray, np.ndarray] | None:
+    """The points of a column whose every value is null or a WKB point (2D, Z, M or ZM; ISO
+    or EWKB; either byte order), decoded with NumPy from the column's one Arrow buffer, as
+    :func:`_wkb_point` decodes one value; ``None`` for anything else (the caller's row by row
+    reading then names the bad row). Issue 18: the row-by-row reading made a Python ``bytes``
+    and two floats per fix, and a GeoParquet read in chunks was the one format whose
+    Python allocator kept growing with the file (docs/reliability.md, "Round three")."""
+    try:
+        import pyarrow as pa
+    except ImportError:
+        return None
+    try:
+        array = pa.array(values, type=pa.binary(), from_pandas=True)
+    except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError, TypeError):
+        return None
+    n = len(array)
+    _, offsets_buffer, data_buffer = array.buffers()
+    if offsets_buffer is None:
+        return None
+    offsets = np.frombuffer(offsets_buffer, np.int32)[array.offset : array.offset + n + 1]
+    data = (
+        np.frombuffer(data_buffer, np.uint8) if data_buffer is not None else np.zeros(0, np.uint8)
+    )
+    valid = array.is_valid().to_numpy(zero_copy_only=False)
+    start = offsets[:-1].astype(np.int64)[valid]
+    length = np.diff(offsets).astype(np.int64)[valid]
+    if (length < 21).any():  # shorter than a 2D point: empty, or not a point
+        return None
+    order = data[start]
+    if ((order != 0) & (order != 1)).any():
+        return None
+    little = order == 1
+
+    def numbers(at: np.ndarray, size: int, dtype: str) -> np.ndarray:
+        """The ``size``-byte number at ``at`` of each row, in the row's byte order (gathered a
+        byte at a time: a row's bytes, not an index matrix, are the memory it takes)."""
+        raw = np.empty((len(at), size), np.uint8)
+        for k in range(size):
+            raw[:, k] = data[at + k]
+        raw[~little] = raw[~little, ::-1]
+        return raw.view(dtype)[:, 0]
+
+    kind = numbers(start + 1, 4, "<u4")
+    at = start + 5 + np.where(kind & 0x20000000, 4, 0)  # EWKB with an SRID
+    if ((kind & 0x0FFFFFFF) % 1000 != 1).any() or (at + 16 > start + length).any():
+        return None
+    x = np.full(n, np.nan)
+    y = np.full(n, np.nan)
+    x[valid] = numbers(at, 8, "<f8")
+    y[valid] = numbers(at + 8, 8, "<f8")
     return x, y
 
 

@@ -56,7 +56,13 @@ from .._tracks.track import (
 )
 from .files import READ_ERRORS, StreamedChunks, check_readable, open_bytes, text_lines
 from .geojson import geojson_tables, read_geojson
-from .geoparquet import geo_metadata, read_geoparquet, wkt_points, write_geoparquet
+from .geoparquet import (
+    geo_metadata,
+    primary_column,
+    read_geoparquet,
+    wkt_points,
+    write_geoparquet,
+)
 from .gpx import gpx_tables, read_gpx
 from .nmea import nmea_tables, read_nmea
 from .rosbag import is_rosbag, read_rosbag, rosbag_tables
@@ -66,7 +72,6 @@ __all__ = [
     "FORMATS",
     "CsvChunks",
     "TableWriter",
-    "chunkable",
     "iter_csv_tables",
     "load_table",
     "read_fixes",
@@ -97,8 +102,37 @@ _EXTENSIONS: Final = {
 
 # Delimiters tried on the header line; the most frequent one wins.
 _DELIMITERS: Final = (",", ";", "\t", "|")
-#: Most cells (rows x columns) of one CSV chunk: a chunk of a very wide file has fewer rows.
+#: Most cells (rows x columns) of one chunk: a chunk of a very wide file has fewer rows.
 MAX_CHUNK_CELLS: Final = 4_000_000
+#: Most rows of one chunk, however narrow the file: detection holds far more per row of a
+#: chunk than its cells (features, states, the result, the output's text). Measured peaks
+#: of ``gradgps detect`` on CSVs of 1.4 M simulated fixes (2-core machine, VmHWM): 3
+#: columns, 200,000 rows a chunk 493 MB, 1.33 M (the cell bound alone) 925 MB; 4 columns,
+#: 1 M rows 924 MB; 8 columns, 500,000 rows 733 MB. So the cell bound alone would let a
+#: 2-column file pass 1 GB; half a million rows leaves room for ``--report`` and exports.
+MAX_CHUNK_ROWS: Final = 500_000
+#: Columns of the widest table the GPX, NMEA and ROS bag readers give (every optional
+#: column filled), which cut their chunks before the first pass has learned the header:
+#: 10 today (GPX track, time, lat, lon, alt, speed, course, hdop, satellites, fix; NMEA
+#: time, lat, lon, speed, course, alt, hdop, fix_quality, satellites, line; a bag 8), with
+#: room for a reader that gains a column. ``tests/test_bounded_chunks.py`` checks it.
+STREAMED_WIDEST_ROW: Final = 12
+
+
+def chunk_rows(chunk_size: int) -> int:
+    """The rows per chunk that ``--chunk-size`` asks for: itself, or for 0 the largest chunk
+    the memory bound allows (:data:`MAX_CHUNK_ROWS`; the readers cut it further by
+    :data:`MAX_CHUNK_CELLS` for a wide file). ``gradgps detect`` has no mode holding the
+    file: 0 used to read it whole, about 10 GB for a 1 GB CSV, for outputs byte for byte
+    those of the chunks (issue 18), and stays accepted for the scripts that pass it."""
+    return chunk_size if chunk_size > 0 else MAX_CHUNK_ROWS
+
+
+def _bounded_rows(chunksize: int, columns: int) -> int:
+    """Rows of one chunk asked for ``chunksize`` of a table of ``columns`` columns: never
+    more than :data:`MAX_CHUNK_ROWS`, nor than :data:`MAX_CHUNK_CELLS` cells, in every
+    chunked format (a ``--chunk-size`` of 100 million must not hold the file either)."""
+    return max(1, min(chunksize, MAX_CHUNK_ROWS, MAX_CHUNK_CELLS // max(1, columns)))
 
 
 def resolve_format(path: str | Path, fmt: str | None = None) -> str:
@@ -496,7 +530,8 @@ def iter_csv_tables(
 ) -> CsvChunks:
     """Read a big CSV as a stream of Tables of at most ``chunksize`` rows each.
 
-    Memory stays bounded by the chunk size. Each chunk's ``row_offset`` and
+    Memory stays bounded by the chunk size (at most :data:`MAX_CHUNK_ROWS` rows and
+    :data:`MAX_CHUNK_CELLS` cells, whatever is asked). Each chunk's ``row_offset`` and
     ``first_line`` say where it sits in the file, so value errors found in a
     later chunk name the right row and line. The structure of the whole file
     is checked here, before any chunk is handed out (one streaming pass), so
@@ -547,7 +582,7 @@ def _csv_chunks(
     source = str(path)
     offset = 0
     # Memory is rows x columns: a very wide file is read in fewer rows at a time.
-    chunksize = max(1, min(chunksize, MAX_CHUNK_CELLS // max(1, len(layout.header))))
+    chunksize = _bounded_rows(chunksize, len(layout.header))
     with _pandas_errors(source):
         reader = _pandas_csv(path, layout, columns, source, chunksize=chunksize)
         with reader:
@@ -773,6 +808,7 @@ def _parquet_tables(
     except (ValueError, OSError, TypeError) as exc:
         raise _unreadable_parquet(exc, source) from None
     geo = geo_metadata(path)
+    geometry = None if geo is None else primary_column(geo)
     if stored_index:
         whole = _read_parquet(path)
         whole = replace(whole, columns=_override(whole.columns, columns), options=options)
@@ -782,13 +818,16 @@ def _parquet_tables(
 
     def chunks() -> Iterator[Table]:
         offset = 0
-        batches = file.iter_batches(batch_size=chunksize, use_pandas_metadata=True)
+        rows = _bounded_rows(chunksize, len(schema.names))
+        batches = file.iter_batches(batch_size=rows, use_pandas_metadata=True)
         while True:
             try:
                 batch = next(batches, None)
                 if batch is None:
                     return
-                frame = _arrow_to_pandas(pa.Table.from_batches([batch], schema=schema))
+                frame = _arrow_to_pandas(
+                    pa.Table.from_batches([batch], schema=schema), keep_binary=geometry
+                )
             except (ValueError, OSError, TypeError) as exc:
                 raise _unreadable_parquet(exc, source) from None
             frame = frame.reset_index(drop=True)
@@ -804,17 +843,6 @@ def _parquet_tables(
     return CsvChunks(n_rows=n_rows, header=tuple(schema.names), chunks=chunks())
 
 
-#: The formats :func:`table_chunks` reads chunk by chunk (GeoParquet included).
-CHUNKED_FORMATS: Final = ("csv", "parquet", "gpx", "nmea", "geojson", "rosbag")
-
-
-def chunkable(path: str | Path, fmt: str | None = None) -> bool:
-    """Whether ``path`` is read chunk by chunk (:func:`table_chunks`): CSV, Parquet
-    (GeoParquet too, its points decoded chunk by chunk), GPX, NMEA, GeoJSON and ROS bags:
-    every format."""
-    return resolve_format(path, fmt) in CHUNKED_FORMATS
-
-
 def table_chunks(
     path: str | Path,
     chunksize: int,
@@ -822,7 +850,7 @@ def table_chunks(
     options: ReadOptions | None = None,
     fmt: str | None = None,
 ) -> CsvChunks:
-    """A track file of one of :data:`CHUNKED_FORMATS` (``fmt``, or as :func:`resolve_format`
+    """A track file of any of :data:`FORMATS` (``fmt``, or as :func:`resolve_format`
     finds it; any other format is read as CSV) as a stream of Tables of at most
     ``chunksize`` rows: a CSV as :func:`iter_csv_tables` describes, a Parquet file a row
     group at a time, GPX, NMEA, GeoJSON and ROS bags in two streaming passes
@@ -830,19 +858,28 @@ def table_chunks(
     :func:`gradgps._io.geojson.geojson_tables`, :func:`gradgps._io.rosbag.rosbag_tables`);
     the rows,
     values and column roles :func:`load_table` gives for the whole file, in chunks, in
-    bounded memory. ``options``: the reader options as one object (see :func:`load_table`)."""
+    bounded memory. Whatever ``chunksize`` asks, a chunk has at most :data:`MAX_CHUNK_ROWS`
+    rows and :data:`MAX_CHUNK_CELLS` cells in every format (GPX, NMEA and bags counted at
+    their widest row, :data:`STREAMED_WIDEST_ROW`; GeoJSON, whose properties make its
+    columns, at the width its first pass finds), so no size holds the file. ``options``:
+    the reader options as one object (see :func:`load_table`)."""
     found = resolve_format(path, fmt)
-    kind = found if found in CHUNKED_FORMATS else "csv"
+    kind = found if found in FORMATS else "csv"
     path, options = _chunked_read(path, chunksize, options, kind)
     if kind == "parquet":
         return _parquet_tables(path, chunksize, columns or ColumnMap(), options)
     if kind in ("gpx", "nmea", "geojson", "rosbag"):
-        if kind == "rosbag":  # a file or a ROS 2 bag directory
-            reader: StreamedChunks = rosbag_tables(path, chunksize)
+        if kind == "geojson":  # as wide as its properties: cut once the first pass knows them
+            check_readable(path)
+            reader: StreamedChunks = geojson_tables(
+                path, _bounded_rows(chunksize, 1), max_cells=MAX_CHUNK_CELLS
+            )
+        elif kind == "rosbag":  # a file or a ROS 2 bag directory
+            reader = rosbag_tables(path, _bounded_rows(chunksize, STREAMED_WIDEST_ROW))
         else:
             check_readable(path)
-            streamed = {"gpx": gpx_tables, "nmea": nmea_tables, "geojson": geojson_tables}
-            reader = streamed[kind](path, chunksize)
+            streamed = {"gpx": gpx_tables, "nmea": nmea_tables}
+            reader = streamed[kind](path, _bounded_rows(chunksize, STREAMED_WIDEST_ROW))
         cmap = reader.columns if columns is None else _override(reader.columns, columns)
         return CsvChunks(
             n_rows=reader.n_rows,
@@ -857,12 +894,23 @@ def table_chunks(
     )
 
 
-def _arrow_to_pandas(table: Any) -> pd.DataFrame:
+def _arrow_to_pandas(table: Any, keep_binary: str | None = None) -> pd.DataFrame:
     """A pyarrow table as :func:`pandas.read_parquet` converts one, so a file read chunk by
     chunk gives the frame it gives read whole: pandas 3 names its converter
     (``pandas.io._util.arrow_table_to_pandas``); pandas 2.2, which ``pyproject.toml``
     allows, has none and calls ``to_pandas`` itself (Arrow strings only under
-    ``future.infer_string``)."""
+    ``future.infer_string``).
+
+    ``keep_binary``: a column (a GeoParquet chunk's WKB geometry) kept as Arrow binary
+    (``pd.ArrowDtype``) in its place, not made a Python ``bytes`` per row: those, made and
+    dropped chunk after chunk, kept Python's allocator growing with the file (issue 18,
+    docs/reliability.md "Round three"); the output writes the same values either way."""
+    if keep_binary is not None and keep_binary in table.column_names:
+        at = table.column_names.index(keep_binary)
+        rest = _arrow_to_pandas(table.remove_column(at))
+        values = pd.arrays.ArrowExtensionArray(table.column(at))
+        rest.insert(at, keep_binary, pd.Series(values, index=rest.index))
+        return rest
     try:
         from pandas.io._util import (  # type: ignore[import-not-found]
             arrow_table_to_pandas,
