@@ -226,6 +226,50 @@ def test_a_header_only_file_with_repeated_column_names_is_written(tmp_path: Path
     assert out.read_text().splitlines()[0].startswith("t,lat,lon,x,x.1,anomaly")
 
 
+@pytest.mark.parametrize("index", ["time", "two levels", "unnamed"])
+def test_a_parquet_file_with_a_stored_index_is_read_in_chunks(tmp_path: Path, index: str) -> None:
+    """Issue 18: a Parquet file with a stored index (what pandas writes for a time-indexed
+    frame) was read whole, as one chunk, however big. Its chunks now have the whole file's
+    columns (the index first, as the whole-file reader makes it), rows and values, and
+    ``detect`` gives the whole-file bytes."""
+    import numpy as np
+    import pandas as pd
+
+    from gradgps._io.read import load_table, table_chunks
+
+    n = 900
+    frame = pd.DataFrame(
+        {
+            "vehicle": np.tile(["a", "b", "c"], n // 3),
+            "time": pd.to_datetime(1.7e9 + np.repeat(np.arange(n // 3.0), 3), unit="s"),
+            "lat": 48.1 + np.arange(n) * 1e-6,
+            "lon": 11.5 + np.zeros(n),
+        }
+    )
+    if index == "time":
+        frame = frame.set_index("time")
+    elif index == "two levels":
+        frame = frame.set_index(["vehicle", "time"])
+    else:
+        frame.index = pd.Index(np.arange(n) * 2)
+    source = tmp_path / "indexed.parquet"
+    frame.to_parquet(source, row_group_size=200)
+    whole = load_table(source)
+    chunks = table_chunks(source, 97)
+    tables = list(chunks)
+    assert max(len(t.frame) for t in tables) == 97
+    assert chunks.header == tuple(whole.frame.columns)
+    pd.testing.assert_frame_equal(
+        pd.concat([t.frame for t in tables], ignore_index=True), whole.frame
+    )
+    reference = tmp_path / "whole.csv"
+    detect_whole(source, reference)
+    out = tmp_path / "out.csv"
+    result = CliRunner().invoke(main, ["detect", str(source), "-o", str(out), "--chunk-size", "97"])
+    assert result.exit_code == 0, result.output
+    assert out.read_bytes() == reference.read_bytes()
+
+
 def test_parquet_is_read_in_chunks_with_the_same_results(tmp_path: Path) -> None:
     """Parquet input goes through the chunked path (record batches, one row group at a time):
     on main it was read whole, its memory growing with the file. The output equals

@@ -786,8 +786,9 @@ def _parquet_tables(
     """A Parquet file as a stream of Tables of at most ``chunksize`` rows: record batches of
     one row group at a time, so memory is bounded by the chunk and the file's largest row
     group, not by the file. Each chunk is converted to pandas exactly as
-    :func:`pandas.read_parquet` converts the whole file. A file with a stored (non-range)
-    index, which the whole-file reader turns into columns, is read whole, as one chunk."""
+    :func:`pandas.read_parquet` converts the whole file; a stored (non-range) index, which
+    pandas writes for a time-indexed frame, becomes leading columns in each chunk as in the
+    whole file (:func:`_index_as_columns`)."""
     source = str(path)
     check_readable(path)
     try:
@@ -801,20 +802,13 @@ def _parquet_tables(
         # peak grew with the file, docs/reliability.md "Round two").
         file = pq.ParquetFile(path, pre_buffer=False)
         schema = file.schema_arrow
-        stored_index = [
-            c for c in (schema.pandas_metadata or {}).get("index_columns", []) if isinstance(c, str)
-        ]
         n_rows = int(file.metadata.num_rows)
+        # The columns the chunks will have: a stored index comes first, under its name.
+        header = tuple(_index_as_columns(schema.empty_table().to_pandas()).columns)
     except (ValueError, OSError, TypeError) as exc:
         raise _unreadable_parquet(exc, source) from None
     geo = geo_metadata(path)
     geometry = None if geo is None else primary_column(geo)
-    if stored_index:
-        whole = _read_parquet(path)
-        whole = replace(whole, columns=_override(whole.columns, columns), options=options)
-        return CsvChunks(
-            n_rows=len(whole.frame), header=tuple(whole.frame.columns), chunks=iter([whole])
-        )
 
     def chunks() -> Iterator[Table]:
         offset = 0
@@ -830,7 +824,7 @@ def _parquet_tables(
                 )
             except (ValueError, OSError, TypeError) as exc:
                 raise _unreadable_parquet(exc, source) from None
-            frame = frame.reset_index(drop=True)
+            frame = _index_as_columns(frame)
             if geo is None:
                 yield Table(
                     frame=frame, source=source, columns=columns, row_offset=offset, options=options
@@ -840,7 +834,7 @@ def _parquet_tables(
                 yield replace(table, columns=_override(table.columns, columns), options=options)
             offset += len(frame)
 
-    return CsvChunks(n_rows=n_rows, header=tuple(schema.names), chunks=chunks())
+    return CsvChunks(n_rows=n_rows, header=header, chunks=chunks())
 
 
 def table_chunks(
@@ -958,6 +952,15 @@ def _no_pyarrow(exc: ImportError) -> ConfigError:
     return ConfigError(f"reading Parquet needs pyarrow ({exc}); install gradgps[io]")
 
 
+def _index_as_columns(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with a stored index (often the time of a time-indexed frame) made leading
+    columns like the rest, and a fresh range index: one rule for the whole file and for
+    each chunk, so both have the same columns."""
+    if not isinstance(frame.index, pd.RangeIndex):
+        frame = frame.reset_index()
+    return frame.reset_index(drop=True)
+
+
 def _read_parquet(path: Path) -> Table:
     source = str(path)
     try:
@@ -966,10 +969,7 @@ def _read_parquet(path: Path) -> Table:
         raise _no_pyarrow(exc) from None
     except (ValueError, OSError, TypeError) as exc:
         raise _unreadable_parquet(exc, source) from None
-    if not isinstance(frame.index, pd.RangeIndex):
-        # A stored index is data (often the time); make it a column like the rest.
-        frame = frame.reset_index()
-    frame = frame.reset_index(drop=True)
+    frame = _index_as_columns(frame)
     geo = geo_metadata(path)
     if geo is not None:
         return read_geoparquet(path, frame, geo)
