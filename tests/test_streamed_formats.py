@@ -21,7 +21,7 @@ from _whole_file import detect_whole
 from gradgps import InputError
 from gradgps._cli import main
 from gradgps._io import read as read_module
-from gradgps._io.gpx import read_gpx
+from gradgps._io.gpx import gpx_tables, read_gpx
 from gradgps._io.nmea import Epoch, _Clock, _Offsets, epoch_times, nmea_checksum, read_nmea
 from gradgps._io.read import load_table, table_chunks
 from gradgps._tracks.track import ColumnMap, Table
@@ -344,6 +344,55 @@ def test_a_gpx_name_or_value_longer_than_1_mib_is_an_error(tmp_path: Path) -> No
         path.write_text(f"<gpx><trk>{where.format('7' * 1_100_000)}</trk></gpx>", encoding="utf-8")
         with pytest.raises(InputError, match="holds more than 1,048,576 characters"):
             read_gpx(path)
+
+
+@pytest.mark.parametrize(
+    "markup",
+    ["<trk{} lat='1'/>", "<trk a{}='1'/>", "<!--{}-->", "<?pi {}?>"],
+    ids=["tag name", "attribute name", "comment", "processing instruction"],
+)
+def test_gpx_markup_longer_than_1_mib_is_an_error_read_in_bounded_memory(
+    tmp_path: Path, markup: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 18: expat holds a token (a tag, an attribute, a comment) whole until it ends,
+    in its own C buffer, so a tag name of gigabytes was held whole, whole-file or chunked.
+    Now more than 1 MiB of markup unparsed is an error naming its line, raised after about
+    that much of the file is read (counted at the file object: expat's buffer is not
+    Python's, so tracemalloc cannot see it)."""
+    import contextlib
+
+    import gradgps._io.gpx as gpx_module
+
+    path = tmp_path / "long_markup.gpx"
+    path.write_text(
+        f"<gpx><trk><trkseg>{_point(48.1, 11.5, '2024-05-01T10:00:00Z')}</trkseg></trk>\n"
+        + markup.format("x" * 20_000_000)
+        + "</gpx>",
+        encoding="utf-8",
+    )
+    read_bytes: list[int] = []
+    opened = gpx_module.open_bytes
+
+    @contextlib.contextmanager
+    def counted(where: Path) -> Iterator[Any]:
+        with opened(where) as raw:
+            real = raw.read
+
+            def read(size: int = -1) -> bytes:
+                block = real(size)
+                read_bytes.append(len(block))
+                return block
+
+            raw.read = read
+            yield raw
+
+    monkeypatch.setattr(gpx_module, "open_bytes", counted)
+    for read in (lambda: read_gpx(path), lambda: list(gpx_tables(path, 3).chunks)):
+        read_bytes.clear()
+        with pytest.raises(InputError, match="markup longer than 1,048,576 bytes") as caught:
+            read()
+        assert caught.value.line == 2
+        assert 0 < sum(read_bytes) < 2 << 20
 
 
 def test_parquet_chunks_do_not_read_ahead_the_whole_file(tmp_path: Path) -> None:

@@ -58,6 +58,11 @@ _OPTIONAL: Final = ("speed", "course", "hdop", "satellites")
 #: Longest element text kept (a longer track name, time or value is an error; any other
 #: text, a description, is not read beyond it).
 MAX_TEXT_CHARS: Final = 1 << 20
+#: Most bytes expat may hold unparsed: it keeps a token (a tag with its attributes, a
+#: comment, a processing instruction) whole until its end, so without a bound a
+#: gigabyte-long tag name would be held whole (issue 18). Element text is not a token: it
+#: reaches the handlers as it comes, and :data:`MAX_TEXT_CHARS` bounds what is kept of it.
+MAX_MARKUP_BYTES: Final = 1 << 20
 #: ``<fix>``: the receiver's fix type (none, 2d, 3d, dgps, pps), kept as text.
 _FIX: Final = "fix"
 
@@ -210,14 +215,21 @@ def _point_lists(
     parser.CharacterDataHandler = collector.characters
     with open_bytes(path) as raw:
         try:
-            if chunk_points is None:
-                parser.ParseFile(raw)
-            else:
-                while block := raw.read(_BLOCK_BYTES):
-                    parser.Parse(block, False)
-                    while len(collector.lines) >= chunk_points:
-                        yield collector.take(chunk_points)
-                parser.Parse(b"", True)
+            fed = 0
+            while block := raw.read(_BLOCK_BYTES):
+                parser.Parse(block, False)
+                fed += len(block)
+                if fed - parser.CurrentByteIndex > MAX_MARKUP_BYTES:
+                    raise InputError(
+                        f"a tag, attribute, comment or other markup longer than "
+                        f"{MAX_MARKUP_BYTES:,} bytes",
+                        source=source,
+                        line=parser.CurrentLineNumber,
+                        hint="the file is damaged or not GPX",
+                    )
+                while chunk_points is not None and len(collector.lines) >= chunk_points:
+                    yield collector.take(chunk_points)
+            parser.Parse(b"", True)
         except expat.ExpatError as exc:
             raise InputError(
                 f"malformed XML: {expat.errors.messages[exc.code]} (column {exc.offset + 1})",
