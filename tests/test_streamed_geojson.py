@@ -4,7 +4,9 @@ same ``gradgps detect`` output in every mode, and memory that does not grow with
 
 from __future__ import annotations
 
+import contextlib
 import gzip
+import io
 import json
 import tracemalloc
 from collections.abc import Iterator
@@ -14,6 +16,8 @@ from typing import Any
 import pandas as pd
 import pytest
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from gradgps import InputError
 from gradgps._cli import main
@@ -405,3 +409,90 @@ def test_a_big_lat_property_of_a_point_is_skipped_like_a_small_one(
     monkeypatch.setattr(geojson_rows, "FEATURE_EVENTS", 0)
     pd.testing.assert_frame_equal(read_geojson(path).frame, whole)
     assert list(whole.columns) == ["t", "time", "lon", "lat", "alt"]
+
+
+_JSON_BYTES = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers(-(10**15), 10**15)
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(alphabet='ab"\\{}[],: \n\té', max_size=40),
+    lambda inner: (
+        st.lists(inner, max_size=4)
+        | st.dictionaries(st.text(alphabet='k"\\ :', max_size=6), inner, max_size=4)
+    ),
+    max_leaves=12,
+).map(lambda value: json.dumps(value, ensure_ascii=False).encode("utf-8"))
+
+
+@settings(max_examples=300, deadline=None)
+@given(data=_JSON_BYTES, block=st.integers(1, 70))
+def test_the_scalar_bound_agrees_with_its_readable_reference(data: bytes, block: int) -> None:
+    """The vectorised scanner carried across blocks of any size finds the longest string
+    or scalar that the byte-by-byte reference finds (escaped quotes, runs of backslashes
+    split across blocks, separators inside strings)."""
+    from gradgps._io.json_events import _ScalarBound, longest_scalar
+
+    longest = longest_scalar(data)
+    for limit, refused in ((longest, False), (longest - 1, True)):
+        if limit < 0:
+            continue
+        bound = _ScalarBound(io.BytesIO(data), "doc.json", limit=limit)
+        try:
+            while bound.read(block):
+                pass
+        except InputError:
+            assert refused, (limit, longest)
+        else:
+            assert not refused, (limit, longest)
+
+
+@pytest.mark.parametrize(
+    "scalar",
+    ['"' + "x" * 20_000_000 + '"', "1" * 20_000_000, '"' + 'a\\"' * 7_000_000 + '"'],
+    ids=["string", "number", "string of escaped quotes"],
+)
+def test_a_string_or_number_longer_than_1_mib_is_an_error_before_it_is_held(
+    tmp_path: Path, scalar: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 18 round three: the parser holds a token whole until it ends (in its own C
+    buffer, which tracemalloc does not see), so one string or number of gigabytes in a
+    GeoJSON property was held whole, whole-file or chunked. Now it is an error naming the
+    file once about 1 MiB of it is read (counted at the file objects)."""
+    from gradgps._io import json_events
+
+    read_bytes: list[int] = []
+    opened = json_events.open_bytes
+
+    @contextlib.contextmanager
+    def counted(where: Path) -> Iterator[Any]:
+        with opened(where) as raw:
+            real = raw.read
+
+            def read(size: int = -1) -> bytes:
+                block = real(size)
+                read_bytes.append(len(block))
+                return block
+
+            raw.read = read
+            yield raw
+
+    monkeypatch.setattr(json_events, "open_bytes", counted)
+    point = '{"type": "Feature", "geometry": {"type": "Point", "coordinates": [11.5, 48.1]}'
+    path = tmp_path / "long_scalar.geojson"
+    path.write_text(
+        '{"type": "FeatureCollection", "features": ['
+        + point
+        + ', "properties": {"time": 1}}, '
+        + point
+        + ', "properties": {"note": '
+        + scalar
+        + "}}]}",
+        encoding="utf-8",
+    )
+    for read in (lambda: read_geojson(path), lambda: list(table_chunks(path, 1))):
+        read_bytes.clear()
+        with pytest.raises(InputError, match="longer than 1,048,576 bytes") as caught:
+            read()
+        assert "long_scalar.geojson" in str(caught.value)
+        assert 0 < sum(read_bytes) < 2 << 20

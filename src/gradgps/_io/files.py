@@ -11,34 +11,18 @@ import io
 import zlib
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 from .._exceptions import InputError
-from .._tracks.track import ColumnMap, Table
 
 __all__ = [
     "MAX_LINE_BYTES",
     "READ_ERRORS",
-    "StreamedChunks",
     "check_readable",
     "damaged",
     "open_bytes",
     "text_lines",
 ]
-
-
-@dataclass(frozen=True)
-class StreamedChunks:
-    """A GPX or NMEA file as Tables of at most a chunk's rows, read in two streaming passes
-    (:func:`gradgps._io.gpx.gpx_tables`, :func:`gradgps._io.nmea.nmea_tables`): what the
-    first pass learned (``n_rows``, the ``header`` and the column roles ``columns``)
-    and the chunks the second pass yields."""
-
-    n_rows: int
-    header: tuple[str, ...]
-    columns: ColumnMap
-    chunks: Iterator[Table]
 
 
 #: Longest line a text table may have (a row of fixes is well under a kilobyte).

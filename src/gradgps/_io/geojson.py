@@ -29,8 +29,8 @@ from typing import Any, Final
 import pandas as pd
 
 from .._tracks.track import ColumnMap, Table
-from .files import StreamedChunks
 from .geojson_rows import FeatureRows
+from .streamed import StreamedChunks
 
 __all__ = ["geojson_tables", "read_geojson"]
 

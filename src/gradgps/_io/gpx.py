@@ -40,7 +40,8 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._tracks.track import ColumnMap, Table, datetime_seconds
-from .files import READ_ERRORS, StreamedChunks, open_bytes
+from .files import READ_ERRORS, open_bytes
+from .streamed import StreamedChunks
 from .times import iso_utc
 
 __all__ = ["gpx_tables", "read_gpx"]

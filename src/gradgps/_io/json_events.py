@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any, Final
 
 import ijson
+import numpy as np
 
 from .._exceptions import InputError
 from .files import READ_ERRORS, open_bytes
@@ -77,6 +78,98 @@ class _NoBom:
         return head + self._raw.read(size - len(head))
 
 
+#: Longest string (its bytes between the quotes) or other scalar (a number, a literal)
+#: the parser may meet: it holds a token whole until it ends, so a gigabyte-long string
+#: would be held whole (issue 18). As long as a CSV line (``MAX_LINE_BYTES``) or a GPX
+#: text may be; no track's name, time or property needs more.
+MAX_SCALAR_BYTES: Final = 1 << 20
+#: The bytes that end a scalar outside strings: JSON's structure and whitespace.
+_SEPARATORS: Final = np.frombuffer(b'{}[],: \t\r\n"', dtype=np.uint8)
+
+
+class _ScalarBound:
+    """``raw`` (anything with ``read``) that refuses, as it is read, a string or other
+    scalar longer than :data:`MAX_SCALAR_BYTES`, before the parser has buffered it.
+
+    A tokenizer's state carried across reads, vectorised per block: where strings are
+    (a quote not escaped by an odd run of backslashes opens or closes one), and the
+    length of the run of token bytes (string contents, or non-separator bytes outside
+    strings) that each block ends with. Invalid JSON is the parser's to report; this only
+    bounds what it would hold.
+    """
+
+    def __init__(self, raw: Any, source: str, limit: int = MAX_SCALAR_BYTES) -> None:
+        self._raw = raw
+        self._source = source
+        self._limit = limit
+        self._in_string = False
+        self._run = 0  # token bytes the last block ended with
+        self._backslashes = 0  # backslashes the last block ended with
+
+    def read(self, size: int | None = -1) -> bytes:
+        block = self._raw.read(size)
+        if block:
+            self._scan(np.frombuffer(block, dtype=np.uint8))
+        return bytes(block)
+
+    def _scan(self, b: np.ndarray) -> None:
+        n = len(b)
+        index = np.arange(n)
+        backslash = b == ord("\\")
+        # Backslashes right before each byte (the run carried over from the last block).
+        last_other = np.maximum.accumulate(np.where(backslash, -1, index))
+        before = np.empty(n, dtype=np.int64)
+        before[0] = self._backslashes
+        runs = index[1:] - 1 - last_other[:-1]
+        before[1:] = np.where(last_other[:-1] < 0, runs + self._backslashes, runs)
+        quote = (b == ord('"')) & (before % 2 == 0)
+        flips = np.cumsum(quote)
+        # Inside a string at a byte: the state carried in, flipped by every quote up to it.
+        inside = (flips % 2 == 1) ^ self._in_string
+        inside[quote] = False
+        scalar = ~inside & ~np.isin(b, _SEPARATORS)
+        token = inside | scalar
+        last_break = np.maximum.accumulate(np.where(token, -1, index))
+        length = index - last_break
+        length[last_break < 0] += self._run
+        if int(length.max(initial=0)) > self._limit:
+            raise InputError(
+                f"a string or number longer than {self._limit:,} bytes",
+                source=self._source,
+                hint="no track's name, time or property needs one: is this the right file?",
+            )
+        self._run = int(length[-1]) if token[-1] else 0
+        trailing = n - 1 - int(last_other[-1])
+        self._backslashes = trailing + (self._backslashes if last_other[-1] < 0 else 0)
+        self._in_string ^= bool(int(flips[-1]) % 2)
+
+
+def longest_scalar(data: bytes) -> int:
+    """The readable reference of :class:`_ScalarBound`: the longest run of string contents
+    (between an opening quote and the next quote not escaped) or of non-separator bytes
+    outside strings in ``data``, one byte at a time (tests check they agree)."""
+    longest = run = 0
+    in_string = escaped = False
+    for byte in data:
+        if in_string:
+            if escaped:
+                escaped, run = False, run + 1
+            elif byte == ord("\\"):
+                escaped, run = True, run + 1
+            elif byte == ord('"'):
+                in_string, run = False, 0
+            else:
+                run += 1
+        elif byte == ord('"'):
+            in_string, run = True, 0
+        elif byte in _SEPARATORS:
+            run = 0
+        else:
+            run += 1
+        longest = max(longest, run)
+    return longest
+
+
 class JsonCursor:
     """The parse events of one JSON file, read forward once, with the current nesting
     ``depth`` (0 outside the document, 1 inside the top-level container...).
@@ -96,7 +189,7 @@ class JsonCursor:
         self._files = ExitStack()
         raw = self._files.enter_context(open_bytes(path))
         try:
-            self._events = ijson.basic_parse(_NoBom(raw), use_float=True)
+            self._events = ijson.basic_parse(_ScalarBound(_NoBom(raw), source), use_float=True)
         except READ_ERRORS as exc:
             self._files.close()
             raise InputError(f"cannot read: {exc}", source=source) from None

@@ -54,7 +54,8 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._tracks.track import ColumnMap, Table, day_rollovers, rolled_over
-from .files import READ_ERRORS, StreamedChunks, damaged, open_bytes
+from .files import READ_ERRORS, damaged, open_bytes
+from .streamed import StreamedChunks
 from .times import iso_utc, time_of_day_utc
 
 __all__ = [

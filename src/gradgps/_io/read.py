@@ -54,7 +54,7 @@ from .._tracks.track import (
     resolve_columns,
     to_fixes,
 )
-from .files import READ_ERRORS, StreamedChunks, check_readable, open_bytes, text_lines
+from .files import READ_ERRORS, check_readable, open_bytes, text_lines
 from .geojson import geojson_tables, read_geojson
 from .geoparquet import (
     geo_metadata,
@@ -66,6 +66,7 @@ from .geoparquet import (
 from .gpx import gpx_tables, read_gpx
 from .nmea import nmea_tables, read_nmea
 from .rosbag import is_rosbag, read_rosbag, rosbag_tables
+from .streamed import StreamedChunks
 from .times import csv_ready
 
 __all__ = [

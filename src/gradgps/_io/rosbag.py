@@ -42,8 +42,8 @@ import pandas as pd
 
 from .._exceptions import InputError
 from .._tracks.track import ColumnMap, Table
-from .files import StreamedChunks
 from .rosbag1 import Ros1Bag, Ros1BagError
+from .streamed import StreamedChunks
 
 __all__ = [
     "NAVSATFIX",
