@@ -17,6 +17,7 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from _read_counter import count_reads
 from _whole_file import detect_whole
 from gradgps import InputError
 from gradgps._cli import main
@@ -359,8 +360,6 @@ def test_gpx_markup_longer_than_1_mib_is_an_error_read_in_bounded_memory(
     Now more than 1 MiB of markup unparsed is an error naming its line, raised after about
     that much of the file is read (counted at the file object: expat's buffer is not
     Python's, so tracemalloc cannot see it)."""
-    import contextlib
-
     import gradgps._io.gpx as gpx_module
 
     path = tmp_path / "long_markup.gpx"
@@ -370,23 +369,7 @@ def test_gpx_markup_longer_than_1_mib_is_an_error_read_in_bounded_memory(
         + "</gpx>",
         encoding="utf-8",
     )
-    read_bytes: list[int] = []
-    opened = gpx_module.open_bytes
-
-    @contextlib.contextmanager
-    def counted(where: Path) -> Iterator[Any]:
-        with opened(where) as raw:
-            real = raw.read
-
-            def read(size: int = -1) -> bytes:
-                block = real(size)
-                read_bytes.append(len(block))
-                return block
-
-            raw.read = read
-            yield raw
-
-    monkeypatch.setattr(gpx_module, "open_bytes", counted)
+    read_bytes = count_reads(monkeypatch, gpx_module)
     for read in (lambda: read_gpx(path), lambda: list(gpx_tables(path, 3).chunks)):
         read_bytes.clear()
         with pytest.raises(InputError, match="markup longer than 1,048,576 bytes") as caught:

@@ -4,7 +4,6 @@ same ``gradgps detect`` output in every mode, and memory that does not grow with
 
 from __future__ import annotations
 
-import contextlib
 import gzip
 import io
 import json
@@ -19,6 +18,7 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from _read_counter import count_reads
 from gradgps import InputError
 from gradgps._cli import main
 from gradgps._io import geojson_rows
@@ -461,23 +461,7 @@ def test_a_string_or_number_longer_than_1_mib_is_an_error_before_it_is_held(
     file once about 1 MiB of it is read (counted at the file objects)."""
     from gradgps._io import json_events
 
-    read_bytes: list[int] = []
-    opened = json_events.open_bytes
-
-    @contextlib.contextmanager
-    def counted(where: Path) -> Iterator[Any]:
-        with opened(where) as raw:
-            real = raw.read
-
-            def read(size: int = -1) -> bytes:
-                block = real(size)
-                read_bytes.append(len(block))
-                return block
-
-            raw.read = read
-            yield raw
-
-    monkeypatch.setattr(json_events, "open_bytes", counted)
+    read_bytes = count_reads(monkeypatch, json_events)
     point = '{"type": "Feature", "geometry": {"type": "Point", "coordinates": [11.5, 48.1]}'
     path = tmp_path / "long_scalar.geojson"
     path.write_text(
