@@ -106,11 +106,10 @@ _DELIMITERS: Final = (",", ";", "\t", "|")
 #: Most cells (rows x columns) of one chunk: a chunk of a very wide file has fewer rows.
 MAX_CHUNK_CELLS: Final = 4_000_000
 #: Most rows of one chunk, however narrow the file: detection holds far more per row of a
-#: chunk than its cells (features, states, the result, the output's text). Measured peaks
-#: of ``gradgps detect`` on CSVs of 1.4 M simulated fixes (2-core machine, VmHWM): 3
-#: columns, 200,000 rows a chunk 493 MB, 1.33 M (the cell bound alone) 925 MB; 4 columns,
-#: 1 M rows 924 MB; 8 columns, 500,000 rows 733 MB. So the cell bound alone would let a
-#: 2-column file pass 1 GB; half a million rows leaves room for ``--report`` and exports.
+#: chunk than its cells (features, states, the result, the output's text), so a narrow
+#: file's chunk under the cell bound alone (2 M rows of 2 columns) could pass 1 GB. With
+#: this cap ``--chunk-size 0`` peaked at 772 MB on a 305 MB CSV (docs/reliability.md,
+#: round three, ``benchmarks/memory_modes.py``).
 MAX_CHUNK_ROWS: Final = 500_000
 #: Columns of the widest table the GPX, NMEA and ROS bag readers give (every optional
 #: column filled), which cut their chunks before the first pass has learned the header:
