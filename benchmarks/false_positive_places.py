@@ -1,0 +1,94 @@
+"""Where a model's false positives sit relative to the injected faults (validation splits).
+
+For tuning and diagnosis, never the test splits. Protocol ``grad`` (seed 0) on
+each real data set's validation split, positions only (t, lat, lon), at the
+native rate or decimated (``--rate 0.5``). Every normal fix the detector flags
+is put in one place: ``after K: BIAS`` (K = 1, 2, 3 fixes after the last
+faulty fix, and the bias of that fault), ``after 4-10``, ``before`` (within 3
+fixes before a fault starts), ``after 11-100`` or ``far`` (no fault within
+100 fixes before). Run:
+
+    python benchmarks/false_positive_places.py [--model DIR] [--rate native|0.5] [--data-dir DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+
+import numpy as np
+
+from gradgps._data.datasets import load_dataset
+from gradgps._data.inject import inject_grad
+from gradgps._eval.robustness import _variant_columns, decimate
+from gradgps._grad.detector import Detector
+from gradgps._tracks.track import to_fixes
+
+DATASETS = ("driveplotr", "tuc", "nl_motorway", "nl_motorway_gopro", "austin2006", "nevada")
+FAR = 10**9
+
+
+def places(faulty: np.ndarray, bias: np.ndarray, flagged: np.ndarray) -> Counter[str]:
+    """The place of every flagged normal fix (rows in file order, one track after another)."""
+    n = len(faulty)
+    since = np.full(n, FAR)
+    last_bias = np.full(n, "", dtype=object)
+    last, kind = -FAR, ""
+    for i in range(n):
+        if faulty[i]:
+            last, kind = i, bias[i]
+        since[i], last_bias[i] = i - last, kind
+    until = np.full(n, FAR)
+    upcoming = FAR
+    for i in range(n - 1, -1, -1):
+        if faulty[i]:
+            upcoming = i
+        until[i] = upcoming - i
+    out: Counter[str] = Counter()
+    for i in np.flatnonzero(flagged & ~faulty):
+        if since[i] <= 3:
+            out[f"after {since[i]}: {last_bias[i]}"] += 1
+        elif since[i] <= 10:
+            out["after 4-10"] += 1
+        elif until[i] <= 3:
+            out["before"] += 1
+        elif since[i] <= 100:
+            out["after 11-100"] += 1
+        else:
+            out["far"] += 1
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", default=None, help="model directory (default: shipped)")
+    parser.add_argument("--rate", choices=("native", "0.5"), default="native")
+    parser.add_argument("--data-dir", default=None)
+    args = parser.parse_args()
+    det = Detector(args.model)
+    total: Counter[str] = Counter()
+    print(f"rate {args.rate}: false positives by place")
+    print("| data set | normal fixes | false positives | by place |")
+    print("|---|---|---|---|")
+    for name in DATASETS:
+        table = load_dataset(name, "validation", data_dir=args.data_dir)
+        picked = _variant_columns(table, to_fixes(table).attrs["columns"], "positions")
+        assert picked is not None  # every data set has positions
+        cols, cmap = picked
+        data = table[cols] if args.rate == "native" else decimate(table[cols], cmap, 2.0)
+        if args.rate != "native" and len(data) == len(table):
+            continue  # natively 0.5 Hz
+        labelled = inject_grad(data, seed=0, columns=cmap)
+        faulty = labelled["label_anomaly"].to_numpy() == 1
+        bias = labelled["label_bias"].to_numpy()
+        flagged = det.detect(to_fixes(labelled[cols], cmap))["anomaly"].to_numpy() == 1
+        found = places(faulty, bias, flagged)
+        total += found
+        text = ", ".join(f"{k} {v}" for k, v in sorted(found.items()))
+        print(f"| {name} | {int((~faulty).sum()):,} | {sum(found.values())} | {text} |")
+    text = ", ".join(f"{k} {v}" for k, v in sorted(total.items()))
+    print(f"| all | | {sum(total.values())} | {text} |")
+
+
+if __name__ == "__main__":
+    main()
