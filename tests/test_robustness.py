@@ -18,6 +18,7 @@ from gradgps._eval.robustness import (
     RATES,
     ROBUSTNESS_DATASETS,
     decimate,
+    evident_holds,
     judge,
     robustness_markdown,
     run_robustness,
@@ -167,3 +168,37 @@ def test_real_glitches_are_scored_apart(shared_data: Path) -> None:
     assert native["clean"]["glitch_rows"] == 35
     assert native["clean"]["rows_scored"] == 1194 - 35
     assert native["grad"]["faulty_rows"] > 0
+
+
+def _drive_north(speeds: list[float], track: str = "a") -> pd.DataFrame:
+    """1 Hz fixes moving north at ``speeds`` (m/s per step; 0 repeats the fix exactly)."""
+    metres = np.r_[0.0, np.cumsum(speeds)]
+    lat = 52.0 + metres / 111_195.0
+    lat[1:][np.asarray(speeds) == 0.0] = np.nan
+    lat = pd.Series(lat).ffill().to_numpy()  # a repeat is the very same value
+    return pd.DataFrame(
+        {"track": track, "t": np.arange(len(lat), dtype=float), "lat": lat, "lon": 4.4}
+    )
+
+
+def test_evident_holds_are_repeats_at_speed_left_by_a_catch_up() -> None:
+    # 10 m/s, the fix held twice, then a 30 m catch-up: the two repeats are held.
+    held = _drive_north([10, 10, 10, 0, 0, 30, 10, 10])
+    assert evident_holds(held).tolist() == [False] * 4 + [True, True] + [False] * 3
+    # A car that brakes from 10 m/s, stands, and starts slowly: a stop, not a hold.
+    stop = _drive_north([10, 10, 6, 0, 0, 0, 2, 5, 8])
+    assert not evident_holds(stop).any()
+    # Repeats while creeping (4 m/s < 5 m/s) are not evident.
+    assert not evident_holds(_drive_north([4, 4, 0, 9, 4])).any()
+    # A repeat at the start of a track, or left by no step at all, is not judged.
+    assert not evident_holds(_drive_north([0, 0, 10, 10])).any()
+    assert not evident_holds(_drive_north([10, 10, 0, 0])).any()
+
+
+def test_evident_holds_follow_each_track_in_time_order() -> None:
+    a = _drive_north([10, 10, 0, 25, 10], "a")
+    b = _drive_north([10, 10, 10, 10, 10], "b")
+    b["lat"] += a["lat"].iloc[-1] - b["lat"].iloc[0]  # b starts where a ended: no repeat
+    table = pd.concat([a, b]).iloc[::-1].reset_index(drop=True)  # rows in reverse
+    expected = (table["track"] == "a") & (table["t"] == 3.0)
+    assert evident_holds(table).tolist() == expected.tolist()

@@ -23,6 +23,17 @@ Per cell (definitions; every number from one seeded run):
   fixes on the untouched drive, same rows;
 * ``glitch_recall``: share of the ``glitch`` = 1 rows flagged on the
   untouched drive (``None`` where the split holds none);
+* ``hold_rows``, ``flagged_at_holds``, ``false_alarm_rate_outside_holds``:
+  an audit, not a target. Some receivers repeat their last fix while the
+  car drives on (a logger's position hold, a dropped epoch) and the data's
+  ``glitch`` column marks only the largest cases. :func:`evident_holds`
+  finds them without labels: fixes that repeat the previous fix exactly
+  after a step faster than :data:`HOLD_SPEED_MPS`, when the step that
+  leaves the repeated position is at least :data:`HOLD_CATCH_UP` times that
+  speed (the receiver catches up the distance driven meanwhile; a car
+  that really stopped starts again slowly). Flagging them is right, yet
+  ``false_alarm_rate`` counts them; the audit says how many of the
+  flagged fixes they are. ``false_alarm_rate`` stays the judged number;
 * protocol ``grad`` (:func:`gradgps.inject_grad`, seed 0) on the cell's
   table: anomaly and normal precision/recall/F1, ``event_recall`` (share
   of injected episodes, from ``label_episode_lat/lon``, with at least one
@@ -56,6 +67,7 @@ import pandas as pd
 from .._data.datasets import DATASETS, load_dataset
 from .._data.inject import inject_grad
 from .._exceptions import ConfigError
+from .._tracks.geo import haversine_m
 from .._tracks.thin import thin_mask
 from .._tracks.track import ColumnMap, to_fixes
 from .metrics import class_scores, event_recall, rmse_m
@@ -68,6 +80,7 @@ __all__ = [
     "SuiteOptions",
     "check_real_datasets",
     "decimate",
+    "evident_holds",
     "judge",
     "machine",
     "plain_json",
@@ -89,6 +102,10 @@ TARGETS: dict[str, dict[str, float | None]] = {
 }
 #: Slack on the decimation period: fixes 0.999 s apart count as 1 s apart.
 SEED = 0
+#: An evident hold follows a step faster than this (m/s, 18 km/h).
+HOLD_SPEED_MPS = 5.0
+#: ... and is left by a step at least this share of that speed (a catch-up).
+HOLD_CATCH_UP = 0.8
 
 
 class Detector(Protocol):
@@ -186,6 +203,42 @@ def _share(flags: np.ndarray, mask: np.ndarray) -> float:
     return float(flags[mask].mean()) if mask.any() else float("nan")
 
 
+def evident_holds(fixes: pd.DataFrame) -> np.ndarray:
+    """Per row of ``fixes`` (``track``, ``t``, ``lat``, ``lon``): does it repeat the
+    previous fix of its track exactly, in a run of such repeats that follows a step
+    faster than :data:`HOLD_SPEED_MPS` and is left by a step of at least
+    :data:`HOLD_CATCH_UP` times that speed? A stale position, not a stop: a car
+    that stands still after driving at 18 km/h or more starts again slowly, while
+    a receiver that held its fix jumps to where the car has got to."""
+    held = np.zeros(len(fixes), dtype=bool)
+    order = np.lexsort((fixes["t"].to_numpy(), fixes["track"].astype(str).to_numpy()))
+    track = fixes["track"].astype(str).to_numpy()[order]
+    t = fixes["t"].to_numpy(dtype=np.float64)[order]
+    lat = fixes["lat"].to_numpy(dtype=np.float64)[order]
+    lon = fixes["lon"].to_numpy(dtype=np.float64)[order]
+    same_track = np.r_[False, track[1:] == track[:-1]]
+    repeat = same_track & np.r_[False, (lat[1:] == lat[:-1]) & (lon[1:] == lon[:-1])]
+    metres = np.r_[np.nan, haversine_m(lat[:-1], lon[:-1], lat[1:], lon[1:])]
+    dt = np.r_[np.nan, np.diff(t)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = np.where(same_track & (dt > 0), metres / dt, np.nan)
+    i = 1
+    while i < len(t):
+        if not repeat[i]:
+            i += 1
+            continue
+        j = i
+        while j < len(t) and repeat[j]:
+            j += 1
+        # Rows i..j-1 repeat row i-1; the step into row i-1 and the step leaving it.
+        before = speed[i - 1] if same_track[i - 1] else np.nan
+        after = speed[j] if j < len(t) and same_track[j] else np.nan
+        if before > HOLD_SPEED_MPS and after >= HOLD_CATCH_UP * before:
+            held[order[i:j]] = True
+        i = j
+    return held
+
+
 def _cell(det: Detector, table: pd.DataFrame, cols: list[str], cmap: ColumnMap) -> dict[str, Any]:
     """Score one cell: the clean drive, then protocol ``grad`` seed 0 on the same table."""
     glitch = (
@@ -199,6 +252,7 @@ def _cell(det: Detector, table: pd.DataFrame, cols: list[str], cmap: ColumnMap) 
     started = time.perf_counter()
     result = det.detect(clean)
     flagged = result["anomaly"].to_numpy(dtype=np.int64) == 1
+    holds = evident_holds(clean) & ordinary
     out: dict[str, Any] = {
         "rows": len(table),
         "tracks": int(clean["track"].nunique()),
@@ -212,6 +266,9 @@ def _cell(det: Detector, table: pd.DataFrame, cols: list[str], cmap: ColumnMap) 
             ),
             "glitch_rows": int(glitch.sum()),
             "glitch_recall": _share(flagged, glitch),
+            "hold_rows": int(holds.sum()),
+            "flagged_at_holds": int(flagged[holds].sum()),
+            "false_alarm_rate_outside_holds": _share(flagged, ordinary & ~holds),
         },
     }
     labelled = inject_grad(cell_table, seed=SEED, columns=cmap)
@@ -409,7 +466,12 @@ def robustness_markdown(report: dict[str, Any], command: str) -> list[str]:
         "last kept one); `= native` where that keeps every row. Targets (issue 13): native and "
         "1 Hz false alarms <= 0.5 %, anomaly F1 >= 0.95, normal recall >= 0.99; 0.5 Hz false "
         "alarms <= 1 %, anomaly F1 >= 0.90; every cell recovery RMSE < corrupted RMSE. "
-        "Definitions: `src/gradgps/_eval/robustness.py`.",
+        "Definitions: `src/gradgps/_eval/robustness.py`. *Receiver holds* (an audit, not a "
+        "target): fixes that repeat the previous fix exactly after a step faster than "
+        f"{HOLD_SPEED_MPS:g} m/s and are left by a step of at least {HOLD_CATCH_UP:g} times "
+        "that speed (a receiver catching up, not a car starting from rest; "
+        "`evident_holds`); `clean FA` counts them as false alarms, the last column leaves "
+        "them out.",
         "",
         f"**{report['passed']} of {report['n_cells']} cells pass.**",
         "",
@@ -430,8 +492,8 @@ def robustness_markdown(report: dict[str, Any], command: str) -> list[str]:
         "",
         "| data set | columns | rate | rows | median step s | clean FA % | anomaly F1 | "
         "normal recall | event recall | delay s | recovery / corrupted RMSE m | "
-        "clean repair RMS m | glitch recall |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "clean repair RMS m | glitch recall | receiver holds flagged | clean FA % outside holds |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for c in cells:
         if c["same_as"]:
@@ -440,12 +502,14 @@ def robustness_markdown(report: dict[str, Any], command: str) -> list[str]:
         glitch = (
             "-" if not k["glitch_rows"] else f"{_num(k['glitch_recall'])} of {k['glitch_rows']}"
         )
+        holds = f"{k['flagged_at_holds']} of {k['hold_rows']}" if k["hold_rows"] else "-"
+        outside = _pct(k["false_alarm_rate_outside_holds"]).replace(" %", "")
         lines.append(
             f"| {c['dataset']} | {c['variant']} | {c['rate']} | {c['rows']:,} | "
             f"{_num(c['median_step_s'])} | {_pct(k['false_alarm_rate']).replace(' %', '')} | "
             f"{_num(g['anomaly']['f1'])} | {_num(g['normal']['recall'])} | "
             f"{_num(g['event_recall'])} | {_num(g['detection_delay_median_s'])} | "
             f"{_num(g['recovery_rmse_m'])} / {_num(g['corrupted_rmse_m'])} | "
-            f"{_num(k['repair_rms_m'])} | {glitch} |"
+            f"{_num(k['repair_rms_m'])} | {glitch} | {holds} | {outside} |"
         )
     return [*lines, ""]
