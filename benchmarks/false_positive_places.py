@@ -17,14 +17,12 @@ import argparse
 from collections import Counter
 
 import numpy as np
+from _validation_drives import validation_positions
 
-from gradgps._data.datasets import load_dataset
 from gradgps._data.inject import inject_grad
-from gradgps._eval.robustness import _variant_columns, decimate
 from gradgps._grad.detector import Detector
 from gradgps._tracks.track import to_fixes
 
-DATASETS = ("driveplotr", "tuc", "nl_motorway", "nl_motorway_gopro", "austin2006", "nevada")
 FAR = 10**9
 
 
@@ -70,14 +68,8 @@ def main() -> None:
     print(f"rate {args.rate}: false positives by place")
     print("| data set | normal fixes | false positives | by place |")
     print("|---|---|---|---|")
-    for name in DATASETS:
-        table = load_dataset(name, "validation", data_dir=args.data_dir)
-        picked = _variant_columns(table, to_fixes(table).attrs["columns"], "positions")
-        assert picked is not None  # every data set has positions
-        cols, cmap = picked
-        data = table[cols] if args.rate == "native" else decimate(table[cols], cmap, 2.0)
-        if args.rate != "native" and len(data) == len(table):
-            continue  # natively 0.5 Hz
+    period = None if args.rate == "native" else 2.0
+    for name, data, cols, cmap, _ in validation_positions(period, args.data_dir):
         labelled = inject_grad(data, seed=0, columns=cmap)
         faulty = labelled["label_anomaly"].to_numpy() == 1
         bias = labelled["label_bias"].to_numpy()

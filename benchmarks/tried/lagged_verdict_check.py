@@ -14,17 +14,18 @@ track keeps its own flag). Run:
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from gradgps._data.datasets import load_dataset
 from gradgps._data.inject import inject_grad
-from gradgps._eval.robustness import _variant_columns, decimate
 from gradgps._grad.detector import Detector
 from gradgps._tracks.track import to_fixes
 
-DATASETS = ("driveplotr", "tuc", "nl_motorway", "nl_motorway_gopro", "austin2006", "nevada")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+from _validation_drives import validation_positions
 
 
 def verdicts(det: Detector, fixes: pd.DataFrame, lag: int) -> np.ndarray:
@@ -47,19 +48,8 @@ def main() -> None:
     print(f"model {args.model}, verdict {'one fix late' if args.lag else 'at once'}")
     print("| data set | rate | clean false alarms | anomaly F1 | normal recall |")
     print("|---|---|---|---|---|")
-    for name in DATASETS:
-        table = load_dataset(name, "validation", data_dir=args.data_dir)
-        picked = _variant_columns(table, to_fixes(table).attrs["columns"], "positions")
-        assert picked is not None  # every data set has positions
-        cols, cmap = picked
-        glitch = (
-            table["glitch"].to_numpy() == 1 if "glitch" in table else np.zeros(len(table), bool)
-        )
-        for rate, period in (("native", None), ("0.5 Hz", 2.0)):
-            data = table[cols] if period is None else decimate(table[cols], cmap, period)
-            if period is not None and len(data) == len(table):
-                continue  # natively 0.5 Hz
-            ordinary = ~glitch[table.index.get_indexer(data.index)]
+    for rate, period in (("native", None), ("0.5 Hz", 2.0)):
+        for name, data, cols, cmap, ordinary in validation_positions(period, args.data_dir):
             clean = verdicts(det, to_fixes(data, cmap), args.lag)[ordinary]
             labelled = inject_grad(data, seed=0, columns=cmap)
             truth = (labelled["label_anomaly"].to_numpy() == 1)[ordinary]
