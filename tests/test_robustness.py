@@ -198,7 +198,9 @@ def test_evident_holds_are_repeats_at_speed_left_by_a_catch_up() -> None:
 def test_evident_holds_follow_each_track_in_time_order() -> None:
     a = _drive_north([10, 10, 0, 25, 10], "a")
     b = _drive_north([10, 10, 10, 10, 10], "b")
-    b["lat"] += a["lat"].iloc[-1] - b["lat"].iloc[0]  # b starts where a ended: no repeat
+    # b starts exactly where a ended: a repeat across tracks is no hold.
+    b["lat"] = b["lat"] - b["lat"].iloc[0] + a["lat"].iloc[-1]
+    assert b["lat"].iloc[0] == a["lat"].iloc[-1]
     table = pd.concat([a, b]).iloc[::-1].reset_index(drop=True)  # rows in reverse
     expected = (table["track"] == "a") & (table["t"] == 3.0)
     assert evident_holds(table).tolist() == expected.tolist()

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from gradgps._data.inject import inject_grad
+from gradgps._eval.metrics import class_scores
 from gradgps._grad.detector import Detector
 from gradgps._tracks.track import to_fixes
 
@@ -54,10 +55,8 @@ def main() -> None:
             labelled = inject_grad(data, seed=0, columns=cmap)
             truth = (labelled["label_anomaly"].to_numpy() == 1)[ordinary]
             hit = verdicts(det, to_fixes(labelled[cols], cmap), args.lag)[ordinary]
-            tp, fp = int((truth & hit).sum()), int((~truth & hit).sum())
-            fn = int((truth & ~hit).sum())
-            f1 = 2 * tp / max(2 * tp + fp + fn, 1)
-            normal_recall = 1 - fp / max(int((~truth).sum()), 1)
+            scores = class_scores(truth, hit)
+            f1, normal_recall = scores["anomaly"]["f1"], scores["normal"]["recall"]
             print(
                 f"| {name} | {rate} | {100 * clean.mean():.2f} % | {f1:.3f} | {normal_recall:.3f} |"
             )

@@ -230,9 +230,10 @@ def evident_holds(fixes: pd.DataFrame) -> np.ndarray:
         j = i
         while j < len(t) and repeat[j]:
             j += 1
-        # Rows i..j-1 repeat row i-1; the step into row i-1 and the step leaving it.
-        before = speed[i - 1] if same_track[i - 1] else np.nan
-        after = speed[j] if j < len(t) and same_track[j] else np.nan
+        # Rows i..j-1 repeat row i-1; the step into row i-1 and the step leaving it
+        # (speed is NaN across tracks, so neither reaches into another track).
+        before = speed[i - 1]
+        after = speed[j] if j < len(t) else np.nan
         if before > HOLD_SPEED_MPS and after >= HOLD_CATCH_UP * before:
             held[order[i:j]] = True
         i = j
