@@ -23,7 +23,6 @@ from gradgps._grad.gru import (
     _heads,
     _recurrent_step,
     _scratch_size,
-    _split_out,
     weight_shapes,
 )
 from gradgps._grad.model_io import save_model
@@ -37,11 +36,13 @@ def random_weights(
     hidden1: int = 32,
     hidden2: int = 16,
     scale: float = 0.4,
+    *,
+    confirm_head: bool = False,
 ) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(seed)
+    shapes = weight_shapes(n_features, hidden1, hidden2, n_bias, confirm_head=confirm_head)
     return {
-        name: (rng.normal(size=shape) * scale).astype(np.float32)
-        for name, shape in weight_shapes(n_features, hidden1, hidden2, n_bias).items()
+        name: (rng.normal(size=shape) * scale).astype(np.float32) for name, shape in shapes.items()
     }
 
 
@@ -50,9 +51,12 @@ def random_detector_model(
     threshold: float = 0.5,
     seed: int = 0,
     params: PipelineParams | None = None,
+    *,
+    confirm_head: bool = False,
 ) -> Path:
     """A stream model with random weights for the Detector (``params``: its pipeline
-    settings, the defaults with ``threshold`` when ``None``), saved to ``directory``."""
+    settings, the defaults with ``threshold`` when ``None``), saved to ``directory``;
+    ``confirm_head``: with one (threshold 0.5)."""
     params = params or PipelineParams(threshold=threshold)
     names = pipeline_feature_names(params)
     rng = np.random.default_rng(seed)
@@ -74,7 +78,11 @@ def random_detector_model(
         "rema": {},
         "class_names": {"anomaly": ["normal", "anomaly"], "bias": ["none", "noise", "jump"]},
     }
-    save_model(directory, random_weights(len(names), 3, seed=seed, scale=0.6), config)
+    if confirm_head:
+        config["architecture"]["confirm_head"] = True  # type: ignore[index]
+        config["thresholds"]["confirm"] = 0.5  # type: ignore[index]
+    weights = random_weights(len(names), 3, seed=seed, scale=0.6, confirm_head=confirm_head)
+    save_model(directory, weights, config)
     return directory
 
 
@@ -179,7 +187,7 @@ class GRUStream:
         self._scratch = np.empty(
             model.n_features + 6 * int(max(model.dims[1], model.dims[2])), np.float32
         )
-        self._out = np.empty(1 + model.n_bias_classes, np.float32)
+        self._out = np.empty(model.n_outputs, np.float32)
         self._ring = np.zeros((model.window, model.n_features), np.float32)
         self._count = 0
 
@@ -266,6 +274,6 @@ class GRUFleet:
             raise ConfigError(f"need one row index per feature row: {rows.shape} vs {len(x)} rows")
         if rows.size and (rows.min() < 0 or rows.max() >= len(self.states)):
             raise ConfigError(f"track rows must be in 0..{len(self.states) - 1}")
-        out = np.empty((len(x), 1 + self.model.n_bias_classes), np.float32)
+        out = np.empty((len(x), self.model.n_outputs), np.float32)
         fleet_step_kernel(self.model.params, self.model.dims, rows, x, self.states, out)
-        return _split_out(out)
+        return self.model._split(out)

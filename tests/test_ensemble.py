@@ -13,11 +13,11 @@ from gradgps._grad.model_io import export_torch  # noqa: E402
 from gradgps._train.torch_gru import GRADNet, TrainConfig, merge_networks, train_ensemble  # noqa: E402
 
 
-def _nets(k: int, n_features: int = 7, n_bias: int = 4) -> list[GRADNet]:
+def _nets(k: int, n_features: int = 7, n_bias: int = 4, confirm: bool = False) -> list[GRADNet]:
     nets = []
     for seed in range(k):
         torch.manual_seed(seed)
-        net = GRADNet(n_features, n_bias, 5, 3)
+        net = GRADNet(n_features, n_bias, 5, 3, confirm_head=confirm)
         net.scaler_mean.copy_(torch.linspace(-1, 1, n_features))
         net.scaler_std.copy_(torch.linspace(0.5, 2, n_features))
         nets.append(net)
@@ -56,6 +56,23 @@ def test_the_detector_kernel_runs_a_merged_network_as_torch_does() -> None:
     np.testing.assert_allclose(model.predict(feats).anomaly, want, rtol=1e-4, atol=1e-5)
 
 
+@pytest.mark.parametrize("k", [1, 2, 3])
+def test_merged_confirm_head_is_the_members_mean(k: int) -> None:
+    nets = _nets(k, confirm=True)
+    merged = merge_networks(nets)
+    x = torch.randn(3, 25, 7) * 3
+    with torch.no_grad():
+        got = merged.run(x)
+        outs = [net.run(x) for net in nets]
+    assert got.confirm is not None
+    torch.testing.assert_close(
+        got.confirm, torch.stack([o.confirm for o in outs]).mean(0), rtol=1e-5, atol=1e-5
+    )
+    torch.testing.assert_close(
+        got.anomaly, torch.stack([o.anomaly for o in outs]).mean(0), rtol=1e-5, atol=1e-5
+    )
+
+
 def test_members_must_share_architecture_and_scaler() -> None:
     a, b = _nets(2)
     b.scaler_mean.add_(1.0)
@@ -63,6 +80,8 @@ def test_members_must_share_architecture_and_scaler() -> None:
         merge_networks([a, b])
     with pytest.raises(ConfigError, match="architecture"):
         merge_networks([a, GRADNet(7, 4, 6, 3)])
+    with pytest.raises(ConfigError, match="architecture"):
+        merge_networks([_nets(1)[0], _nets(1, confirm=True)[0]])
     with pytest.raises(ConfigError):
         merge_networks([])
 
@@ -112,3 +131,26 @@ def test_an_ensemble_is_its_members_as_trained_alone_merged() -> None:
     )
     with pytest.raises(ConfigError):
         train_ensemble(train, val, config, 0)
+
+
+def test_an_ensemble_with_confirm_heads_keeps_the_members_mean_confirm_threshold() -> None:
+    config = TrainConfig(
+        bias_classes=("none", "noise"),
+        mode="stream",
+        hidden1=4,
+        hidden2=3,
+        max_epochs=2,
+        batch_size=4,
+        chunk_length=20,
+        progress=False,
+        seed=5,
+        confirm_head=True,
+    )
+    ensemble = train_ensemble(_sequences(8, 0), _sequences(3, 1), config, 2)
+    members = [m.confirm_threshold for m in ensemble.members]
+    assert all(t is not None for t in members)
+    assert ensemble.confirm_threshold == pytest.approx(sum(members) / 2)  # type: ignore[arg-type]
+    cfg = ensemble.model_config([f"f{i}" for i in range(5)], {}, {})
+    assert cfg["thresholds"]["confirm"] == ensemble.confirm_threshold
+    assert [m["confirm_threshold"] for m in cfg["training"]["members"]] == members
+    assert ensemble.network.confirm_head is not None

@@ -19,6 +19,7 @@ from gradgps import ConfigError, ModelError
 from gradgps._grad.gru import GRUModel, reference_stream, reference_windows
 
 F, K = 7, 4
+WEIGHTS_GRU = ("weight_ih", "weight_hh", "bias_ih", "bias_hh")
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 
@@ -52,11 +53,13 @@ def _model(
 def test_numba_stream_equals_reference(weights, scaler, features):
     model = _model(weights, scaler)
     prediction, state = model.predict_stream(features)
-    anomaly, bias, ref_state = reference_stream(weights, *scaler, features)
+    ref, ref_state = reference_stream(weights, *scaler, features)
     assert np.all(np.isfinite(prediction.anomaly))
     assert np.all(np.isfinite(state))
-    np.testing.assert_allclose(prediction.anomaly, anomaly, atol=1e-6)
-    np.testing.assert_allclose(prediction.bias, bias, atol=1e-6)
+    assert prediction.confirm is None
+    assert ref.confirm is None
+    np.testing.assert_allclose(prediction.anomaly, ref.anomaly, atol=1e-6)
+    np.testing.assert_allclose(prediction.bias, ref.bias, atol=1e-6)
     np.testing.assert_allclose(state, ref_state, atol=1e-6)
     np.testing.assert_allclose(prediction.bias.sum(axis=1), 1.0, atol=1e-5)
 
@@ -64,9 +67,9 @@ def test_numba_stream_equals_reference(weights, scaler, features):
 @pytest.mark.parametrize("window", [1, 3, 10, 200])
 def test_numba_windows_equal_reference(weights, scaler, features, window):
     prediction = _model(weights, scaler, mode="window", window=window).predict(features)
-    anomaly, bias = reference_windows(weights, *scaler, features, window)
-    np.testing.assert_allclose(prediction.anomaly, anomaly, atol=1e-6)
-    np.testing.assert_allclose(prediction.bias, bias, atol=1e-6)
+    ref = reference_windows(weights, *scaler, features, window)
+    np.testing.assert_allclose(prediction.anomaly, ref.anomaly, atol=1e-6)
+    np.testing.assert_allclose(prediction.bias, ref.bias, atol=1e-6)
 
 
 def test_any_layer_sizes(features):
@@ -77,12 +80,12 @@ def test_any_layer_sizes(features):
     assert model.state_size == 16
     np.testing.assert_allclose(
         model.predict_stream(features)[0].anomaly,
-        reference_stream(weights, mean, std, features)[0],
+        reference_stream(weights, mean, std, features)[0].anomaly,
         atol=1e-6,
     )
     np.testing.assert_allclose(
         GRUStream(model).update(features[0])[1:],
-        reference_stream(weights, mean, std, features[:1])[1][0],
+        reference_stream(weights, mean, std, features[:1])[0].bias[0],
         atol=1e-6,
     )
 
@@ -135,6 +138,51 @@ def test_equals_torch_in_both_modes(weights, scaler, features):
     np.testing.assert_allclose(
         model.predict_windows(features, window).anomaly, win_anomaly, atol=1e-5
     )
+
+
+def test_confirm_head_equals_reference_and_torch(scaler, features):
+    """The confirm head (P(anomaly) of the point before) is one more softmax head on the
+    same state: numba == NumPy reference == PyTorch in both modes, and the other heads
+    are exactly those of the network without it."""
+    torch = pytest.importorskip("torch")
+    from gradgps._train.torch_gru import GRADNet
+
+    weights = random_weights(F, K, seed=1, confirm_head=True)
+    plain = {k: v for k, v in weights.items() if not k.startswith("confirm_head")}
+    model, without = _model(weights, scaler), _model(plain, scaler)
+    assert model.has_confirm_head
+    assert not without.has_confirm_head
+    prediction, state = model.predict_stream(features)
+    ref, _ = reference_stream(weights, *scaler, features)
+    np.testing.assert_allclose(prediction.confirm, ref.confirm, atol=1e-6)
+    np.testing.assert_array_equal(prediction.anomaly, without.predict_stream(features)[0].anomaly)
+    np.testing.assert_array_equal(state, without.predict_stream(features)[1])
+    windows = model.predict_windows(features, 5)
+    np.testing.assert_allclose(
+        windows.confirm, reference_windows(weights, *scaler, features, 5).confirm, atol=1e-6
+    )
+    np.testing.assert_array_equal(windows.bias, without.predict_windows(features, 5).bias)
+
+    net = GRADNet(F, K, confirm_head=True)
+    names = {f"gru{k}.{w}": f"gru{k}.{w}_l0" for k in (1, 2) for w in WEIGHTS_GRU}
+    loaded = {names.get(k, k): torch.from_numpy(v) for k, v in weights.items()}
+    loaded["scaler_mean"], loaded["scaler_std"] = (torch.from_numpy(a) for a in scaler)
+    net.load_state_dict(loaded)
+    with torch.no_grad():
+        out = net.eval().run(torch.from_numpy(features)[None])
+    assert out.confirm is not None
+    np.testing.assert_allclose(
+        prediction.confirm, torch.softmax(out.confirm, -1)[0, :, 1].numpy(), atol=1e-5
+    )
+    np.testing.assert_allclose(
+        prediction.anomaly, torch.softmax(out.anomaly, -1)[0, :, 1].numpy(), atol=1e-5
+    )
+
+
+def test_half_a_confirm_head_is_refused(weights, scaler):
+    extra = random_weights(F, K, seed=1, confirm_head=True)
+    with pytest.raises(ModelError, match="part of the confirm head"):
+        _model({**weights, "confirm_head.bias": extra["confirm_head.bias"]}, scaler)
 
 
 @settings(max_examples=25, deadline=None)

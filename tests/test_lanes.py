@@ -39,7 +39,20 @@ def _streams(n: int, steps: int, seed: int) -> dict[str, np.ndarray]:
 
 @pytest.mark.parametrize("n", [1, 5, 37])
 def test_lanes_step_equals_grad_step_bit_for_bit(n: int) -> None:
-    m = load_grad_model(None)
+    _check_lanes(load_grad_model(None), n)
+
+
+def test_lanes_step_carries_a_confirm_head_bit_for_bit(tmp_path) -> None:
+    from _gru_support import random_detector_model
+    from gradgps._grad.pipeline import O_CONFIRM
+
+    m = load_grad_model(random_detector_model(tmp_path, confirm_head=True))
+    out = _check_lanes(m, 5)
+    assert np.isfinite(out[:, O_CONFIRM]).all()
+
+
+def _check_lanes(m, n: int) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """Step ``n`` streams of model ``m`` both ways, assert equal bits; the last outputs."""
     steps = 60
     data = _streams(n, steps, seed=n)
     periods = [(0.2, 1.0, 2.0)[v % 3] for v in range(n)]
@@ -77,3 +90,4 @@ def test_lanes_step_equals_grad_step_bit_for_bit(n: int) -> None:
         a = s_off[s]
         assert Ss[a : a + s_len[s]].view(np.int64).tolist() == ref_S[s].view(np.int64).tolist()
         assert Hs[s].view(np.int32).tolist() == ref_H[s].view(np.int32).tolist()
+    return out

@@ -168,6 +168,42 @@ def test_export_torch_names_and_shapes():
     exported = export_torch(GRADNet(F, K))
     assert {k: v.shape for k, v in exported.items()} == weight_shapes(F, 32, 16, K)
     assert all(v.dtype == np.float32 for v in exported.values())
+    confirm = export_torch(GRADNet(F, K, confirm_head=True))
+    assert {k: v.shape for k, v in confirm.items()} == weight_shapes(
+        F, 32, 16, K, confirm_head=True
+    )
+
+
+def _confirm_config(**thresholds: object) -> dict[str, object]:
+    config = model_config(F, K)
+    config["architecture"] = {**config["architecture"], "confirm_head": True}  # type: ignore[dict-item]
+    config["thresholds"] = {**config["thresholds"], **thresholds}  # type: ignore[dict-item]
+    return config
+
+
+def test_a_confirm_head_round_trips_and_is_checked(tmp_path: Path):
+    """A model with a confirm head stores its arrays and threshold and loads them back; a
+    config that claims the head without a threshold, or weights with the head under a
+    config without it, are refused, naming what is wrong."""
+    weights = random_weights(F, K, confirm_head=True)
+    save_model(tmp_path / "m", weights, _confirm_config(confirm=0.7))
+    loaded, config = load_model(tmp_path / "m")
+    assert set(loaded) == set(weights)
+    for name, array in weights.items():
+        np.testing.assert_array_equal(loaded[name], array)
+    assert config["thresholds"]["confirm"] == 0.7
+    assert gru_model(loaded, config).has_confirm_head
+    with pytest.raises(ModelError, match=r"thresholds\.confirm must be a probability"):
+        save_model(tmp_path / "n", weights, _confirm_config())
+    with pytest.raises(ModelError, match="unexpected arrays confirm_head"):
+        save_model(tmp_path / "n", weights, model_config(F, K))
+    with pytest.raises(ModelError, match=r"confirm_head\.weight' is missing"):
+        save_model(tmp_path / "n", random_weights(F, K), _confirm_config(confirm=0.7))
+    bad = _confirm_config(confirm=0.7)
+    bad["architecture"] = {**bad["architecture"], "confirm_head": "yes"}  # type: ignore[dict-item]
+    with pytest.raises(ModelError, match=r"architecture\.confirm_head must be true or false"):
+        save_model(tmp_path / "n", weights, bad)
+    assert not (tmp_path / "n").exists()
 
 
 _UNSAFE = re.compile(

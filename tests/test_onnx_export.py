@@ -59,6 +59,23 @@ def test_onnx_matches_stream_inference_with_states(random_model):
     np.testing.assert_allclose(np.concatenate([a1[:, 0], a2[:, 0]]), ours.anomaly, atol=1e-5)
 
 
+def test_onnx_confirm_probability_matches_the_confirm_head():
+    """A model with a confirm head gets a fifth output, confirm_probability, equal to our
+    GRU's; the other outputs are those of the network without it."""
+    rng = np.random.default_rng(7)
+    weights = random_weights(9, 3, seed=4, confirm_head=True)
+    mean, std = rng.normal(size=9), rng.uniform(0.5, 2.0, size=9)
+    model = GRUModel(weights, mean, std)
+    features = rng.normal(size=(80, 9)) * 3
+    ours, _ = model.predict_stream(features)
+    session = _session(build_onnx(model))
+    assert [o.name for o in session.get_outputs()][-1] == "confirm_probability"
+    zeros1, zeros2 = np.zeros((1, 1, 32), np.float32), np.zeros((1, 1, 16), np.float32)
+    anomaly, _, _, _, confirm = _run(session, features[:, None, :], zeros1, zeros2)
+    np.testing.assert_allclose(confirm[:, 0], ours.confirm, atol=1e-5)
+    np.testing.assert_allclose(anomaly[:, 0], ours.anomaly, atol=1e-5)
+
+
 def test_onnx_batch_axis_runs_tracks_independently(random_model):
     rng = np.random.default_rng(6)
     a, b = rng.normal(size=(2, 50, random_model.n_features))

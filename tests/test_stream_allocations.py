@@ -10,7 +10,7 @@ import pytest
 from numba.core.runtime import _nrt_python as nrt
 
 from gradgps import Detector, LocalFrame
-from gradgps._grad.pipeline import grad_step, new_state, new_work
+from gradgps._grad.pipeline import N_POINT_OUT, grad_step, new_state, new_work
 
 
 @numba.njit
@@ -25,7 +25,7 @@ def test_grad_step_allocates_nothing_per_fix() -> None:
     P = m.params.array(1.0, LocalFrame(41.25, -95.98), m.dims)
     S, work = new_state(P), new_work(P)
     H = np.zeros(int(m.dims[1] + m.dims[2]), np.float32)
-    out = np.zeros(7)
+    out = np.zeros(N_POINT_OUT)
     _steps(P, S, H, m.gru_params, work, 1, out)  # compile
     was_on = nrt.memsys_stats_enabled()
     nrt.memsys_enable_stats()

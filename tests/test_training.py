@@ -179,7 +179,8 @@ def test_floor_f1_early_stopping_scores_epochs_at_the_floor_threshold():
     model = train_model(TRAIN, VAL, config)
     # One epoch: its validation F1 is the F1 at the threshold the floor picks, which is
     # also the model's threshold.
-    la, _, truth, _ = _predict_packed(model.network.eval(), _pack(VAL, 8, 1), config)
+    pred = _predict_packed(model.network.eval(), _pack(VAL, 8, 1), config)
+    la, truth = pred.anomaly, pred.a_true
     p = torch.softmax(la, -1)[:, 1].numpy()
     cut = recall_floor_threshold(truth == 1, p, 0.99)
     assert model.anomaly_threshold == pytest.approx(cut)
@@ -219,6 +220,50 @@ def test_ignored_points_are_left_out_of_validation_scores(mode: str):
         bias[:5] = _IGNORE
     packed = _pack(sequences, config.window, 1)
     net = GRADNet(VAL[0][0].shape[1], 3, config.hidden1, config.hidden2)
-    _, _, labels, _ = _predict_packed(net, packed, config)
+    labels = _predict_packed(net, packed, config).a_true
     assert not (labels == _IGNORE).any()
     assert labels.size == sum(len(f) - 5 for f, _, _ in sequences)
+
+
+def test_packed_previous_labels_stay_inside_their_sequence():
+    """The confirm head's target at a step is the anomaly label of the step before in the
+    same sequence: never the last step of the sequence packed before it, never padding."""
+    packed = _pack(VAL, 8, 24)
+    for start, length, (_, anomaly, _) in zip(packed.starts, packed.lengths, VAL, strict=True):
+        assert packed.previous[start] == _IGNORE
+        np.testing.assert_array_equal(packed.previous[start + 1 : start + length], anomaly[:-1])
+        assert (packed.previous[start + length : start + length + 1] == _IGNORE).all()
+
+
+def test_a_confirm_head_learns_the_previous_steps_labels(tmp_path):
+    """Toy faults show in the features of their own step only, so only a head that
+    remembers one step back can name the previous step's: the confirm head learns it, gets
+    its own threshold, and the exported model runs it as torch does."""
+    config = _config(mode="stream", confirm_head=True, max_epochs=10, learning_rate=1e-2)
+    trained = train_model(TRAIN, VAL, config)
+    assert trained.confirm_threshold is not None
+    net = trained.network.eval()
+    packed = _pack(VAL, 1, 1)
+    pred = _predict_packed(net, packed, config)
+    assert pred.confirm is not None
+    late = torch.softmax(pred.confirm, -1)[:, 1].numpy() >= trained.confirm_threshold
+    truth = pred.previous == 1
+    assert (late & truth).sum() / truth.sum() > 0.8  # recall of the previous step's faults
+    assert (late & truth).sum() / late.sum() > 0.8  # precision
+    names = [f"f{i}" for i in range(5)]
+    cfg = trained.model_config(names, {}, {})
+    assert cfg["architecture"]["confirm_head"] is True
+    assert cfg["thresholds"]["confirm"] == trained.confirm_threshold
+    save_model(tmp_path, trained.weights(), cfg)
+    model = gru_model(*load_model(tmp_path))
+    features = VAL[0][0]
+    with torch.no_grad():
+        out = net.run(torch.from_numpy(features)[None])
+    np.testing.assert_allclose(
+        model.predict(features).confirm, torch.softmax(out.confirm, -1)[0, :, 1].numpy(), atol=1e-5
+    )
+
+
+def test_a_confirm_head_needs_stream_mode():
+    with pytest.raises(ConfigError, match="confirm_head needs mode 'stream'"):
+        train_model(TRAIN, VAL, _config(mode="window", confirm_head=True))

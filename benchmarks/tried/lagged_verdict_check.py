@@ -6,9 +6,14 @@ untouched drive's fixes flagged, and the anomaly F1 and normal recall under
 protocol ``grad`` (seed 0), over the rows without a real ``glitch``. With
 ``--lag 1`` the verdict for a fix is the model's flag at the next fix of the
 same track (a model trained by ``lagged_verdict_train.py``; the last fix of a
-track keeps its own flag). Run:
+track keeps its own flag). With ``--confirm`` (a model trained with
+``gradgps train --confirm-head``) the verdict for a fix is its confirm head's,
+read at the next point of the same segment against ``thresholds.confirm``; a
+segment's last point keeps the at-once verdict, and so does a fix the drift
+witness flagged. Run:
 
-    python benchmarks/tried/lagged_verdict_check.py --model DIR [--lag 0|1] [--data-dir DIR]
+    python benchmarks/tried/lagged_verdict_check.py --model DIR [--lag 0|1 | --confirm] \
+        [--data-dir DIR]
 """
 
 from __future__ import annotations
@@ -22,7 +27,10 @@ import pandas as pd
 
 from gradgps._data.inject import inject_grad
 from gradgps._eval.metrics import class_scores
+from gradgps._grad.defaults import MIN_STEP_S, grad_points
 from gradgps._grad.detector import Detector
+from gradgps._grad.pipeline import O_BIAS, O_CONFIRM, O_FLAG, grad_segments
+from gradgps._tracks.preprocess import stream_reasons
 from gradgps._tracks.track import to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
@@ -39,22 +47,67 @@ def verdicts(det: Detector, fixes: pd.DataFrame, lag: int) -> np.ndarray:
     return late
 
 
+def confirmed(det: Detector, fixes: pd.DataFrame) -> np.ndarray:
+    """Per row: the confirm head's verdict read one point later (see the module doc)."""
+    m = det.model_
+    threshold = float(m.config["thresholds"]["confirm"])
+    reason = stream_reasons(fixes, min_step_s=MIN_STEP_S)
+    usable = np.flatnonzero(reason == "")
+    prepared = grad_points(fixes.iloc[usable], m.params.max_gap_s)
+    pts = prepared.points
+    slices = [sl for _, sl in prepared.segment_slices()]
+    starts = np.array([sl.start for sl in slices] + [slices[-1].stop], np.int64)
+    nan = np.full(len(pts), np.nan)
+    columns = [pts[c].to_numpy(np.float64) if c in pts else nan for c in ("speed", "heading")]
+    out = grad_segments(
+        m.params,
+        [prepared.segment_frames[k] for k, _ in prepared.segment_slices()],
+        m.gru_params,
+        m.dims,
+        starts,
+        pts["t"].to_numpy(np.float64),
+        pts["lat"].to_numpy(np.float64),
+        pts["lon"].to_numpy(np.float64),
+        *columns,
+    )
+    flag = out[:, O_FLAG] == 1
+    has_next = np.ones(len(pts), bool)
+    has_next[starts[1:] - 1] = False
+    late = np.zeros(len(pts), bool)
+    late[:-1] = out[1:, O_CONFIRM] >= threshold
+    drift = flag & (out[:, O_BIAS] == len(m.bias_classes))
+    final = np.where(has_next, late, flag) | drift
+    rows = np.ones(len(fixes), bool)  # an unusable fix is flagged, as detect() does
+    rows[usable] = prepared.to_rows(final.astype(float), fill=1.0) == 1
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", required=True)
     parser.add_argument("--lag", type=int, choices=(0, 1), default=0)
+    parser.add_argument("--confirm", action="store_true")
     parser.add_argument("--data-dir", default=None)
     args = parser.parse_args()
     det = Detector(args.model)
-    print(f"model {args.model}, verdict {'one fix late' if args.lag else 'at once'}")
+    mode = (
+        "confirm head, one point late"
+        if args.confirm
+        else ("one fix late" if args.lag else "at once")
+    )
+    print(f"model {args.model}, verdict {mode}")
+
+    def judge(fixes: pd.DataFrame) -> np.ndarray:
+        return confirmed(det, fixes) if args.confirm else verdicts(det, fixes, args.lag)
+
     print("| data set | rate | clean false alarms | anomaly F1 | normal recall |")
     print("|---|---|---|---|---|")
     for rate, period in (("native", None), ("0.5 Hz", 2.0)):
         for name, data, cols, cmap, ordinary in validation_positions(period, args.data_dir):
-            clean = verdicts(det, to_fixes(data, cmap), args.lag)[ordinary]
+            clean = judge(to_fixes(data, cmap))[ordinary]
             labelled = inject_grad(data, seed=0, columns=cmap)
             truth = (labelled["label_anomaly"].to_numpy() == 1)[ordinary]
-            hit = verdicts(det, to_fixes(labelled[cols], cmap), args.lag)[ordinary]
+            hit = judge(to_fixes(labelled[cols], cmap))[ordinary]
             scores = class_scores(truth, hit)
             f1, normal_recall = scores["anomaly"]["f1"], scores["normal"]["recall"]
             print(

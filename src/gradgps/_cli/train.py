@@ -78,6 +78,12 @@ RECIPE_SEEDS = (101, 102, 103, 104, 105)
     help="networks to train (seeds --seed, --seed + 1, ...) and ship as one, their mean "
     "(the shipped model: 2); each gets --time-budget",
 )
+@option(
+    "--confirm-head",
+    is_flag=True,
+    help="also train a head that judges each fix again once the next one is read "
+    "(thresholds.confirm; docs/deviations.md)",
+)
 @column_options
 def train(
     data_paths: tuple[Path, ...],
@@ -90,6 +96,7 @@ def train(
     max_epochs: int,
     seed: int,
     members: int,
+    confirm_head: bool,
     fmt: str | None,
     **cols: Any,
 ) -> None:
@@ -150,6 +157,7 @@ def train(
         time_budget_s=time_budget,
         seed=seed,
         members=members,
+        confirm_head=confirm_head,
         max_epochs=max_epochs,
         notes={"source": source, "protocol": protocol},
         **schedule,

@@ -224,7 +224,7 @@ def _check_buffers(params: PipelineParams) -> None:
             f"a {params.features.long_window_s} s window needs {long_n:,} slots "
             f"at 1 kHz, more than {_MAX_WINDOW_POINTS:,}"
         )
-    P = params.array(MIN_STEP_S, LocalFrame(0.0, 0.0), np.ones(4, np.int64))
+    P = params.array(MIN_STEP_S, LocalFrame(0.0, 0.0), np.ones(5, np.int64))
     if P.dtype != np.float64 or not np.isfinite(P).all():
         raise ValueError("a setting is not a finite number")
     new_state(P)
@@ -274,7 +274,9 @@ def _settings_checksum(model: GradModel) -> str:
     settings = {
         "weights": model.checksum,
         "pipeline": model.params.to_dict(),
-        "dims": [int(d) for d in model.dims],
+        # [F, H1, H2, K]: a confirm head (dims[4]) changes the weights' checksum already,
+        # and states saved before the head existed stay valid.
+        "dims": [int(d) for d in model.dims[:4]],
         "bias_classes": list(model.bias_classes),
         "state_format": _STATE_FORMAT,
     }
@@ -604,7 +606,7 @@ class Detector:
 
     def _point(self) -> PointResult:
         """The verdict the last step wrote into ``self._out``."""
-        flag, score, bias, kind, lat_c, lon_c, alert = self._out.tolist()
+        flag, score, bias, kind, lat_c, lon_c, alert, _confirm = self._out.tolist()
         return usable_point(
             int(flag),
             score,
@@ -1105,7 +1107,7 @@ def _stream_fix(
         return -1
     n_core = w64.size - _N_OFF_OUT - 3 - N_POINT_OUT
     n_x = dims[0]
-    n_scratch = w32.size - n_x - 1 - dims[3]
+    n_scratch = w32.size - n_x - 1 - dims[3] - dims[4]
     work = (
         dims,
         w64[:n_core],

@@ -3,7 +3,10 @@
 The network is the paper's "optimized and lightweight" stacked GRU: a feature
 scaler, a GRU layer of 32 units, a GRU layer of 16 units, then per point two
 dense softmax heads: the paper's anomaly head (normal/anomaly) and a bias-type
-head (``none`` plus the fault types of the labelling protocol). Training
+head (``none`` plus the fault types of the labelling protocol). A model may
+have a third, the *confirm* head (:data:`CONFIRM_NAMES`): P(anomaly) of the
+point *before*, judged with this point seen
+(:class:`gradgps._train.torch_gru.GRADNet`). Training
 happens in PyTorch (:mod:`gradgps._train.torch_gru`); deployment must not need it, so
 this module re-implements the forward pass with NumPy (readable reference) and
 numba (fast kernels), and never imports torch.
@@ -55,6 +58,7 @@ import numpy as np
 from .._exceptions import ConfigError, ModelError
 
 __all__ = [
+    "CONFIRM_NAMES",
     "MODES",
     "WEIGHT_NAMES",
     "GRUModel",
@@ -83,11 +87,22 @@ WEIGHT_NAMES = (
     "bias_head.bias",
 )
 
+#: The optional confirm head's arrays (a model has both or neither).
+CONFIRM_NAMES = ("confirm_head.weight", "confirm_head.bias")
+
 
 def weight_shapes(
-    n_features: int, hidden1: int, hidden2: int, n_bias_classes: int
+    n_features: int,
+    hidden1: int,
+    hidden2: int,
+    n_bias_classes: int,
+    *,
+    confirm_head: bool = False,
 ) -> dict[str, tuple[int, ...]]:
     """The shape of every weight array, as PyTorch stores it (``(out, in)`` matrices)."""
+    confirm: dict[str, tuple[int, ...]] = (
+        {"confirm_head.weight": (2, hidden2), "confirm_head.bias": (2,)} if confirm_head else {}
+    )
     return {
         "gru1.weight_ih": (3 * hidden1, n_features),
         "gru1.weight_hh": (3 * hidden1, hidden1),
@@ -101,6 +116,7 @@ def weight_shapes(
         "anomaly_head.bias": (2,),
         "bias_head.weight": (n_bias_classes, hidden2),
         "bias_head.bias": (n_bias_classes,),
+        **confirm,
     }
 
 
@@ -161,16 +177,29 @@ def _reference_run(
     return h1, h2
 
 
-def _reference_heads(weights: Mapping[str, np.ndarray], h2: np.ndarray) -> tuple[float, np.ndarray]:
-    anomaly = _softmax(
-        np.asarray(weights["anomaly_head.weight"], np.float32) @ h2
-        + np.asarray(weights["anomaly_head.bias"], np.float32)
+def _reference_head(weights: Mapping[str, np.ndarray], head: str, h2: np.ndarray) -> np.ndarray:
+    return _softmax(
+        np.asarray(weights[f"{head}.weight"], np.float32) @ h2
+        + np.asarray(weights[f"{head}.bias"], np.float32)
     )
-    bias = _softmax(
-        np.asarray(weights["bias_head.weight"], np.float32) @ h2
-        + np.asarray(weights["bias_head.bias"], np.float32)
+
+
+def _reference_outputs(n: int, weights: Mapping[str, np.ndarray]) -> GRUPrediction:
+    """Empty per-point outputs for ``n`` points of a network with ``weights``' heads."""
+    return GRUPrediction(
+        anomaly=np.empty(n, np.float32),
+        bias=np.empty((n, weights["bias_head.bias"].shape[0]), np.float32),
+        confirm=np.empty(n, np.float32) if CONFIRM_NAMES[0] in weights else None,
     )
-    return float(anomaly[1]), bias
+
+
+def _reference_point(
+    weights: Mapping[str, np.ndarray], h2: np.ndarray, out: GRUPrediction, i: int
+) -> None:
+    out.anomaly[i] = _reference_head(weights, "anomaly_head", h2)[1]
+    out.bias[i] = _reference_head(weights, "bias_head", h2)
+    if out.confirm is not None:
+        out.confirm[i] = _reference_head(weights, "confirm_head", h2)[1]
 
 
 def reference_stream(
@@ -179,8 +208,8 @@ def reference_stream(
     std: np.ndarray,
     features: np.ndarray,
     state: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Streaming mode, NumPy reference: ``(anomaly prob (n,), bias probs (n, K), final state)``.
+) -> tuple[GRUPrediction, np.ndarray]:
+    """Streaming mode, NumPy reference: ``(per-point outputs, final state)``.
 
     ``state`` is ``h1`` and ``h2`` concatenated (zeros when None).
     """
@@ -189,12 +218,11 @@ def reference_stream(
     h = np.zeros(hidden1 + hidden2, np.float32) if state is None else np.asarray(state, np.float32)
     h1, h2 = h[:hidden1].copy(), h[hidden1:].copy()
     scaled = scale_features(features, mean, std)
-    anomaly = np.empty(len(scaled), np.float32)
-    bias = np.empty((len(scaled), weights["bias_head.bias"].shape[0]), np.float32)
+    out = _reference_outputs(len(scaled), weights)
     for i in range(len(scaled)):
         h1, h2 = _reference_run(weights, scaled[i : i + 1], h1, h2)
-        anomaly[i], bias[i] = _reference_heads(weights, h2)
-    return anomaly, bias, np.concatenate([h1, h2])
+        _reference_point(weights, h2, out, i)
+    return out, np.concatenate([h1, h2])
 
 
 def reference_windows(
@@ -203,13 +231,12 @@ def reference_windows(
     std: np.ndarray,
     features: np.ndarray,
     window: int,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> GRUPrediction:
     """Window mode, NumPy reference: each point from a zero state over its last ``window`` points."""
     hidden1 = weights["gru1.weight_hh"].shape[1]
     hidden2 = weights["gru2.weight_hh"].shape[1]
     scaled = scale_features(features, mean, std)
-    anomaly = np.empty(len(scaled), np.float32)
-    bias = np.empty((len(scaled), weights["bias_head.bias"].shape[0]), np.float32)
+    out = _reference_outputs(len(scaled), weights)
     for i in range(len(scaled)):
         _, h2 = _reference_run(
             weights,
@@ -217,8 +244,8 @@ def reference_windows(
             np.zeros(hidden1, np.float32),
             np.zeros(hidden2, np.float32),
         )
-        anomaly[i], bias[i] = _reference_heads(weights, h2)
-    return anomaly, bias
+        _reference_point(weights, h2, out, i)
+    return out
 
 
 # ----------------------------------------------------------------------------
@@ -226,10 +253,11 @@ def reference_windows(
 #
 # One float32 vector holds, in this order: scaler mean (F), 1/std (F), then per
 # GRU layer W_ih^T (in x 3H), W_hh^T (H x 3H), b_ih (3H), b_hh (3H), then per
-# head W^T (H2 x C) and b (C). Matrices are stored transposed so the kernels'
-# inner loop runs over contiguous outputs ("axpy" order): it vectorises
-# without reassociating sums, so results do not depend on compiler flags.
-# ``dims`` = [F, H1, H2, K].
+# head (anomaly, bias, and the confirm head when there is one) W^T (H2 x C)
+# and b (C). Matrices are stored transposed so the kernels' inner loop runs
+# over contiguous outputs ("axpy" order): it vectorises without reassociating
+# sums, so results do not depend on compiler flags.
+# ``dims`` = [F, H1, H2, K, 1 with a confirm head else 0].
 # ----------------------------------------------------------------------------
 
 
@@ -238,7 +266,8 @@ def pack_parameters(
     mean: np.ndarray,
     std: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(params float32 (P,), dims int64 [F, H1, H2, K])`` for the numba kernels."""
+    """``(params float32 (P,), dims int64 [F, H1, H2, K, C])`` for the numba kernels
+    (``C`` = 1 when ``weights`` hold the confirm head, else 0)."""
     n_features = int(weights["gru1.weight_ih"].shape[1])
     hidden1 = int(weights["gru1.weight_hh"].shape[1])
     hidden2 = int(weights["gru2.weight_hh"].shape[1])
@@ -251,10 +280,11 @@ def pack_parameters(
             weights[f"{layer}.bias_ih"],
             weights[f"{layer}.bias_hh"],
         ]
-    for head in ("anomaly_head", "bias_head"):
+    confirm = CONFIRM_NAMES[0] in weights
+    for head in ("anomaly_head", "bias_head") + (("confirm_head",) if confirm else ()):
         parts += [weights[f"{head}.weight"].T, weights[f"{head}.bias"]]
     params = np.concatenate([np.asarray(p, np.float32).ravel() for p in parts])
-    return params, np.array([n_features, hidden1, hidden2, n_bias], np.int64)
+    return params, np.array([n_features, hidden1, hidden2, n_bias, int(confirm)], np.int64)
 
 
 @numba.njit(cache=True)
@@ -362,14 +392,19 @@ def _softmax_head(params: Any, offset: int, h: Any, n_out: int, out: Any) -> Non
 
 @numba.njit(cache=True)
 def _heads(params: Any, dims: Any, state: Any, scratch: Any, out: Any) -> None:
-    """``out[0]`` = P(anomaly), ``out[1:1+K]`` = bias-class probabilities."""
+    """``out[0]`` = P(anomaly), ``out[1:1+K]`` = bias-class probabilities, and with a
+    confirm head ``out[1+K]`` = its P(anomaly) of the point before."""
     n_features, hidden1, hidden2, n_bias = dims[0], dims[1], dims[2], dims[3]
     o_heads = 2 * n_features + _layer_size(n_features, hidden1) + _layer_size(hidden1, hidden2)
     h2 = state[hidden1 : hidden1 + hidden2]
     two = scratch[:2]
     _softmax_head(params, o_heads, h2, 2, two)
     out[0] = two[1]
-    _softmax_head(params, o_heads + 2 * hidden2 + 2, h2, n_bias, out[1 : 1 + n_bias])
+    o_bias = o_heads + 2 * hidden2 + 2
+    _softmax_head(params, o_bias, h2, n_bias, out[1 : 1 + n_bias])
+    if dims[4] != 0:
+        _softmax_head(params, o_bias + n_bias * hidden2 + n_bias, h2, 2, two)
+        out[1 + n_bias] = two[1]
 
 
 @numba.njit(cache=True)
@@ -405,18 +440,26 @@ def window_sequence_kernel(params: Any, dims: Any, features: Any, window: int, o
 
 @dataclass(frozen=True)
 class GRUPrediction:
-    """Per-point network outputs: ``anomaly`` (n,) = P(anomaly), ``bias`` (n, K) class probabilities."""
+    """Per-point network outputs: ``anomaly`` (n,) = P(anomaly), ``bias`` (n, K) class
+    probabilities, ``confirm`` (n,) = the confirm head's P(anomaly) of the point before
+    (None without the head)."""
 
     anomaly: np.ndarray
     bias: np.ndarray
+    confirm: np.ndarray | None = None
 
 
-def _split_out(out: np.ndarray) -> GRUPrediction:
-    return GRUPrediction(anomaly=out[:, 0].copy(), bias=out[:, 1:].copy())
+def _split_out(out: np.ndarray, n_bias: int, confirm: bool) -> GRUPrediction:
+    return GRUPrediction(
+        anomaly=out[:, 0].copy(),
+        bias=out[:, 1 : 1 + n_bias].copy(),
+        confirm=out[:, 1 + n_bias].copy() if confirm else None,
+    )
 
 
 class GRUModel:
-    """The GRAD network for inference: scaler, GRU(32), GRU(16), anomaly and bias-type heads.
+    """The GRAD network for inference: scaler, GRU(32), GRU(16), anomaly and bias-type heads
+    (and the confirm head when ``weights`` hold :data:`CONFIRM_NAMES`).
 
     Built from the arrays of a model directory (``weights`` named as in
     :data:`WEIGHT_NAMES`, scaler ``mean``/``std`` of length F). ``mode`` is
@@ -444,12 +487,19 @@ class GRUModel:
             raise ModelError(
                 f"weights lack {', '.join(missing)}; the model was exported incompletely, export it again"
             )
+        confirm = [name in weights for name in CONFIRM_NAMES]
+        if any(confirm) and not all(confirm):
+            raise ModelError(
+                f"weights hold only part of the confirm head ({', '.join(CONFIRM_NAMES)}); "
+                "export the model again"
+            )
         n_features = int(np.shape(weights["gru1.weight_ih"])[1])
         expected = weight_shapes(
             n_features,
             int(np.shape(weights["gru1.weight_hh"])[1]),
             int(np.shape(weights["anomaly_head.weight"])[1]),
             int(np.shape(weights["bias_head.bias"])[0]),
+            confirm_head=all(confirm),
         )
         for name, shape in expected.items():
             if tuple(np.shape(weights[name])) != shape:
@@ -465,7 +515,7 @@ class GRUModel:
             )
         if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std)) and np.all(std > 0)):
             raise ModelError("scaler mean must be finite and std finite and > 0")
-        self.weights = {name: np.asarray(weights[name], np.float32) for name in WEIGHT_NAMES}
+        self.weights = {name: np.asarray(weights[name], np.float32) for name in expected}
         self.mean = mean
         self.std = std
         self.mode = mode
@@ -479,6 +529,16 @@ class GRUModel:
     @property
     def n_bias_classes(self) -> int:
         return int(self.dims[3])
+
+    @property
+    def has_confirm_head(self) -> bool:
+        """Whether the network also judges each point's predecessor (:class:`GRUPrediction`)."""
+        return bool(self.dims[4])
+
+    @property
+    def n_outputs(self) -> int:
+        """Values per point in the kernels' output rows: P(anomaly), K bias classes, confirm."""
+        return int(1 + self.dims[3] + self.dims[4])
 
     @property
     def state_size(self) -> int:
@@ -505,18 +565,21 @@ class GRUModel:
         """Streaming mode over a segment; returns the outputs and the final state (a new array)."""
         x = self._features(features)
         h = np.zeros(self.state_size, np.float32) if state is None else self._state(state)
-        out = np.empty((len(x), 1 + self.n_bias_classes), np.float32)
+        out = np.empty((len(x), self.n_outputs), np.float32)
         stream_sequence_kernel(self.params, self.dims, x, h, out)
-        return _split_out(out), h
+        return self._split(out), h
+
+    def _split(self, out: np.ndarray) -> GRUPrediction:
+        return _split_out(out, self.n_bias_classes, self.has_confirm_head)
 
     def predict_windows(self, features: np.ndarray, window: int | None = None) -> GRUPrediction:
         """Window mode over a segment: W GRU steps per point (O(n W)); W defaults to the model's."""
         x = self._features(features)
-        out = np.empty((len(x), 1 + self.n_bias_classes), np.float32)
+        out = np.empty((len(x), self.n_outputs), np.float32)
         window_sequence_kernel(
             self.params, self.dims, x, self.window if window is None else int(window), out
         )
-        return _split_out(out)
+        return self._split(out)
 
     def _state(self, state: np.ndarray) -> np.ndarray:
         h = np.array(state, dtype=np.float32)

@@ -3,11 +3,15 @@
 A model directory holds two files:
 
 * ``weights.npz``: the network weights (float32 arrays named as in
-  :data:`gradgps._grad.gru.WEIGHT_NAMES`), read with ``allow_pickle=False``;
+  :data:`gradgps._grad.gru.WEIGHT_NAMES`, plus
+  :data:`gradgps._grad.gru.CONFIRM_NAMES` for a model with a confirm head),
+  read with ``allow_pickle=False``;
 * ``config.json``: ``format_version``, ``architecture`` (``n_features``,
-  ``hidden1``, ``hidden2``, ``n_bias_classes``), ``mode`` and ``window``,
+  ``hidden1``, ``hidden2``, ``n_bias_classes``, and ``confirm_head``: true
+  for a model with one), ``mode`` and ``window``,
   ``features`` (``names`` + opaque ``params`` of the extractor), ``scaler``
-  (``mean``, ``std``), ``thresholds`` (``anomaly``), ``rema`` (opaque REMA
+  (``mean``, ``std``), ``thresholds`` (``anomaly``, and ``confirm`` with a
+  confirm head), ``rema`` (opaque REMA
   parameters), ``class_names`` (``anomaly``, ``bias``), ``weights_file`` and
   ``weights_sha256``, plus any extra keys the caller adds (e.g. ``training``).
 
@@ -34,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from .._exceptions import ModelError
-from .gru import MODES, WEIGHT_NAMES, GRUModel, weight_shapes
+from .gru import CONFIRM_NAMES, MODES, WEIGHT_NAMES, GRUModel, weight_shapes
 
 __all__ = [
     "CONFIG_FILE",
@@ -63,6 +67,8 @@ _TORCH_NAMES = {  # exported name -> attribute path on the torch module
     "anomaly_head.bias": "anomaly_head.bias",
     "bias_head.weight": "bias_head.weight",
     "bias_head.bias": "bias_head.bias",
+    "confirm_head.weight": "confirm_head.weight",
+    "confirm_head.bias": "confirm_head.bias",
 }
 _FLOAT32_MAX = float(np.finfo(np.float32).max)
 _RETRAIN = "export the model again (gradgps train) or restore the directory from its source"
@@ -72,13 +78,25 @@ def export_torch(model: Any) -> dict[str, np.ndarray]:
     """Weights of a :class:`gradgps._train.torch_gru.GRADNet` as float32 NumPy arrays, PyTorch layouts.
 
     The scaler is not included: it goes to ``config.json`` (see
-    :meth:`gradgps._train.torch_gru.TrainedModel.model_config`).
+    :meth:`gradgps._train.torch_gru.TrainedModel.model_config`). The confirm
+    head's arrays come only from a network that has one.
     """
     state = model.state_dict()
     return {
         name: state[path].detach().cpu().numpy().astype(np.float32, copy=True)
         for name, path in _TORCH_NAMES.items()
+        if path in state
     }
+
+
+def _has_confirm(config: Mapping[str, Any]) -> bool:
+    arch = config.get("architecture")
+    return isinstance(arch, Mapping) and arch.get("confirm_head") is True
+
+
+def _weight_names(config: Mapping[str, Any]) -> tuple[str, ...]:
+    """The arrays a model of ``config`` stores, in file order."""
+    return WEIGHT_NAMES + (CONFIRM_NAMES if _has_confirm(config) else ())
 
 
 def _sha256(data: bytes) -> str:
@@ -138,6 +156,15 @@ def _check_config(config: Mapping[str, Any], source: str) -> None:
     )
     if not isinstance(threshold, int | float) or not 0.0 <= threshold <= 1.0:
         raise fail(f"thresholds.anomaly must be a probability in [0, 1], got {threshold!r}")
+    if arch.get("confirm_head", False) not in (True, False):
+        raise fail(f"architecture.confirm_head must be true or false, got {arch['confirm_head']!r}")
+    if _has_confirm(config):
+        confirm = config["thresholds"].get("confirm")
+        if not isinstance(confirm, int | float) or not 0.0 <= confirm <= 1.0:
+            raise fail(
+                f"thresholds.confirm must be a probability in [0, 1] for a model with a "
+                f"confirm head, got {confirm!r}"
+            )
     classes = config["class_names"]
     bias = classes.get("bias") if isinstance(classes, Mapping) else None
     if not isinstance(bias, list) or len(bias) != sizes["n_bias_classes"]:
@@ -151,7 +178,11 @@ def _check_weights(
 ) -> None:
     arch = config["architecture"]
     expected = weight_shapes(
-        arch["n_features"], arch["hidden1"], arch["hidden2"], arch["n_bias_classes"]
+        arch["n_features"],
+        arch["hidden1"],
+        arch["hidden2"],
+        arch["n_bias_classes"],
+        confirm_head=_has_confirm(config),
     )
     unexpected = sorted(set(weights) - set(expected))
     if unexpected:
@@ -196,7 +227,7 @@ def save_model(
     arrays = {name: np.ascontiguousarray(weights[name], dtype=np.float32) for name in weights}
     _check_weights(arrays, content, f"weights for {folder}")
     buffer = io.BytesIO()
-    np.savez(buffer, allow_pickle=False, **{name: arrays[name] for name in WEIGHT_NAMES})
+    np.savez(buffer, allow_pickle=False, **{name: arrays[name] for name in _weight_names(content)})
     data = buffer.getvalue()
     content["format_version"] = FORMAT_VERSION
     content["weights_file"] = WEIGHTS_FILE
@@ -288,7 +319,7 @@ def load_model(directory: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray]
             f"{weights_path}: not a readable weights archive ({error}); {_RETRAIN}"
         ) from None
     _check_weights(weights, config, str(weights_path))
-    return {name: weights[name].astype(np.float32) for name in WEIGHT_NAMES}, config
+    return {name: weights[name].astype(np.float32) for name in _weight_names(config)}, config
 
 
 #: Largest array a weights archive may hold, uncompressed (the shipped model's are kilobytes).
@@ -304,7 +335,7 @@ def _check_archive(data: bytes, path: Path) -> None:
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as error:
         raise ModelError(f"{path}: not a readable weights archive ({error}); {_RETRAIN}") from None
     names = {m.filename.removesuffix(".npy") for m in members}
-    extra = sorted(names - set(WEIGHT_NAMES))
+    extra = sorted(names - set(WEIGHT_NAMES + CONFIRM_NAMES))
     if extra:
         raise ModelError(f"{path}: unexpected arrays {extra[:5]}; {_RETRAIN}")
     big = [m.filename for m in members if m.file_size > _MAX_ARRAY_BYTES]

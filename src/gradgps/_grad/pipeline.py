@@ -128,7 +128,9 @@ _TIME = _OFF + N_OFFSET_PARAMS
 _REC = _TIME + 3
 _THR = _REC + 2
 _PERIOD, _DIMS = _THR + 1, _THR + 2
-_FRAME = _DIMS + 4
+# The network's dims ([F, H1, H2, K, C], gradgps._grad.gru.pack_parameters).
+_N_DIMS = 5
+_FRAME = _DIMS + _N_DIMS
 # The motion model: an on/off flag, then its parameters (zeros when off).
 _MOTION_ON = _FRAME + N_FRAME_CONSTANTS
 _MOTION = _MOTION_ON + 1
@@ -146,9 +148,11 @@ _N_OFF_OUT = _DRIFT_OUT + N_DRIFT_OUT
 _NIS = MOTION_FEATURES.index("motion_nis")
 # State blocks after the core's: offset, time, recovery, drift witness, motion.
 _N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_DRIFT_STATE + N_MOTION_STATE
-# Per-point outputs.
-O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT = range(7)
-N_POINT_OUT = 7
+# Per-point outputs. O_CONFIRM: the confirm head's P(anomaly) of the point *before*
+# this one in the segment, read with this point seen (NaN without the head;
+# meaningless at a segment's first point).
+O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT, O_CONFIRM = range(8)
+N_POINT_OUT = 8
 #: Time steps a segment's sampling period is the median of (see the module docstring).
 PERIOD_STEPS = 5
 
@@ -401,13 +405,14 @@ def _verdict(
     out[O_LAT] = lat_c
     out[O_LON] = lon_c
     out[O_ALERT] = rec_out[2]
+    out[O_CONFIRM] = gru_out[1 + dims[3]] if dims[4] != 0 else np.nan
 
 
 @numba.njit(cache=True)
 def _dims(P: FloatArray) -> NDArray[np.int64]:
     rest = P[N_CORE_PARAMS:]
-    dims = np.empty(4, np.int64)
-    for k in range(4):
+    dims = np.empty(_N_DIMS, np.int64)
+    for k in range(_N_DIMS):
         dims[k] = int(rest[_DIMS + k])
     return dims
 
@@ -432,7 +437,7 @@ def new_work(P: FloatArray) -> Any:
         np.empty(3),
         np.empty(dims[0], np.float32),
         np.empty(_scratch_size(dims), np.float32),
-        np.empty(1 + dims[3], np.float32),
+        np.empty(1 + dims[3] + dims[4], np.float32),
     )
 
 
@@ -450,7 +455,7 @@ def grad_step(
     heading: float,
     out: FloatArray,
 ) -> None:
-    """One fix of one segment: advance ``S`` and ``H`` and write the 7 outputs into ``out``.
+    """One fix of one segment: advance ``S`` and ``H`` and write the :data:`N_POINT_OUT` outputs into ``out``.
 
     ``work``: :func:`new_work` of this segment's ``P``.
     """
@@ -602,7 +607,7 @@ def grad_segments(
     heading: FloatArray,
     threads: int = 1,
 ) -> FloatArray:
-    """Per-point outputs (n, 7) for many segments (``starts`` = their boundaries, one frame
+    """Per-point outputs (n, N_POINT_OUT) for many segments (``starts`` = their boundaries, one frame
     each), exactly as a stream scores them (see the module docstring on the period); with
     ``threads`` > 1 the segments are spread over that many numba threads. Same numbers
     either way."""
@@ -735,7 +740,7 @@ def grad_features(
 ) -> SegmentFeatures:
     """The GRU's input features and REMA's bounds for one segment, from a fresh state."""
     names = pipeline_feature_names(params)
-    dims = np.array([len(names), 0, 0, 0], np.int64)
+    dims = np.array([len(names), 0, 0, 0, 0], np.int64)
     P = params.array(segment_period(t), frame, dims)
     features, bounds = _features_kernel(
         P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names)
@@ -794,7 +799,7 @@ def new_lane_work(P: FloatArray, lanes: int) -> Any:
         np.empty((3 * widest, lanes), np.float32),
         np.empty((3 * widest, lanes), np.float32),
         np.empty(_scratch_size(dims), np.float32),
-        np.empty(1 + dims[3], np.float32),
+        np.empty(1 + dims[3] + dims[4], np.float32),
         np.empty((lanes, 2)),
     )
 
@@ -875,7 +880,7 @@ def lanes_step(
 
     Stream ``v`` has parameters ``Ps[slot[v]]``, state ``Ss[s_off[slot[v]]:][:s_len[slot[v]]]``
     and GRU state ``Hs[slot[v]]``; its fix is row ``rows[v]`` of ``dt``, ``lat``, ``lon``,
-    ``speed``, ``heading``, and its 7 outputs go to ``out[rows[v]]``. ``work``:
+    ``speed``, ``heading``, and its :data:`N_POINT_OUT` outputs go to ``out[rows[v]]``. ``work``:
     :func:`new_lane_work` (for at least ``n`` streams).
     """
     dims, core_out, off_out, rec_out, x, xt, ht, gi, gh, scratch, gru_out, en = work

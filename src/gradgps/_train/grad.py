@@ -179,6 +179,7 @@ def train_grad(
     grad_clip: float = 0.0,
     normal_recall_floor: float = 0.0,
     members: int = 1,
+    confirm_head: bool = False,
 ) -> TrainReport:
     """Train on clean tables with injected ``grad`` faults and write a model directory.
 
@@ -200,7 +201,8 @@ def train_grad(
     ``members`` > 1 trains that many networks (seeds ``seed``, ``seed + 1``, ...)
     on the same features and ships their merged mean
     (:func:`gradgps._train.torch_gru.train_ensemble`); the time budget is each
-    member's.
+    member's. ``confirm_head``: also train the head that judges each point
+    once the next is read (:class:`gradgps._train.torch_gru.GRADNet`).
     """
     import torch
 
@@ -228,6 +230,7 @@ def train_grad(
         lr_schedule=lr_schedule,
         grad_clip=grad_clip,
         normal_recall_floor=normal_recall_floor,
+        confirm_head=confirm_head,
     )
     with torch.random.fork_rng():
         trained = train_ensemble(train, val, config, members)

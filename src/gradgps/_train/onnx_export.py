@@ -24,6 +24,8 @@ Graph (T time steps, B independent tracks, F features)::
       -> GRU (h1_in (1, B, H1)) -> GRU (h2_in (1, B, H2))
       -> softmax(W_a h2 + b_a)[..., 1] = anomaly_probability (T, B)
       -> softmax(W_b h2 + b_b)         = bias_probabilities (T, B, K)
+      [-> softmax(W_c h2 + b_c)[..., 1] = confirm_probability (T, B): a model with a
+          confirm head; P(anomaly) of the step before, judged with this one seen]
     and the final states h1_out, h2_out, to feed the next call (streaming).
 
 A segment starts from zero states, as in training; feeding one step at a time
@@ -88,7 +90,7 @@ def build_onnx(
     import onnx
     from onnx import TensorProto, helper, numpy_helper
 
-    n_features, hidden1, hidden2, n_bias = (int(v) for v in model.dims)
+    n_features, hidden1, hidden2, n_bias = (int(v) for v in model.dims[:4])
     if feature_names is not None and len(feature_names) != n_features:
         raise ConfigError(
             f"{len(feature_names)} feature names for a network of {n_features} inputs"
@@ -109,6 +111,9 @@ def build_onnx(
         "bias_head_b": w["bias_head.bias"],
         "anomaly_index": np.array([1], np.int64),
     }
+    if model.has_confirm_head:
+        inits["confirm_head_wt"] = np.ascontiguousarray(w["confirm_head.weight"].T)
+        inits["confirm_head_b"] = w["confirm_head.bias"]
     for layer, hidden in (("gru1", hidden1), ("gru2", hidden2)):
         inits[f"{layer}_W"], inits[f"{layer}_R"], inits[f"{layer}_B"] = _gru_initializers(
             w, layer, hidden
@@ -145,6 +150,14 @@ def build_onnx(
         node("Add", ["bias_mm", "bias_head_b"], ["bias_logits"]),
         node("Softmax", ["bias_logits"], ["bias_probabilities"], axis=-1),
     ]
+    if model.has_confirm_head:
+        nodes += [
+            node("MatMul", ["top", "confirm_head_wt"], ["confirm_mm"]),
+            node("Add", ["confirm_mm", "confirm_head_b"], ["confirm_logits"]),
+            node("Softmax", ["confirm_logits"], ["confirm_softmax"], axis=-1),
+            node("Gather", ["confirm_softmax", "anomaly_index"], ["confirm_column"], axis=2),
+            node("Squeeze", ["confirm_column", "axis2"], ["confirm_probability"]),
+        ]
     f32 = TensorProto.FLOAT
     inputs = [
         helper.make_tensor_value_info("features", f32, ["time", "batch", n_features]),
@@ -157,6 +170,8 @@ def build_onnx(
         helper.make_tensor_value_info("h1_out", f32, [1, "batch", hidden1]),
         helper.make_tensor_value_info("h2_out", f32, [1, "batch", hidden2]),
     ]
+    if model.has_confirm_head:
+        outputs.append(helper.make_tensor_value_info("confirm_probability", f32, ["time", "batch"]))
     graph = helper.make_graph(
         nodes,
         "grad_gru",
@@ -202,6 +217,11 @@ def export_onnx(model_dir: str | os.PathLike[str] | None, output: str | os.PathL
             "weights_sha256": loaded.checksum,
             "mode": str(config["mode"]),
             "window": str(config["window"]),
+            **(
+                {"confirm_threshold": repr(float(config["thresholds"]["confirm"]))}
+                if "confirm" in config["thresholds"]
+                else {}
+            ),
         },
     )
     path = Path(output)

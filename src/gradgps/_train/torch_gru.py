@@ -34,7 +34,7 @@ import math
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -52,6 +52,7 @@ from .thresholds import best_f1_threshold, recall_floor_threshold
 __all__ = [
     "EpochMetrics",
     "GRADNet",
+    "NetOutput",
     "TrainConfig",
     "TrainedModel",
     "merge_networks",
@@ -91,10 +92,14 @@ class TrainConfig:
     max_class_weight: float = 50.0
     seed: int = 0
     progress: bool = True
+    #: Train a second anomaly head that judges the previous step (:class:`GRADNet`); stream mode.
+    confirm_head: bool = False
 
     def validate(self) -> None:
         if self.mode not in MODES:
             raise ConfigError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.confirm_head and self.mode != "stream":
+            raise ConfigError("confirm_head needs mode 'stream' (it judges the previous step)")
         if self.lr_schedule not in ("constant", "cosine"):
             raise ConfigError(
                 f"lr_schedule must be 'constant' or 'cosine', got {self.lr_schedule!r}"
@@ -138,18 +143,41 @@ class TrainConfig:
             )
 
 
+class NetOutput(NamedTuple):
+    """One run of :class:`GRADNet`: per-step logits of each head and the final states."""
+
+    anomaly: torch.Tensor  # (B, T, 2): the fix just read
+    bias: torch.Tensor  # (B, T, K)
+    confirm: torch.Tensor | None  # (B, T, 2): the fix before it; None without the head
+    state: tuple[torch.Tensor, torch.Tensor]
+
+
 class GRADNet(nn.Module):
-    """Scaler -> GRU(hidden1) -> GRU(hidden2) -> per-step anomaly (2) and bias-type (K) logits.
+    """Scaler -> GRU(hidden1) -> GRU(hidden2) -> per-step anomaly (2) and bias-type (K) logits,
+    and with ``confirm_head`` a second anomaly head (2) that judges the *previous* step.
 
     The scaler is two buffers (``scaler_mean``, ``scaler_std``) so it travels
     with the module; non-finite scaled inputs become 0, as in inference.
+
+    Why a confirm head: from positions alone the first fix after a fault
+    ends and a fix that starts a new one read alike until the next fix shows
+    where the track goes (on the validation drives most false alarms sit 1-3
+    fixes after a fault's end). The confirm head has seen that next fix; the
+    anomaly head still answers at once. It is made after the other layers, so
+    a seed starts every other weight as a network without it does.
     """
 
     scaler_mean: torch.Tensor
     scaler_std: torch.Tensor
 
     def __init__(
-        self, n_features: int, n_bias_classes: int, hidden1: int = 32, hidden2: int = 16
+        self,
+        n_features: int,
+        n_bias_classes: int,
+        hidden1: int = 32,
+        hidden2: int = 16,
+        *,
+        confirm_head: bool = False,
     ) -> None:
         super().__init__()
         self.register_buffer("scaler_mean", torch.zeros(n_features))
@@ -158,6 +186,21 @@ class GRADNet(nn.Module):
         self.gru2 = nn.GRU(hidden1, hidden2, batch_first=True)
         self.anomaly_head = nn.Linear(hidden2, 2)
         self.bias_head = nn.Linear(hidden2, n_bias_classes)
+        self.confirm_head = nn.Linear(hidden2, 2) if confirm_head else None
+
+    def run(
+        self,
+        x: torch.Tensor,
+        state: tuple[torch.Tensor, torch.Tensor] | None = None,
+    ) -> NetOutput:
+        """``x`` (B, T, F) raw features -> every head's logits and the final states."""
+        scaled = (x - self.scaler_mean) / self.scaler_std
+        scaled = torch.where(torch.isfinite(scaled), scaled, torch.zeros_like(scaled))
+        h1, h2 = (None, None) if state is None else state
+        out1, h1_n = self.gru1(scaled, h1)
+        out2, h2_n = self.gru2(out1, h2)
+        confirm = None if self.confirm_head is None else self.confirm_head(out2)
+        return NetOutput(self.anomaly_head(out2), self.bias_head(out2), confirm, (h1_n, h2_n))
 
     def forward(
         self,
@@ -165,12 +208,8 @@ class GRADNet(nn.Module):
         state: tuple[torch.Tensor, torch.Tensor] | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
         """``x`` (B, T, F) raw features -> anomaly logits (B, T, 2), bias logits (B, T, K), final states."""
-        scaled = (x - self.scaler_mean) / self.scaler_std
-        scaled = torch.where(torch.isfinite(scaled), scaled, torch.zeros_like(scaled))
-        h1, h2 = (None, None) if state is None else state
-        out1, h1_n = self.gru1(scaled, h1)
-        out2, h2_n = self.gru2(out1, h2)
-        return self.anomaly_head(out2), self.bias_head(out2), (h1_n, h2_n)
+        out = self.run(x, state)
+        return out.anomaly, out.bias, out.state
 
 
 @dataclass
@@ -199,6 +238,9 @@ class TrainedModel:
     history: list[EpochMetrics] = field(default_factory=list)
     #: An ensemble's members (:func:`train_ensemble`), each as trained; empty for one network.
     members: tuple[TrainedModel, ...] = ()
+    #: The confirm head's threshold (picked as the anomaly head's, against the previous
+    #: step's labels); None without the head.
+    confirm_threshold: float | None = None
 
     def weights(self) -> dict[str, np.ndarray]:
         """Network weights as float32 arrays named as in :data:`gradgps._grad.gru.WEIGHT_NAMES`."""
@@ -220,13 +262,20 @@ class TrainedModel:
                 f"{len(feature_names)} feature names for a model with {self.n_features} features"
             )
         cfg = self.config
+        architecture: dict[str, Any] = {
+            "n_features": self.n_features,
+            "hidden1": self.network.gru1.hidden_size,
+            "hidden2": self.network.gru2.hidden_size,
+            "n_bias_classes": len(cfg.bias_classes),
+        }
+        thresholds: dict[str, float] = {"anomaly": self.anomaly_threshold}
+        if self.network.confirm_head is not None:
+            if self.confirm_threshold is None:
+                raise ConfigError("a network with a confirm head needs its confirm_threshold")
+            architecture["confirm_head"] = True
+            thresholds["confirm"] = self.confirm_threshold
         out: dict[str, Any] = {
-            "architecture": {
-                "n_features": self.n_features,
-                "hidden1": self.network.gru1.hidden_size,
-                "hidden2": self.network.gru2.hidden_size,
-                "n_bias_classes": len(cfg.bias_classes),
-            },
+            "architecture": architecture,
             "mode": cfg.mode,
             "window": cfg.window,
             "features": {"names": list(feature_names), "params": dict(feature_params)},
@@ -234,7 +283,7 @@ class TrainedModel:
                 "mean": self.network.scaler_mean.tolist(),
                 "std": self.network.scaler_std.tolist(),
             },
-            "thresholds": {"anomaly": self.anomaly_threshold},
+            "thresholds": thresholds,
             "rema": dict(rema_params),
             "class_names": {"anomaly": ["normal", "anomaly"], "bias": list(cfg.bias_classes)},
             "training": {
@@ -253,6 +302,11 @@ class TrainedModel:
                     "best_epoch": m.best_epoch,
                     "stop_reason": m.stop_reason,
                     "anomaly_threshold": m.anomaly_threshold,
+                    **(
+                        {"confirm_threshold": m.confirm_threshold}
+                        if m.confirm_threshold is not None
+                        else {}
+                    ),
                     "history": _history(m.history),
                 }
                 for m in self.members
@@ -280,6 +334,9 @@ class _Packed:
     bias: np.ndarray  # (N,) int64
     starts: np.ndarray  # (S,) offset of each sequence
     lengths: np.ndarray  # (S,) real length of each sequence
+    #: (N,) int64: the anomaly label of the step before, in the same sequence (the confirm
+    #: head's target); _IGNORE at a sequence's first step and on padding.
+    previous: np.ndarray
 
 
 def _check_sequences(sequences: Sequence[LabelledSequence], n_bias: int, what: str) -> int:
@@ -328,11 +385,13 @@ def _pack(sequences: Sequence[LabelledSequence], min_length: int, multiple: int)
     features = np.zeros((total, n_features), np.float32)
     anomaly = np.full(total, _IGNORE, np.int64)
     bias = np.full(total, _IGNORE, np.int64)
+    previous = np.full(total, _IGNORE, np.int64)
     for (f, a, b), s, n in zip(sequences, starts, lengths, strict=True):
         features[s : s + n] = f
         anomaly[s : s + n] = a
         bias[s : s + n] = b
-    return _Packed(features, anomaly, bias, starts, lengths)
+        previous[s + 1 : s + n] = a[:-1]
+    return _Packed(features, anomaly, bias, starts, lengths, previous)
 
 
 def _window_samples(packed: _Packed, window: int) -> tuple[np.ndarray, np.ndarray]:
@@ -430,19 +489,38 @@ class _Loss:
         bias_logits: torch.Tensor,
         anomaly: torch.Tensor,
         bias: torch.Tensor,
+        confirm_logits: torch.Tensor | None = None,
+        previous: torch.Tensor | None = None,
     ) -> torch.Tensor:
+        """Anomaly plus weighted bias-type cross-entropy; with a confirm head, plus its
+        cross-entropy against ``previous`` (the step before's labels, the anomaly weights)."""
         loss: torch.Tensor = self.anomaly(anomaly_logits.reshape(-1, 2), anomaly.reshape(-1))
         bias_loss: torch.Tensor = self.bias(
             bias_logits.reshape(-1, bias_logits.shape[-1]), bias.reshape(-1)
         )
-        return loss + self.bias_factor * bias_loss
+        loss = loss + self.bias_factor * bias_loss
+        if confirm_logits is not None and previous is not None:
+            loss = loss + self.anomaly(confirm_logits.reshape(-1, 2), previous.reshape(-1))
+        return loss
 
 
-def _predict_packed(
-    net: GRADNet,
-    packed: _Packed,
-    config: TrainConfig,
-) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray]:
+@dataclass
+class _Predicted:
+    """A network's logits on every scored point of a packed set, labels alongside.
+
+    ``confirm``/``previous``: the confirm head's logits on the points whose previous
+    step has a label, and those labels (None, empty without the head).
+    """
+
+    anomaly: torch.Tensor
+    bias: torch.Tensor
+    a_true: np.ndarray
+    b_true: np.ndarray
+    confirm: torch.Tensor | None
+    previous: np.ndarray
+
+
+def _predict_packed(net: GRADNet, packed: _Packed, config: TrainConfig) -> _Predicted:
     """Logits for every real point of ``packed`` fed the config's way; labels alongside."""
     with torch.no_grad():
         if config.mode == "window":
@@ -458,16 +536,19 @@ def _predict_packed(
                 b_logits.append(lb[keep])
                 a_labels.append(a[keep].numpy())
                 b_labels.append(b[keep].numpy())
-            return (
+            return _Predicted(
                 torch.cat(a_logits),
                 torch.cat(b_logits),
                 np.concatenate(a_labels),
                 np.concatenate(b_labels),
+                None,  # window mode has no confirm head (TrainConfig.validate)
+                np.empty(0, np.int64),
             )
         # Whole sequences from zero state, in groups of similar length so
         # right-padding (harmless: the GRU is causal) wastes little memory.
         order = np.argsort(packed.lengths, kind="stable")
         parts: list[tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray]] = []
+        confirm: list[tuple[torch.Tensor, np.ndarray]] = []
         for lo in range(0, len(order), 64):
             group = order[lo : lo + 64]
             longest = int(packed.lengths[group].max())
@@ -479,14 +560,29 @@ def _predict_packed(
             valid = (np.arange(longest) < packed.lengths[group, None]) & (
                 packed.anomaly[idx] != _IGNORE
             )
-            la, lb, _ = net(torch.from_numpy(packed.features[idx]))
+            out = net.run(torch.from_numpy(packed.features[idx]))
             keep = torch.from_numpy(valid)
-            parts.append((la[keep], lb[keep], packed.anomaly[idx][valid], packed.bias[idx][valid]))
-        return (
+            parts.append(
+                (
+                    out.anomaly[keep],
+                    out.bias[keep],
+                    packed.anomaly[idx][valid],
+                    packed.bias[idx][valid],
+                )
+            )
+            if out.confirm is not None:
+                real = np.arange(longest) < packed.lengths[group, None]
+                judged = real & (packed.previous[idx] != _IGNORE)
+                confirm.append(
+                    (out.confirm[torch.from_numpy(judged)], packed.previous[idx][judged])
+                )
+        return _Predicted(
             torch.cat([p[0] for p in parts]),
             torch.cat([p[1] for p in parts]),
             np.concatenate([p[2] for p in parts]),
             np.concatenate([p[3] for p in parts]),
+            torch.cat([c[0] for c in confirm]) if confirm else None,
+            np.concatenate([c[1] for c in confirm]) if confirm else np.empty(0, np.int64),
         )
 
 
@@ -521,7 +617,11 @@ def train_model(
         torch.use_deterministic_algorithms(deterministic)
 
 
-_Batch = tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]
+#: ``(anomaly logits, bias logits, anomaly labels, bias labels, confirm logits, previous
+#: labels)``; the last two None without a confirm head.
+_Batch = tuple[
+    torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor | None, torch.Tensor | None
+]
 
 
 def _window_batches(
@@ -533,22 +633,22 @@ def _window_batches(
     all_first: np.ndarray,
 ) -> Iterator[_Batch]:
     """One epoch of window mode: per batch of random windows, the network's anomaly and
-    bias logits and the labels ``(la, lb, a, b)``."""
+    bias logits and the labels (:data:`_Batch`; window mode has no confirm head)."""
     pick = rng.permutation(len(all_starts))[: config.max_samples_per_epoch]
     for lo in range(0, len(pick), config.batch_size):
         chosen = pick[lo : lo + config.batch_size]
         x, a, b = _window_batch(train, all_starts[chosen], all_first[chosen], config.window)
         la, lb, _ = net(x)
-        yield la, lb, a, b
+        yield la, lb, a, b, None, None
 
 
 def _stream_batches(
     net: GRADNet, train: _Packed, config: TrainConfig, rng: np.random.Generator
 ) -> Iterator[_Batch]:
-    """One epoch of stream mode: per chunk of every lane, ``(la, lb, a, b)`` as in
-    :func:`_window_batches`, the hidden state carried (detached) from the lane's previous
-    chunk and reset where a lane starts a new piece. The caller steps the optimiser
-    before asking for the next chunk."""
+    """One epoch of stream mode: per chunk of every lane, a :data:`_Batch`, the hidden
+    state carried (detached) from the lane's previous chunk and reset where a lane starts
+    a new piece (where the confirm head has not seen the step before: not scored). The
+    caller steps the optimiser before asking for the next chunk."""
     offsets, resets = _stream_lanes(
         train, config.batch_size, config.chunk_length, config.stream_piece_length, rng
     )
@@ -561,8 +661,14 @@ def _stream_batches(
         if state is not None:
             keep = torch.from_numpy(~resets[:, step]).to(torch.float32)[None, :, None]
             state = (state[0].detach() * keep, state[1].detach() * keep)
-        la, lb, state = net(torch.from_numpy(train.features[idx]), state)
-        yield la, lb, a, b
+        out = net.run(torch.from_numpy(train.features[idx]), state)
+        state = out.state
+        previous = None
+        if out.confirm is not None:
+            labels = np.where(valid, train.previous[idx], _IGNORE)
+            labels[resets[:, step], 0] = _IGNORE
+            previous = torch.from_numpy(labels)
+        yield out.anomaly, out.bias, a, b, out.confirm, previous
 
 
 def _train(
@@ -583,7 +689,9 @@ def _train(
     )
     val = _pack(val_sequences, config.window if is_window else 1, 1)
 
-    net = GRADNet(n_features, n_bias, config.hidden1, config.hidden2)
+    net = GRADNet(
+        n_features, n_bias, config.hidden1, config.hidden2, confirm_head=config.confirm_head
+    )
     mean, std = _fit_scaler(train.features[train.anomaly != _IGNORE])
     net.scaler_mean.copy_(torch.from_numpy(mean))
     net.scaler_std.copy_(torch.from_numpy(std))
@@ -639,16 +747,26 @@ def _train(
                 if is_window
                 else _stream_batches(net, train, config, rng)
             )
-            for la, lb, a, b in batches:
-                losses.append(_optimise(optimizer, loss_fn(la, lb, a, b), net, config.grad_clip))
+            for batch in batches:
+                losses.append(_optimise(optimizer, loss_fn(*batch), net, config.grad_clip))
                 progress.advance(task)
                 if time.perf_counter() - began > config.time_budget_s:
                     out_of_time = True
                     break
 
             net.eval()
-            la, lb, a_true, b_true = _predict_packed(net, val, config)
-            val_loss = float(loss_fn(la, lb, torch.from_numpy(a_true), torch.from_numpy(b_true)))
+            pred = _predict_packed(net, val, config)
+            la, lb, a_true, b_true = pred.anomaly, pred.bias, pred.a_true, pred.b_true
+            val_loss = float(
+                loss_fn(
+                    la,
+                    lb,
+                    torch.from_numpy(a_true),
+                    torch.from_numpy(b_true),
+                    pred.confirm,
+                    torch.from_numpy(pred.previous),
+                )
+            )
             p_anomaly = torch.softmax(la, -1)[:, 1].numpy()
             cut = (
                 recall_floor_threshold(a_true == 1, p_anomaly, config.normal_recall_floor)
@@ -685,13 +803,29 @@ def _train(
 
     best.restore()
     net.eval()
-    la, _, a_true, _ = _predict_packed(net, val, config)
-    probability = torch.softmax(la, -1)[:, 1].numpy()
+    pred = _predict_packed(net, val, config)
+    threshold = _pick_threshold(pred.a_true, pred.anomaly, config)
+    confirm_threshold = (
+        None if pred.confirm is None else _pick_threshold(pred.previous, pred.confirm, config)
+    )
+    return TrainedModel(
+        net,
+        config,
+        n_features,
+        threshold,
+        best.epoch,
+        best.stop_reason,
+        history,
+        confirm_threshold=confirm_threshold,
+    )
+
+
+def _pick_threshold(truth: np.ndarray, logits: torch.Tensor, config: TrainConfig) -> float:
+    """The config's rule on validation: best F1 keeping normal recall >= the floor, or best F1."""
+    probability = torch.softmax(logits, -1)[:, 1].numpy()
     if config.normal_recall_floor > 0:
-        threshold = recall_floor_threshold(a_true == 1, probability, config.normal_recall_floor)
-    else:
-        threshold = best_f1_threshold(a_true == 1, probability)
-    return TrainedModel(net, config, n_features, threshold, best.epoch, best.stop_reason, history)
+        return recall_floor_threshold(truth == 1, probability, config.normal_recall_floor)
+    return best_f1_threshold(truth == 1, probability)
 
 
 def train_ensemble(
@@ -728,6 +862,7 @@ def train_ensemble(
     # 0.870) and doubled the clean false alarms on the Austin logger (0.24 -> 0.55 %)
     # for F1 the mean threshold also reached (docs/model-card.md).
     threshold = float(np.mean([m.anomaly_threshold for m in trained]))
+    confirm = [m.confirm_threshold for m in trained if m.confirm_threshold is not None]
     return TrainedModel(
         merged,
         config,
@@ -737,6 +872,7 @@ def train_ensemble(
         first.stop_reason,
         first.history,
         members=tuple(trained),
+        confirm_threshold=float(np.mean(confirm)) if confirm else None,
     )
 
 
@@ -757,9 +893,12 @@ def merge_networks(nets: Sequence[GRADNet]) -> GRADNet:
     first = nets[0]
     shape = (first.gru1.input_size, first.gru1.hidden_size, first.gru2.hidden_size)
     n_bias = first.bias_head.out_features
+    confirm = first.confirm_head is not None
     for net in nets[1:]:
-        if (net.gru1.input_size, net.gru1.hidden_size, net.gru2.hidden_size) != shape or (
-            net.bias_head.out_features != n_bias
+        if (
+            (net.gru1.input_size, net.gru1.hidden_size, net.gru2.hidden_size) != shape
+            or net.bias_head.out_features != n_bias
+            or (net.confirm_head is not None) != confirm
         ):
             raise ConfigError("networks to merge must have the same architecture")
         if not (
@@ -769,7 +908,7 @@ def merge_networks(nets: Sequence[GRADNet]) -> GRADNet:
             raise ConfigError("networks to merge must share the feature scaler")
     n_features, hidden1, hidden2 = shape
     k = len(nets)
-    merged = GRADNet(n_features, n_bias, k * hidden1, k * hidden2)
+    merged = GRADNet(n_features, n_bias, k * hidden1, k * hidden2, confirm_head=confirm)
     with torch.no_grad():
         merged.scaler_mean.copy_(first.scaler_mean)
         merged.scaler_std.copy_(first.scaler_std)
@@ -782,7 +921,7 @@ def merge_networks(nets: Sequence[GRADNet]) -> GRADNet:
             ):
                 parts = [getattr(getattr(net, layer), name) for net in nets]
                 getattr(getattr(merged, layer), name).copy_(_side_by_side(parts, hidden, block))
-        for head in ("anomaly_head", "bias_head"):
+        for head in ("anomaly_head", "bias_head") + (("confirm_head",) if confirm else ()):
             getattr(merged, head).weight.copy_(
                 torch.cat([getattr(net, head).weight for net in nets], 1) / k
             )
