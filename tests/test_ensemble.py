@@ -154,3 +154,51 @@ def test_an_ensemble_with_confirm_heads_keeps_the_members_mean_confirm_threshold
     assert cfg["thresholds"]["confirm"] == ensemble.confirm_threshold
     assert [m["confirm_threshold"] for m in cfg["training"]["members"]] == members
     assert ensemble.network.confirm_head is not None
+
+
+def test_merge_members_script_equals_one_merge_of_the_members(tmp_path) -> None:
+    """benchmarks/merge_members.py reads model directories back into networks exactly and
+    merges them as train_ensemble does; a merge of two merged pairs is the four members'
+    mean (the same logits, units in another order)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from _gru_support import model_config, random_weights
+    from gradgps._grad.model_io import gru_model, load_model, save_model
+
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "merge_members.py"
+    dirs = []
+    for seed in range(4):
+        config = model_config(7, 4)
+        config["architecture"]["confirm_head"] = True
+        config["thresholds"] = {"anomaly": 0.5 + 0.1 * seed, "confirm": 0.4 + 0.1 * seed}
+        save_model(
+            tmp_path / f"m{seed}", random_weights(7, 4, seed=seed, confirm_head=True), config
+        )
+        dirs.append(tmp_path / f"m{seed}")
+
+    def merge(out: Path, *members: Path) -> Path:
+        subprocess.run([sys.executable, str(script), str(out), *map(str, members)], check=True)
+        return out
+
+    pairs = [merge(tmp_path / "a", *dirs[:2]), merge(tmp_path / "b", *dirs[2:])]
+    four = gru_model(*load_model(merge(tmp_path / "four", *pairs)))
+    _, cfg = load_model(tmp_path / "four")
+    assert cfg["thresholds"] == {"anomaly": pytest.approx(0.65), "confirm": pytest.approx(0.55)}
+    features = np.random.default_rng(0).normal(0, 2, (40, 7))
+    logits = []
+    for d in dirs:
+        w, c = load_model(d)
+        net = GRADNet(7, 4, 32, 16, confirm_head=True)
+        names = {f"gru{k}.{p}": f"gru{k}.{p}_l0" for k in (1, 2) for p in
+                 ("weight_ih", "weight_hh", "bias_ih", "bias_hh")}  # fmt: skip
+        state = {names.get(k, k): torch.from_numpy(v) for k, v in w.items()}
+        state["scaler_mean"] = torch.tensor(c["scaler"]["mean"], dtype=torch.float32)
+        state["scaler_std"] = torch.tensor(c["scaler"]["std"], dtype=torch.float32)
+        net.load_state_dict(state)
+        with torch.no_grad():
+            logits.append(net.run(torch.from_numpy(features.astype(np.float32))[None]))
+    mean_confirm = torch.stack([o.confirm for o in logits]).mean(0)
+    want = torch.softmax(mean_confirm[0], -1)[:, 1].numpy()
+    np.testing.assert_allclose(four.predict(features).confirm, want, atol=1e-5)
