@@ -21,37 +21,17 @@ import copy
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from gradgps._exceptions import ConfigError
 from gradgps._grad.model_io import export_torch, load_model, save_model
-from gradgps._train.torch_gru import GRADNet, merge_networks
-
-#: Exported array name -> the torch module's parameter (as in model_io's export).
-_PARAMETERS = {
-    **{f"gru{k}.{w}": f"gru{k}.{w}_l0" for k in (1, 2) for w in ("weight_ih", "weight_hh")},
-    **{f"gru{k}.{b}": f"gru{k}.{b}_l0" for k in (1, 2) for b in ("bias_ih", "bias_hh")},
-}
+from gradgps._train.torch_gru import GRADNet, merge_networks, network_from_arrays
 
 
 def load_network(directory: Path) -> tuple[GRADNet, dict]:
     """The torch network of a model directory, and its config."""
     weights, config = load_model(directory)
-    arch = config["architecture"]
-    net = GRADNet(
-        arch["n_features"],
-        arch["n_bias_classes"],
-        arch["hidden1"],
-        arch["hidden2"],
-        confirm_head=bool(arch.get("confirm_head", False)),
-    )
-    state = {
-        _PARAMETERS.get(name, name): torch.from_numpy(array) for name, array in weights.items()
-    }
-    state["scaler_mean"] = torch.tensor(config["scaler"]["mean"], dtype=torch.float32)
-    state["scaler_std"] = torch.tensor(config["scaler"]["std"], dtype=torch.float32)
-    net.load_state_dict(state)
-    return net, config
+    scaler = config["scaler"]
+    return network_from_arrays(weights, scaler["mean"], scaler["std"]), config
 
 
 def main() -> None:

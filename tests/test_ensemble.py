@@ -10,7 +10,13 @@ torch = pytest.importorskip("torch")
 from gradgps._exceptions import ConfigError  # noqa: E402
 from gradgps._grad.gru import GRUModel  # noqa: E402
 from gradgps._grad.model_io import export_torch  # noqa: E402
-from gradgps._train.torch_gru import GRADNet, TrainConfig, merge_networks, train_ensemble  # noqa: E402
+from gradgps._train.torch_gru import (  # noqa: E402
+    GRADNet,
+    TrainConfig,
+    merge_networks,
+    network_from_arrays,
+    train_ensemble,
+)
 
 
 def _nets(k: int, n_features: int = 7, n_bias: int = 4, confirm: bool = False) -> list[GRADNet]:
@@ -97,22 +103,28 @@ def _sequences(n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarr
     return out
 
 
+def _tiny_config(**changes: object) -> TrainConfig:
+    """Two tiny stream members' worth of training: seconds."""
+    base: dict[str, object] = {
+        "bias_classes": ("none", "noise"),
+        "mode": "stream",
+        "hidden1": 4,
+        "hidden2": 3,
+        "max_epochs": 2,
+        "batch_size": 4,
+        "chunk_length": 20,
+        "progress": False,
+        "seed": 5,
+    }
+    return TrainConfig(**{**base, **changes})  # type: ignore[arg-type]
+
+
 def test_an_ensemble_is_its_members_as_trained_alone_merged() -> None:
     """Member k is the network train_model gives for seed + k (nothing shared but the
     data), the merged network is merge_networks of them, and its record names each."""
     from gradgps._train.torch_gru import train_model
 
-    config = TrainConfig(
-        bias_classes=("none", "noise"),
-        mode="stream",
-        hidden1=4,
-        hidden2=3,
-        max_epochs=2,
-        batch_size=4,
-        chunk_length=20,
-        progress=False,
-        seed=5,
-    )
+    config = _tiny_config()
     train, val = _sequences(8, 0), _sequences(3, 1)
     ensemble = train_ensemble(train, val, config, 2)
     alone = train_model(train, val, TrainConfig(**{**config.__dict__, "seed": 6}))
@@ -134,18 +146,7 @@ def test_an_ensemble_is_its_members_as_trained_alone_merged() -> None:
 
 
 def test_an_ensemble_with_confirm_heads_keeps_the_members_mean_confirm_threshold() -> None:
-    config = TrainConfig(
-        bias_classes=("none", "noise"),
-        mode="stream",
-        hidden1=4,
-        hidden2=3,
-        max_epochs=2,
-        batch_size=4,
-        chunk_length=20,
-        progress=False,
-        seed=5,
-        confirm_head=True,
-    )
+    config = _tiny_config(confirm_head=True)
     ensemble = train_ensemble(_sequences(8, 0), _sequences(3, 1), config, 2)
     members = [m.confirm_threshold for m in ensemble.members]
     assert all(t is not None for t in members)
@@ -190,13 +191,7 @@ def test_merge_members_script_equals_one_merge_of_the_members(tmp_path) -> None:
     logits = []
     for d in dirs:
         w, c = load_model(d)
-        net = GRADNet(7, 4, 32, 16, confirm_head=True)
-        names = {f"gru{k}.{p}": f"gru{k}.{p}_l0" for k in (1, 2) for p in
-                 ("weight_ih", "weight_hh", "bias_ih", "bias_hh")}  # fmt: skip
-        state = {names.get(k, k): torch.from_numpy(v) for k, v in w.items()}
-        state["scaler_mean"] = torch.tensor(c["scaler"]["mean"], dtype=torch.float32)
-        state["scaler_std"] = torch.tensor(c["scaler"]["std"], dtype=torch.float32)
-        net.load_state_dict(state)
+        net = network_from_arrays(w, c["scaler"]["mean"], c["scaler"]["std"])
         with torch.no_grad():
             logits.append(net.run(torch.from_numpy(features.astype(np.float32))[None]))
     mean_confirm = torch.stack([o.confirm for o in logits]).mean(0)

@@ -19,7 +19,6 @@ from gradgps import ConfigError, ModelError
 from gradgps._grad.gru import GRUModel, reference_stream, reference_windows
 
 F, K = 7, 4
-WEIGHTS_GRU = ("weight_ih", "weight_hh", "bias_ih", "bias_hh")
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 
@@ -100,24 +99,9 @@ def test_window_longer_than_segment_is_streaming(weights, scaler, features):
 
 def _torch_net(weights, scaler):
     torch = pytest.importorskip("torch")
-    from gradgps._train.torch_gru import GRADNet
+    from gradgps._train.torch_gru import network_from_arrays
 
-    net = GRADNet(F, K)
-    names = {
-        "gru1.weight_ih": "gru1.weight_ih_l0",
-        "gru1.weight_hh": "gru1.weight_hh_l0",
-        "gru1.bias_ih": "gru1.bias_ih_l0",
-        "gru1.bias_hh": "gru1.bias_hh_l0",
-        "gru2.weight_ih": "gru2.weight_ih_l0",
-        "gru2.weight_hh": "gru2.weight_hh_l0",
-        "gru2.bias_ih": "gru2.bias_ih_l0",
-        "gru2.bias_hh": "gru2.bias_hh_l0",
-    }
-    state = {names.get(k, k): torch.from_numpy(v) for k, v in weights.items()}
-    state["scaler_mean"] = torch.from_numpy(scaler[0])
-    state["scaler_std"] = torch.from_numpy(scaler[1])
-    net.load_state_dict(state)
-    return torch, net.eval()
+    return torch, network_from_arrays(weights, *scaler).eval()
 
 
 def test_equals_torch_in_both_modes(weights, scaler, features):
@@ -144,9 +128,6 @@ def test_confirm_head_equals_reference_and_torch(scaler, features):
     """The confirm head (P(anomaly) of the point before) is one more softmax head on the
     same state: numba == NumPy reference == PyTorch in both modes, and the other heads
     are exactly those of the network without it."""
-    torch = pytest.importorskip("torch")
-    from gradgps._train.torch_gru import GRADNet
-
     weights = random_weights(F, K, seed=1, confirm_head=True)
     plain = {k: v for k, v in weights.items() if not k.startswith("confirm_head")}
     model, without = _model(weights, scaler), _model(plain, scaler)
@@ -163,13 +144,10 @@ def test_confirm_head_equals_reference_and_torch(scaler, features):
     )
     np.testing.assert_array_equal(windows.bias, without.predict_windows(features, 5).bias)
 
-    net = GRADNet(F, K, confirm_head=True)
-    names = {f"gru{k}.{w}": f"gru{k}.{w}_l0" for k in (1, 2) for w in WEIGHTS_GRU}
-    loaded = {names.get(k, k): torch.from_numpy(v) for k, v in weights.items()}
-    loaded["scaler_mean"], loaded["scaler_std"] = (torch.from_numpy(a) for a in scaler)
-    net.load_state_dict(loaded)
+    torch, net = _torch_net(weights, scaler)
+    assert net.confirm_head is not None
     with torch.no_grad():
-        out = net.eval().run(torch.from_numpy(features)[None])
+        out = net.run(torch.from_numpy(features)[None])
     assert out.confirm is not None
     np.testing.assert_allclose(
         prediction.confirm, torch.softmax(out.confirm, -1)[0, :, 1].numpy(), atol=1e-5

@@ -174,6 +174,24 @@ def test_export_torch_names_and_shapes():
     )
 
 
+@pytest.mark.parametrize("confirm_head", [False, True])
+def test_network_from_arrays_inverts_export_torch(confirm_head: bool):
+    pytest.importorskip("torch")
+    from gradgps._grad.model_io import export_torch
+    from gradgps._train.torch_gru import network_from_arrays
+
+    weights = random_weights(F, K, hidden1=5, hidden2=3, confirm_head=confirm_head)
+    mean, std = np.linspace(-1, 1, F), np.linspace(0.5, 2, F)
+    net = network_from_arrays(weights, mean, std)
+    assert (net.confirm_head is not None) == confirm_head
+    exported = export_torch(net)
+    assert set(exported) == set(weights)
+    for name, array in weights.items():
+        np.testing.assert_array_equal(exported[name], array)
+    np.testing.assert_array_equal(net.scaler_mean.numpy(), mean.astype(np.float32))
+    np.testing.assert_array_equal(net.scaler_std.numpy(), std.astype(np.float32))
+
+
 def _confirm_config(**thresholds: object) -> dict[str, object]:
     config = model_config(F, K)
     config["architecture"] = {**config["architecture"], "confirm_head": True}  # type: ignore[dict-item]

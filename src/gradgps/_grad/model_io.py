@@ -48,6 +48,7 @@ __all__ = [
     "gru_model",
     "load_model",
     "save_model",
+    "torch_state",
 ]
 
 FORMAT_VERSION = 1
@@ -87,6 +88,12 @@ def export_torch(model: Any) -> dict[str, np.ndarray]:
         for name, path in _TORCH_NAMES.items()
         if path in state
     }
+
+
+def torch_state(weights: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``weights`` (as :func:`export_torch` names them) under the torch module's parameter
+    names: what ``GRADNet.load_state_dict`` takes, with the scaler buffers added."""
+    return {_TORCH_NAMES[name]: np.asarray(array, np.float32) for name, array in weights.items()}
 
 
 def _has_confirm(config: Mapping[str, Any]) -> bool:

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any, NamedTuple
 
@@ -44,7 +44,7 @@ from torch import nn
 
 from .._exceptions import ConfigError
 from .._grad.gru import MODES
-from .._grad.model_io import export_torch
+from .._grad.model_io import export_torch, torch_state
 from .._result import f1_score
 from .labels import IGNORE_LABEL
 from .thresholds import best_f1_threshold, recall_floor_threshold
@@ -56,6 +56,7 @@ __all__ = [
     "TrainConfig",
     "TrainedModel",
     "merge_networks",
+    "network_from_arrays",
     "train_ensemble",
     "train_model",
 ]
@@ -929,6 +930,26 @@ def merge_networks(nets: Sequence[GRADNet]) -> GRADNet:
                 torch.stack([getattr(net, head).bias for net in nets]).mean(0)
             )
     return merged
+
+
+def network_from_arrays(
+    weights: Mapping[str, np.ndarray], mean: np.ndarray, std: np.ndarray
+) -> GRADNet:
+    """The :class:`GRADNet` that :func:`export_torch` would turn into ``weights``, with the
+    scaler ``mean``/``std``: the inverse of the export (sizes and the confirm head read
+    from the arrays), to check inference against torch or to merge saved models."""
+    net = GRADNet(
+        int(weights["gru1.weight_ih"].shape[1]),
+        int(weights["bias_head.bias"].shape[0]),
+        int(weights["gru1.weight_hh"].shape[1]),
+        int(weights["gru2.weight_hh"].shape[1]),
+        confirm_head="confirm_head.weight" in weights,
+    )
+    state = {path: torch.from_numpy(array) for path, array in torch_state(weights).items()}
+    state["scaler_mean"] = torch.tensor(np.asarray(mean, np.float32))
+    state["scaler_std"] = torch.tensor(np.asarray(std, np.float32))
+    net.load_state_dict(state)
+    return net
 
 
 def _side_by_side(parts: Sequence[torch.Tensor], hidden: int, block: int) -> torch.Tensor:
