@@ -187,11 +187,9 @@ def test_a_confirm_head_rides_along_without_changing_a_verdict(tmp_path, model_d
     """A model with a confirm head (the same random weights plus the head): every result
     column is the plain model's, and the compiled pipeline's confirm output, in batch and
     fix by fix, is the NumPy reference GRU's confirm head on the pipeline's features."""
-    from gradgps._grad.defaults import MIN_STEP_S, grad_points
     from gradgps._grad.gru import reference_stream
     from gradgps._grad.model_io import load_model
-    from gradgps._grad.pipeline import O_CONFIRM, grad_features, grad_segments
-    from gradgps._tracks.preprocess import stream_reasons
+    from gradgps._grad.pipeline import O_CONFIRM, grad_features
 
     confirm_dir = random_detector_model(tmp_path / "confirm", threshold=0.5, confirm_head=True)
     one = drives[drives["track"] == drives["track"].iloc[0]]
@@ -199,50 +197,20 @@ def test_a_confirm_head_rides_along_without_changing_a_verdict(tmp_path, model_d
         Detector(confirm_dir).detect(one), Detector(model_dir).detect(one)
     )
     det = Detector(confirm_dir)
-    m = det.model_
-    usable = one.iloc[np.flatnonzero(stream_reasons(one, min_step_s=MIN_STEP_S) == "")]
-    prepared = grad_points(usable, m.params.max_gap_s)
+    _, usable, prepared, out = det._point_outputs(one)
     (k, _), *rest = list(prepared.segment_slices())
     assert not rest  # one segment: the reference runs it from a zero state
-    pts = prepared.points
-    t, lat, lon, speed, heading = (
-        pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon", "speed", "heading")
+    columns = (
+        prepared.points[c].to_numpy(np.float64) for c in ("t", "lat", "lon", "speed", "heading")
     )
-    out = grad_segments(
-        m.params,
-        [prepared.segment_frames[k]],
-        m.gru_params,
-        m.dims,
-        np.array([0, len(pts)], np.int64),
-        t,
-        lat,
-        lon,
-        speed,
-        heading,
-    )
+    features = grad_features(det.model_.params, prepared.segment_frames[k], *columns).features
     weights, config = load_model(confirm_dir)
-    features = grad_features(
-        m.params, prepared.segment_frames[k], t, lat, lon, speed, heading
-    ).features
     scaler = config["scaler"]
     ref, _ = reference_stream(weights, np.array(scaler["mean"]), np.array(scaler["std"]), features)
     np.testing.assert_allclose(out[:, O_CONFIRM], ref.confirm, atol=1e-5)  # float32 sums
     streamed = []
-    for r in usable.itertuples(index=False):
+    for r in one.iloc[usable].itertuples(index=False):
         det.update(r.t, r.lat, r.lon, speed=r.speed, heading=r.heading)
         streamed.append(det._out[O_CONFIRM])
     np.testing.assert_array_equal(np.array(streamed), out[:, O_CONFIRM])
-    plain = Detector(model_dir)
-    plain_out = grad_segments(
-        plain.model_.params,
-        [prepared.segment_frames[k]],
-        plain.model_.gru_params,
-        plain.model_.dims,
-        np.array([0, len(pts)], np.int64),
-        t,
-        lat,
-        lon,
-        speed,
-        heading,
-    )
-    assert np.isnan(plain_out[:, O_CONFIRM]).all()
+    assert np.isnan(Detector(model_dir)._point_outputs(one)[3][:, O_CONFIRM]).all()

@@ -32,10 +32,8 @@ import pandas as pd
 from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import simulate_fleet
 from gradgps._eval.metrics import class_scores
-from gradgps._grad.defaults import MIN_STEP_S, grad_points
 from gradgps._grad.detector import Detector
-from gradgps._grad.pipeline import O_BIAS, O_CONFIRM, O_FLAG, grad_segments
-from gradgps._tracks.preprocess import stream_reasons
+from gradgps._grad.pipeline import O_BIAS, O_CONFIRM, O_FLAG
 from gradgps._tracks.track import ColumnMap, to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
@@ -56,29 +54,12 @@ def confirmed(det: Detector, fixes: pd.DataFrame) -> np.ndarray:
     """Per row: the confirm head's verdict read one point later (see the module doc)."""
     m = det.model_
     threshold = float(m.config["thresholds"]["confirm"])
-    reason = stream_reasons(fixes, min_step_s=MIN_STEP_S)
-    usable = np.flatnonzero(reason == "")
-    prepared = grad_points(fixes.iloc[usable], m.params.max_gap_s)
-    pts = prepared.points
-    slices = [sl for _, sl in prepared.segment_slices()]
-    starts = np.array([sl.start for sl in slices] + [slices[-1].stop], np.int64)
-    nan = np.full(len(pts), np.nan)
-    columns = [pts[c].to_numpy(np.float64) if c in pts else nan for c in ("speed", "heading")]
-    out = grad_segments(
-        m.params,
-        [prepared.segment_frames[k] for k, _ in prepared.segment_slices()],
-        m.gru_params,
-        m.dims,
-        starts,
-        pts["t"].to_numpy(np.float64),
-        pts["lat"].to_numpy(np.float64),
-        pts["lon"].to_numpy(np.float64),
-        *columns,
-    )
+    _, usable, prepared, out = det._point_outputs(fixes)
+    starts = np.array([sl.start for _, sl in prepared.segment_slices()] + [len(out)], np.int64)
     flag = out[:, O_FLAG] == 1
-    has_next = np.ones(len(pts), bool)
+    has_next = np.ones(len(out), bool)
     has_next[starts[1:] - 1] = False
-    late = np.zeros(len(pts), bool)
+    late = np.zeros(len(out), bool)
     late[:-1] = out[1:, O_CONFIRM] >= threshold
     drift = flag & (out[:, O_BIAS] == len(m.bias_classes))
     final = np.where(has_next, late, flag) | drift

@@ -87,7 +87,7 @@ from .._result import (
     usable_point,
 )
 from .._tracks.geo import LocalFrame, far_apart_scalar
-from .._tracks.preprocess import stream_reasons
+from .._tracks.preprocess import Prepared, stream_reasons
 from .._tracks.track import ColumnKeywords, ColumnMap, check_keywords, datetime_seconds
 from .core import N_CORE_PARAMS, _layout
 from .defaults import FRAME_RADIUS_M, MIN_STEP_S, grad_points
@@ -805,6 +805,19 @@ class Detector:
 
     def detect_fixes(self, fixes: pd.DataFrame, *, threads: int = 1) -> pd.DataFrame:
         """:meth:`detect` on canonical fixes; the result has ``fixes``' index."""
+        reason, usable, prepared, out = self._point_outputs(fixes, threads=threads)
+        rows = np.full((len(fixes), N_POINT_OUT), np.nan)
+        rows[usable] = prepared.to_rows(out)
+        return self._rows(rows, reason, fixes.index)
+
+    def _point_outputs(
+        self, fixes: pd.DataFrame, *, threads: int = 1
+    ) -> tuple[NDArray[Any], NDArray[np.int64], Prepared, NDArray[np.float64]]:
+        """The compiled pipeline's raw outputs on canonical fixes, before they become rows:
+        ``(reason per row, the usable rows, their points, per-point outputs)``, the
+        outputs (``N_POINT_OUT`` wide, :data:`gradgps._grad.pipeline.O_FLAG` ...) one row
+        per point of ``prepared.points`` (``prepared.to_rows`` maps them back to the usable rows).
+        For tools that need what the rows drop (the confirm head's ``O_CONFIRM``)."""
         m = self.model_
         reason = stream_reasons(fixes, min_step_s=MIN_STEP_S)
         usable = np.flatnonzero(reason == "")
@@ -836,9 +849,7 @@ class Detector:
                 heading,
                 threads=threads,
             )
-        rows = np.full((len(fixes), N_POINT_OUT), np.nan)
-        rows[usable] = prepared.to_rows(out)
-        return self._rows(rows, reason, fixes.index)
+        return reason, usable, prepared, out
 
     def clean(
         self, data: Any, *, keep_invalid: bool = False, **columns: Unpack[ColumnKeywords]
