@@ -131,6 +131,16 @@ def build_onnx(
         )
         return [gru, node("Squeeze", [f"y{k}", "axis1"], [out])]
 
+    def probability(head: str, out: str) -> list[Any]:
+        """P(class 1) of a two-class softmax ``head`` on the top layer, squeezed to ``out``."""
+        return [
+            node("MatMul", ["top", f"{head}_wt"], [f"{head}_mm"]),
+            node("Add", [f"{head}_mm", f"{head}_b"], [f"{head}_logits"]),
+            node("Softmax", [f"{head}_logits"], [f"{head}_softmax"], axis=-1),
+            node("Gather", [f"{head}_softmax", "anomaly_index"], [f"{head}_column"], axis=2),
+            node("Squeeze", [f"{head}_column", "axis2"], [out]),
+        ]
+
     nodes = [
         node("Sub", ["features", "scaler_mean"], ["centred"]),
         node("Mul", ["centred", "scaler_inv_std"], ["scaled_raw"]),
@@ -141,23 +151,13 @@ def build_onnx(
         node("Where", ["not_finite", "zero", "scaled_raw"], ["scaled"]),
         *gru_layer(1, "scaled", hidden1, "x2"),
         *gru_layer(2, "x2", hidden2, "top"),
-        node("MatMul", ["top", "anomaly_head_wt"], ["anomaly_mm"]),
-        node("Add", ["anomaly_mm", "anomaly_head_b"], ["anomaly_logits"]),
-        node("Softmax", ["anomaly_logits"], ["anomaly_softmax"], axis=-1),
-        node("Gather", ["anomaly_softmax", "anomaly_index"], ["anomaly_column"], axis=2),
-        node("Squeeze", ["anomaly_column", "axis2"], ["anomaly_probability"]),
+        *probability("anomaly_head", "anomaly_probability"),
         node("MatMul", ["top", "bias_head_wt"], ["bias_mm"]),
         node("Add", ["bias_mm", "bias_head_b"], ["bias_logits"]),
         node("Softmax", ["bias_logits"], ["bias_probabilities"], axis=-1),
     ]
     if model.has_confirm_head:
-        nodes += [
-            node("MatMul", ["top", "confirm_head_wt"], ["confirm_mm"]),
-            node("Add", ["confirm_mm", "confirm_head_b"], ["confirm_logits"]),
-            node("Softmax", ["confirm_logits"], ["confirm_softmax"], axis=-1),
-            node("Gather", ["confirm_softmax", "anomaly_index"], ["confirm_column"], axis=2),
-            node("Squeeze", ["confirm_column", "axis2"], ["confirm_probability"]),
-        ]
+        nodes += probability("confirm_head", "confirm_probability")
     f32 = TensorProto.FLOAT
     inputs = [
         helper.make_tensor_value_info("features", f32, ["time", "batch", n_features]),
