@@ -1,0 +1,81 @@
+"""The pipeline's features and a model's verdicts, fix by fix, on a stretch of a validation drive.
+
+For looking at one event (issue 13: why a clean fix is flagged), never the test
+splits. Positions only (t, lat, lon), the data set's validation split at its
+native rate: per fix of ``--rows`` (positions in the drive's first segment),
+the step speed from the fixes, the chosen features (decompressed: metres,
+seconds), the model's at-once flag and, with ``--confirm``, the confirm head's
+verdict read at the next fix (``lagged_verdict_check.py --confirm``). Run:
+
+    python benchmarks/tried/features_at.py --dataset nevada --rows 520:575 \\
+        [--model DIR] [--confirm] [--features offset_norm,fault_age_s,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from gradgps._grad.detector import Detector
+from gradgps._grad.pipeline import grad_features, pipeline_feature_names
+from gradgps._tracks.track import to_fixes
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+from _validation_drives import validation_positions
+from lagged_verdict_check import confirmed
+
+DEFAULT_FEATURES = "offset_norm,fault_age_s,clean_distance,motion_nis,motion_speed"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--dataset", required=True)
+    parser.add_argument("--rows", required=True, help="FIRST:LAST (LAST excluded)")
+    parser.add_argument("--model", default=None)
+    parser.add_argument("--confirm", action="store_true")
+    parser.add_argument("--features", default=DEFAULT_FEATURES)
+    parser.add_argument("--data-dir", default=None)
+    args = parser.parse_args()
+    first, last = (int(v) for v in args.rows.split(":"))
+    det = Detector(args.model)
+    names = pipeline_feature_names(det.model_.params)
+    wanted = args.features.split(",")
+    for name, data, _, cmap, _ in validation_positions(None, args.data_dir, keep_native=True):
+        if name != args.dataset:
+            continue
+        fixes = to_fixes(data, cmap)
+        _, usable, prepared, _ = det._point_outputs(fixes)
+        if len(prepared.points) != len(fixes):
+            raise SystemExit("rows were merged or unusable here: point and row numbers differ")
+        k, sl = next(iter(prepared.segment_slices()))
+        pts = prepared.points.iloc[sl]
+        t, lat, lon = (pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon"))
+        nan = np.full(len(t), np.nan)
+        raw = grad_features(
+            det.model_.params, prepared.segment_frames[k], t, lat, lon, nan, nan
+        ).features
+        values = np.sign(raw) * np.expm1(np.abs(raw))  # the pipeline's signed log1p undone
+        east, north = pts["east"].to_numpy(), pts["north"].to_numpy()
+        speed = np.r_[np.nan, np.hypot(np.diff(east), np.diff(north)) / np.diff(t)]
+        at_once = det.detect(fixes)["anomaly"].to_numpy() == 1
+        late = confirmed(det, fixes) if args.confirm else None
+        print(f"{name}, segment {k}, rows {first}..{last - 1} of {len(usable)}")
+        head = ["fix", "speed m/s", *wanted, "at once"] + (
+            ["confirmed"] if late is not None else []
+        )
+        print("| " + " | ".join(head) + " |")
+        print("|" + "---|" * len(head))
+        for i in range(first, min(last, len(t))):
+            cells = [str(i), f"{speed[i]:.1f}"]
+            cells += [f"{values[i, names.index(f)]:.2f}" for f in wanted]
+            cells.append(str(int(at_once[i])))
+            if late is not None:
+                cells.append(str(int(late[i])))
+            print("| " + " | ".join(cells) + " |")
+
+
+if __name__ == "__main__":
+    main()
