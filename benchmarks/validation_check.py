@@ -8,15 +8,21 @@ untouched drive's fixes flagged, and the anomaly F1 and normal recall under
 protocol ``grad`` (seed 0), each scored as the robustness suite scores its
 cells (:func:`gradgps._eval.robustness._cell`: a file's real glitches are
 left out). ``--threshold`` overrides the model's own, to see what a
-threshold choice costs. Run:
+threshold choice costs. ``--repair`` adds the repair's columns: the RMS distance
+of ``lat_clean/lon_clean`` from the untouched drive's fixes, and the repaired and
+corrupted RMSE against the truth over the injected faulty fixes;
+``--reach-m``/``--reach-accel`` override the recovery's reach
+(:func:`gradgps._grad.recovery.within_reach`). Run:
 
     python benchmarks/validation_check.py [--model DIR] [--threshold P] [--data-dir DIR]
-        [--variant positions|+speed|+speed+heading ...]
+        [--variant positions|+speed|+speed+heading ...] [--repair]
+        [--reach-m M] [--reach-accel A]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 import pandas as pd
 
@@ -39,17 +45,34 @@ def main() -> None:
         choices=("positions", "+speed", "+speed+heading"),
         help="column variant (repeatable; default positions)",
     )
+    parser.add_argument("--repair", action="store_true", help="add the repair's columns")
+    parser.add_argument("--reach-m", type=float, default=None)
+    parser.add_argument("--reach-accel", type=float, default=None)
     args = parser.parse_args()
     det = Detector(args.model, threshold=args.threshold)
-    print("| data set | columns | rate | fixes | clean false alarms | anomaly F1 | normal recall |")
-    print("|---|---|---|---|---|---|---|")
+    recovery = det.model_.params.recovery
+    if args.reach_m is not None:
+        recovery = dataclasses.replace(recovery, reach_m=args.reach_m)
+    if args.reach_accel is not None:
+        recovery = dataclasses.replace(recovery, reach_accel_mps2=args.reach_accel)
+    det.model_ = dataclasses.replace(
+        det.model_, params=dataclasses.replace(det.model_.params, recovery=recovery)
+    )
+    print(f"recovery: {recovery}")
+    head = "| data set | columns | rate | fixes | clean false alarms | anomaly F1 | normal recall |"
+    rule = "|---|---|---|---|---|---|---|"
+    if args.repair:
+        head += " clean repair RMS m | repaired / corrupted RMSE m |"
+        rule += "---|---|"
+    print(head)
+    print(rule)
     for name in DATASETS:
         table = load_dataset(name, "validation", data_dir=args.data_dir)
         full = to_fixes(table).attrs["columns"]
         for variant in args.variant or ["positions"]:
             picked = _variant_columns(table, full, variant)
             if picked is not None:
-                _check(det, name, variant, table, picked)
+                _check(det, name, variant, table, picked, args.repair)
 
 
 def _check(
@@ -58,6 +81,7 @@ def _check(
     variant: str,
     table: pd.DataFrame,
     picked: tuple[list[str], ColumnMap],
+    repair: bool,
 ) -> None:
     """Print one data set's rows for one column variant."""
     cols, cmap = picked
@@ -69,10 +93,17 @@ def _check(
         false_alarms = cell["clean"]["false_alarm_rate"]
         f1 = cell["grad"]["anomaly"]["f1"]
         normal_recall = cell["grad"]["normal"]["recall"]
-        print(
+        line = (
             f"| {name} | {variant} | {rate} | {len(data):,} "
             f"| {100 * false_alarms:.2f} % | {f1:.3f} | {normal_recall:.3f} |"
         )
+        if repair:
+            g = cell["grad"]
+            line += (
+                f" {cell['clean']['repair_rms_m']:.2f} "
+                f"| {g['recovery_rmse_m']:.1f} / {g['corrupted_rmse_m']:.1f} |"
+            )
+        print(line)
 
 
 if __name__ == "__main__":

@@ -80,3 +80,131 @@ def test_pipeline_recovery_lowers_the_error_of_injected_faults() -> None:
 def test_unknown_method_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="recovery method"):
         recover([0], 1.0, [0.0], [0.0], [0.0], [0.0], RecoveryParams(method="kalman"))
+
+
+def test_reach_kernel_matches_reference_and_keeps_what_is_plausible() -> None:
+    """:func:`within_reach` == its readable reference; a fix within reach comes back as it
+    is, one beyond it lands on the reach's edge, between the fix and the prediction."""
+    from gradgps._grad.recovery import within_reach, within_reach_reference
+
+    rng = np.random.default_rng(3)
+    prm = RecoveryParams(reach_m=5.0, reach_accel_mps2=3.0)
+    p = prm.reach_array()
+    n = 500
+    tau = rng.uniform(0.0, 12.0, n)
+    pred = rng.normal(0.0, 100.0, (n, 2))
+    fix = pred + rng.normal(0.0, 60.0, (n, 2))
+    ref = within_reach_reference(prm, tau, fix, pred)
+    got = np.array(
+        [within_reach(p, tau[i], fix[i, 0], fix[i, 1], pred[i, 0], pred[i, 1]) for i in range(n)]
+    )
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-9)
+    reach = 5.0 + 1.5 * tau**2
+    miss = np.linalg.norm(fix - pred, axis=1)
+    inside = miss <= reach
+    assert 0 < inside.sum() < n  # both cases are exercised
+    np.testing.assert_array_equal(got[inside], fix[inside])
+    np.testing.assert_allclose(np.linalg.norm(got - pred, axis=1)[~inside], reach[~inside])
+    # On the segment from the prediction to the fix: never farther from either end.
+    to_fix = np.linalg.norm(got - fix, axis=1) + np.linalg.norm(got - pred, axis=1)
+    np.testing.assert_allclose(to_fix, miss, rtol=1e-9)
+    # No reach: the prediction; a NaN fix is kept as it is.
+    zero = RecoveryParams(reach_m=0.0, reach_accel_mps2=0.0).reach_array()
+    assert within_reach(zero, 3.0, 10.0, 0.0, 1.0, 2.0) == (1.0, 2.0)
+    e, n_ = within_reach(p, 1.0, np.nan, 0.0, 1.0, 2.0)
+    assert np.isnan(e)
+    assert n_ == 0.0
+
+
+@pytest.mark.parametrize("bad", [-1.0, np.inf, np.nan])
+def test_reach_settings_are_checked(bad: float) -> None:
+    with pytest.raises(ConfigError, match="reach_m"):
+        RecoveryParams(reach_m=bad).reach_array()
+    with pytest.raises(ConfigError, match="reach_accel_mps2"):
+        RecoveryParams(reach_accel_mps2=bad).reach_array()
+
+
+def _flag_everything(reach_m: float, reach_accel: float) -> object:
+    """The shipped model with every fix flagged (threshold ~0) and the reach given."""
+    import dataclasses
+
+    from gradgps import Detector
+
+    det = Detector(threshold=1e-9)
+    params = det.model_.params
+    recovery = dataclasses.replace(params.recovery, reach_m=reach_m, reach_accel_mps2=reach_accel)
+    det.model_ = dataclasses.replace(
+        det.model_, params=dataclasses.replace(params, recovery=recovery)
+    )
+    return det
+
+
+def test_flagged_fixes_a_car_could_have_driven_are_kept_in_every_mode() -> None:
+    """A car pulling away at 4 m/s, every fix flagged (threshold ~0): the fixes stay
+    within the reach of the recovery's prediction, so the detector keeps them as they
+    are, in batch and streamed alike."""
+    import pandas as pd
+
+    t = np.arange(12.0)
+    lat = 48.1 + 4.0 * t / 111_320.0
+    fixes = pd.DataFrame({"t": t, "lat": lat, "lon": np.full(12, 11.5)})
+    det = _flag_everything(5.0, 3.0)
+    batch = det.detect(fixes)
+    assert (batch["anomaly"] == 1).all()
+    assert (batch["time_type"].iloc[1:4] == "transient").all()
+    np.testing.assert_allclose(batch["lat_clean"], lat, rtol=0, atol=1e-12)
+    streamed = [det.update(ti, la, 11.5).lat_clean for ti, la in zip(t, lat, strict=True)]
+    np.testing.assert_allclose(streamed, lat, rtol=0, atol=1e-12)
+
+
+def test_a_jump_is_repaired_to_the_edge_of_the_reach() -> None:
+    """A 200 m jump for 3 fixes of a straight 15 m/s drive, positions only, shipped model:
+    the prediction is the true track, so the repaired fixes lie on the reach's edge
+    towards the jump, reach(tau) = 5 m + 3 m/s^2 * tau^2 / 2 after tau = 1, 2, 3 s of
+    flags (the time classifier's run times the period); without the reach, on the track."""
+    import dataclasses
+
+    import pandas as pd
+
+    from gradgps import Detector
+
+    t = np.arange(200.0)
+    lat = 48.1 + 15.0 * t / 111_320.0
+    m_per_deg_lon = 111_320.0 * np.cos(np.radians(48.1))
+    lon = np.full(200, 11.5)
+    lon[100:103] += 200.0 / m_per_deg_lon
+    fixes = pd.DataFrame({"t": t, "lat": lat, "lon": lon})
+    det = Detector()
+    res = det.detect(fixes)
+    assert (res["anomaly"].iloc[100:103] == 1).all()
+    assert (res["time_type"].iloc[100:103] != "permanent").all()
+    east = (res["lon_clean"].to_numpy() - 11.5) * m_per_deg_lon
+    north_miss = (res["lat_clean"].to_numpy() - lat) * 111_320.0
+    np.testing.assert_allclose(east[100:103], [6.5, 11.0, 18.5], atol=0.5)
+    np.testing.assert_allclose(north_miss[100:103], 0.0, atol=0.5)
+    recovery = dataclasses.replace(det.model_.params.recovery, reach_m=0.0, reach_accel_mps2=0.0)
+    det.model_ = dataclasses.replace(
+        det.model_, params=dataclasses.replace(det.model_.params, recovery=recovery)
+    )
+    plain = det.detect(fixes)
+    east0 = (plain["lon_clean"].to_numpy() - 11.5) * m_per_deg_lon
+    np.testing.assert_allclose(east0[100:103], 0.0, atol=0.5)
+
+
+def test_a_reported_velocity_leaves_only_the_constant_reach() -> None:
+    """With speed and heading reported the prediction moves with them, so a flagged fix
+    10 m beside it is held 5 m (``reach_m``) from it, however long the run of flags."""
+    import pandas as pd
+
+    t = np.arange(8.0)
+    north = 10.0 * t
+    lat = 48.1 + north / 111_320.0
+    lon = np.full(8, 11.5)
+    lon[2:5] += 10.0 / (111_320.0 * np.cos(np.radians(48.1)))
+    fixes = pd.DataFrame(
+        {"t": t, "lat": lat, "lon": lon, "speed": np.full(8, 10.0), "heading": np.zeros(8)}
+    )
+    res = _flag_everything(5.0, 3.0).detect(fixes)
+    east_off = (res["lon_clean"] - 11.5) * 111_320.0 * np.cos(np.radians(48.1))
+    assert (res["time_type"].iloc[2:5] == "transient").all()
+    np.testing.assert_allclose(east_off.iloc[2:5], 5.0, atol=0.05)

@@ -61,9 +61,11 @@ def test_decimation_is_per_track_in_time_order_and_keeps_input_order() -> None:
     assert out[["track", "t"]].values.tolist() == [["a", 2.0], ["b", 0.0], ["a", 0.0]]
 
 
-def _cell(fa: float, f1: float, nr: float, rec: float, cor: float) -> dict[str, object]:
+def _cell(
+    fa: float, f1: float, nr: float, rec: float, cor: float, repair: float = 0.5
+) -> dict[str, object]:
     return {
-        "clean": {"false_alarm_rate": fa},
+        "clean": {"false_alarm_rate": fa, "repair_rms_m": repair},
         "grad": {
             "anomaly": {"f1": f1},
             "normal": {"recall": nr},
@@ -87,7 +89,10 @@ def test_verdicts_follow_issue_13_targets() -> None:
     assert judge("0.5 Hz", _cell(0.011, 0.9, 0.5, 1, 2))[0].startswith("false alarms")
     # Recovery must beat the corrupted fixes in every cell; missing numbers fail.
     assert judge("native", _cell(0, 1, 1, 50.0, 50.0))[0].startswith("recovery RMSE")
-    assert len(judge("native", _cell(math.nan, math.nan, math.nan, math.nan, 1))) == 4
+    # The untouched drive's repair stays within 1 m RMS of its fixes.
+    assert judge("0.5 Hz", _cell(0, 1, 1, 1, 2, repair=1.0)) == []
+    assert judge("0.5 Hz", _cell(0, 1, 1, 1, 2, repair=1.01)) == ["clean repair RMS 1.010 m > 1 m"]
+    assert len(judge("native", _cell(math.nan, math.nan, math.nan, math.nan, 1, math.nan))) == 5
 
 
 def test_unknown_names_are_config_errors() -> None:

@@ -98,9 +98,17 @@ from .offset import (
     OffsetParams,
     offset_step,
 )
-from .recovery import N_RECOVERY_STATE, RecoveryParams, recovery_step
+from .recovery import N_RECOVERY_STATE, RecoveryParams, recovery_step, within_reach
 from .rema import N_OUT, O_EMA, O_LOWER, O_UPPER, RemaParams
-from .time_classifier import N_TIME_STATE, T_GAP, TimeParams, time_step
+from .time_classifier import (
+    INTERMITTENT,
+    N_TIME_STATE,
+    T_GAP,
+    T_RUN,
+    TRANSIENT,
+    TimeParams,
+    time_step,
+)
 from .vehicle import CAR_MAX_SPEED
 
 __all__ = [
@@ -137,7 +145,9 @@ _MOTION = _MOTION_ON + 1
 # The drift witness (issue 16): an on/off flag, then its parameters (zeros when off).
 _DRIFT_ON = _MOTION + N_MOTION_PARAMS
 _DRIFT = _DRIFT_ON + 1
-N_REST_PARAMS = _DRIFT + N_DRIFT_PARAMS
+# The recovery's reach (gradgps._grad.recovery.within_reach): reach_m, reach_accel_mps2.
+_REACH = _DRIFT + N_DRIFT_PARAMS
+N_REST_PARAMS = _REACH + 2
 # ``off_out`` scratch: offset features, motion features, then the speed and
 # heading the pipeline used for the point (reported, or the motion model's).
 _SH = N_OFFSET_FEATURES + N_MOTION_FEATURES
@@ -223,6 +233,7 @@ class PipelineParams:
                 np.zeros(N_MOTION_PARAMS) if self.motion is None else self.motion.to_array(period),
                 [0.0 if self.drift is None else 1.0],
                 np.zeros(N_DRIFT_PARAMS) if self.drift is None else self.drift.to_array(),
+                self.recovery.reach_array(),
             ]
         )
         return np.concatenate([core, rest])
@@ -356,11 +367,18 @@ def _verdict(
     speed: float,
     heading: float,
     drift: float,
+    measured: bool,
     out: FloatArray,
 ) -> None:
     """The network's outputs ``gru_out`` -> threshold -> time type -> recovery -> clean
     position in degrees (the part of :func:`grad_step` after the GRU, shared with the
     many-stream step :func:`lanes_step`).
+
+    A repaired (transient or intermittent) fix's clean position is the recovery's
+    prediction held within reach of the fix (:func:`within_reach`), after as many
+    periods without a trusted fix as the time classifier's current run of flags.
+    ``measured``: the fix reports both speed and heading, so the prediction moved
+    with the measured velocity and only the reach's constant part applies.
 
     ``drift``: the drift witness's flag. A fix the GRU passes but the witness
     flags is an anomaly of bias class ``dims[3]`` (``drift``, after the head's
@@ -395,6 +413,15 @@ def _verdict(
         heading,
         rec_out,
     )
+    if code in (TRANSIENT, INTERMITTENT):
+        rec_out[0], rec_out[1] = within_reach(
+            rest[_REACH : _REACH + 2],
+            0.0 if measured else S[ts + T_RUN] * rest[_PERIOD],
+            east,
+            north,
+            rec_out[0],
+            rec_out[1],
+        )
     lat_c, lon_c = to_geodetic_scalar(
         rest[_FRAME : _FRAME + N_FRAME_CONSTANTS], rec_out[0], rec_out[1]
     )
@@ -476,6 +503,7 @@ def grad_step(
         off_out[_SH],
         off_out[_SH + 1],
         off_out[_DRIFT_OUT],
+        np.isfinite(speed) and np.isfinite(heading),
         out,
     )
 
@@ -929,5 +957,6 @@ def lanes_step(
             off_out[v, _SH],
             off_out[v, _SH + 1],
             off_out[v, _DRIFT_OUT],
+            np.isfinite(speed[rows[v]]) and np.isfinite(heading[rows[v]]),
             out[rows[v]],
         )

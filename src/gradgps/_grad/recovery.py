@@ -18,6 +18,23 @@ Both estimators pass permanent points through unchanged with ``alert = 1``.
 The velocity state is updated from normal points only, and the last recovered
 value (not the faulty one) is what the next prediction starts from, so one
 fault does not poison what follows. Errors: :func:`rmse`.
+
+**Reach** (:func:`within_reach`, applied by the GRAD pipeline to the position
+it reports, never to the prediction chain above). A prediction is only as good
+as the assumption under it: after ``tau`` seconds without a trusted fix the
+vehicle may be anywhere within ``reach(tau) = reach_m + reach_accel_mps2 *
+tau**2 / 2`` of a constant-velocity prediction (``reach_m``: the fix noise and
+velocity error a prediction starts with; ``reach_accel_mps2``: an acceleration
+sustained against the prediction: braking, pulling away, turning). A flagged
+fix inside that disc is as plausible as the prediction, so it is kept as it
+is; one outside it is moved onto the disc's edge, the nearest physically
+plausible place. Without it a clean fix flagged during a hard stop was
+replaced by dead reckoning at the old speed, up to 100 m from where the car
+was (issue 13, Nevada validation drive); with it the repaired position is at
+most ``reach(tau)`` from the prediction, so a real fault's repair error is at
+most the prediction's own plus ``reach(tau)``, and it is never farther from
+the truth than both the fix and the prediction (it lies between them).
+``reach_m = reach_accel_mps2 = 0`` gives the plain prediction back.
 """
 
 from __future__ import annotations
@@ -38,6 +55,8 @@ __all__ = [
     "recover_reference",
     "recovery_step",
     "rmse",
+    "within_reach",
+    "within_reach_reference",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -49,8 +68,24 @@ N_RECOVERY_STATE = 5
 
 @dataclass(frozen=True)
 class RecoveryParams:
+    """``reach_m``, ``reach_accel_mps2``: the reach (module docstring), used by the
+    GRAD pipeline only; the defaults are a fix's few metres of noise plus a
+    velocity error of a few m/s over the first second, and 3 m/s^2, a firm stop or
+    start held against the prediction (checked on the validation drives:
+    ``benchmarks/validation_check.py --repair``)."""
+
     method: str = "velocity"
     velocity_alpha: float = 0.5
+    reach_m: float = 5.0
+    reach_accel_mps2: float = 3.0
+
+    def reach_array(self) -> FloatArray:
+        """``[reach_m, reach_accel_mps2]`` for :func:`within_reach`."""
+        for name in ("reach_m", "reach_accel_mps2"):
+            value = getattr(self, name)
+            if not (value >= 0.0 and np.isfinite(value)):
+                raise ConfigError(f"recovery {name} must be a finite number >= 0, got {value}")
+        return np.array([self.reach_m, self.reach_accel_mps2])
 
     def to_array(self) -> FloatArray:
         if self.method not in RECOVERY_METHODS:
@@ -106,6 +141,43 @@ def recovery_step(
     out[0] = rec_e
     out[1] = rec_n
     out[2] = alert
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def within_reach(
+    p: FloatArray, tau: float, east: float, north: float, pred_e: float, pred_n: float
+) -> tuple[float, float]:
+    """The fix ``(east, north)`` if it lies within the reach after ``tau`` s of the
+    prediction ``(pred_e, pred_n)``, else the point of the reach's edge nearest to it
+    (module docstring; ``p``: :meth:`RecoveryParams.reach_array`)."""
+    reach = p[0] + 0.5 * p[1] * tau * tau
+    de = east - pred_e
+    dn = north - pred_n
+    miss = np.sqrt(de * de + dn * dn)
+    if not miss > reach:  # inside, or a NaN fix (kept as it is)
+        return east, north
+    scale = reach / miss
+    return pred_e + de * scale, pred_n + dn * scale
+
+
+def within_reach_reference(
+    params: RecoveryParams,
+    tau: ArrayLike,
+    fix: ArrayLike,
+    prediction: ArrayLike,
+) -> NDArray[np.float64]:
+    """Readable :func:`within_reach` over rows: ``fix`` and ``prediction`` are
+    ``(n, 2)`` east/north metres, ``tau`` seconds without a trusted fix per row."""
+    r0, accel = params.reach_array()
+    z = np.atleast_2d(np.asarray(fix, dtype=np.float64))
+    pred = np.atleast_2d(np.asarray(prediction, dtype=np.float64))
+    reach = r0 + 0.5 * accel * np.asarray(tau, dtype=np.float64) ** 2
+    out = z.copy()
+    for i in range(len(z)):
+        miss = np.linalg.norm(z[i] - pred[i])
+        if miss > reach[i]:
+            out[i] = pred[i] + (z[i] - pred[i]) * reach[i] / miss
+    return out
 
 
 @numba.njit(cache=True, error_model="numpy")
