@@ -208,3 +208,33 @@ def test_a_reported_velocity_leaves_only_the_constant_reach() -> None:
     east_off = (res["lon_clean"] - 11.5) * 111_320.0 * np.cos(np.radians(48.1))
     assert (res["time_type"].iloc[2:5] == "transient").all()
     np.testing.assert_allclose(east_off.iloc[2:5], 5.0, atol=0.05)
+
+
+def test_a_measured_velocity_repairs_a_permanent_fault_too() -> None:
+    """Speed and heading reported: a 10 m offset that outlasts the time classifier's
+    permanent run is still held 5 m from the dead-reckoned track (alert raised);
+    positions only, the permanent fixes pass through as they are (the paper)."""
+    import pandas as pd
+
+    n = 12
+    t = np.arange(float(n))
+    lat = 48.1 + 10.0 * t / 111_320.0
+    m_per_deg_lon = 111_320.0 * np.cos(np.radians(48.1))
+    lon = np.full(n, 11.5)
+    lon[2:] += 10.0 / m_per_deg_lon
+    measured = pd.DataFrame(
+        {"t": t, "lat": lat, "lon": lon, "speed": np.full(n, 10.0), "heading": np.zeros(n)}
+    )
+    det = _flag_everything(5.0, 3.0)
+    res = det.detect(measured)
+    permanent = (res["time_type"] == "permanent").to_numpy()
+    assert permanent[2:].sum() >= 4
+    np.testing.assert_array_equal(res["alert"].to_numpy(dtype=bool), permanent)
+    east = (res["lon_clean"].to_numpy() - 11.5) * m_per_deg_lon
+    np.testing.assert_allclose(east[2:], 5.0, atol=0.05)
+    positions = det.detect(measured[["t", "lat", "lon"]])
+    kept = (positions["time_type"] == "permanent").to_numpy()
+    assert kept.sum() >= 4
+    np.testing.assert_allclose(
+        positions["lon_clean"].to_numpy()[kept], lon[kept], rtol=0, atol=1e-12
+    )

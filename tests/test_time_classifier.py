@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from gradgps._exceptions import ConfigError
 from gradgps._grad.time_classifier import (
     INTERMITTENT,
     NONE,
@@ -76,3 +79,49 @@ def test_streaming_equals_batch_with_json_state() -> None:
         names.append(clf.update(int(v)))
     expected = ["none", "transient", "intermittent", "permanent"]
     assert names == [expected[c] for c in classify_time(f)]
+
+
+def test_time_spans_count_fixes_up_to_1_hz_and_seconds_above() -> None:
+    from gradgps._grad.time_classifier import TimeSpans
+
+    prm = TimeParams(permanent_run=6, episode_gap=15, intermittent_bursts=2)
+    spans = TimeSpans()
+    for period in (1.0, 2.0, 5.0):
+        assert spans.at_period(prm, period) == prm
+    assert spans.at_period(prm, 0.1) == TimeParams(
+        permanent_run=60, episode_gap=150, intermittent_bursts=2
+    )
+    assert spans.at_period(prm, 0.25).permanent_run == 24
+    with pytest.raises(ConfigError, match="fixes_per_second"):
+        TimeSpans(fixes_per_second=0.0).at_period(prm, 1.0)
+    with pytest.raises(ConfigError, match="period"):
+        spans.at_period(prm, math.nan)
+
+
+def test_the_pipeline_types_a_10_hz_fault_by_its_duration() -> None:
+    """Every fix of a 10 Hz drive flagged: permanent after 6 s (60 fixes), as 6 fixes at
+    1 Hz; a model whose settings say ``"verdict_time": null`` counts fixes."""
+    import dataclasses
+
+    import pandas as pd
+
+    from gradgps import Detector
+    from gradgps._grad.pipeline import PipelineParams
+
+    t = np.arange(100) * 0.1
+    lat = 48.1 + 4.0 * t / 111_320.0
+    fixes = pd.DataFrame({"t": t, "lat": lat, "lon": np.full(t.size, 11.5)})
+    det = Detector(threshold=1e-9)
+    run = det.model_.params.time.permanent_run
+    kinds = det.detect(fixes)["time_type"].to_numpy()
+    assert (kinds[: 10 * run - 1] != "permanent").all()
+    assert (kinds[10 * run - 1 :] == "permanent").all()
+    saved = det.model_.params.to_dict()
+    assert saved["verdict_time"] == {"fixes_per_second": 1.0}
+    in_fixes = PipelineParams.from_dict({**saved, "verdict_time": None})
+    assert in_fixes.verdict_time is None
+    legacy = {k: v for k, v in saved.items() if k != "verdict_time"}
+    assert PipelineParams.from_dict(legacy).verdict_time is not None
+    det.model_ = dataclasses.replace(det.model_, params=in_fixes)
+    kinds = det.detect(fixes)["time_type"].to_numpy()
+    assert (kinds[run - 1 :] == "permanent").all()

@@ -101,12 +101,14 @@ from .offset import (
 from .recovery import N_RECOVERY_STATE, RecoveryParams, recovery_step, within_reach
 from .rema import N_OUT, O_EMA, O_LOWER, O_UPPER, RemaParams
 from .time_classifier import (
-    INTERMITTENT,
     N_TIME_STATE,
+    NONE,
+    PERMANENT,
     T_GAP,
     T_RUN,
     TRANSIENT,
     TimeParams,
+    TimeSpans,
     time_step,
 )
 from .vehicle import CAR_MAX_SPEED
@@ -188,6 +190,13 @@ class PipelineParams:
     and heading) its defaults, chosen on the validation drives, flagged 20.5 % of the
     clean fixes as drift (721 of 3,512; `gradgps bench --suite robustness`, cell
     ``+speed+heading``), where the validation drives gave 0.00 %."""
+    verdict_time: TimeSpans | None = field(default_factory=TimeSpans)
+    """How the verdicts' time types (and so which faults are permanent) count ``time``'s
+    thresholds at each segment's period: in fixes up to 1 Hz, in the time those take
+    at 1 Hz above (:class:`TimeSpans`). ``None``: in fixes at every rate. Models saved
+    before it existed say nothing and get the default; ``"verdict_time": null`` in a
+    model's pipeline settings keeps fixes. REMA's own classifier inside the features
+    still counts ``time`` in fixes, as the network was trained."""
 
     def core(self, period: float) -> CoreParams:
         return CoreParams(
@@ -216,6 +225,11 @@ class PipelineParams:
             max_gap_s=float(data["max_gap_s"]),
             motion=MotionParams(**data["motion"]).checked() if data.get("motion") else None,
             drift=_drift_params(data),
+            verdict_time=(
+                TimeSpans(**data["verdict_time"])
+                if data.get("verdict_time") is not None
+                else (None if "verdict_time" in data else TimeSpans())
+            ),
         )
 
     def array(self, period: float, frame: LocalFrame, dims: NDArray[np.int64]) -> FloatArray:
@@ -224,7 +238,11 @@ class PipelineParams:
         rest = np.concatenate(
             [
                 self.offset.to_array(),
-                self.time.to_array(),
+                (
+                    self.time
+                    if self.verdict_time is None
+                    else self.verdict_time.at_period(self.time, period)
+                ).to_array(),
                 self.recovery.to_array(),
                 [self.threshold, period],
                 np.asarray(dims, dtype=np.float64),
@@ -368,17 +386,23 @@ def _verdict(
     heading: float,
     drift: float,
     measured: bool,
+    dt: float,
     out: FloatArray,
 ) -> None:
     """The network's outputs ``gru_out`` -> threshold -> time type -> recovery -> clean
     position in degrees (the part of :func:`grad_step` after the GRU, shared with the
     many-stream step :func:`lanes_step`).
 
-    A repaired (transient or intermittent) fix's clean position is the recovery's
-    prediction held within reach of the fix (:func:`within_reach`), after as many
-    periods without a trusted fix as the time classifier's current run of flags.
-    ``measured``: the fix reports both speed and heading, so the prediction moved
-    with the measured velocity and only the reach's constant part applies.
+    A transient or intermittent fix's clean position is the recovery's prediction held
+    within reach of the fix (:func:`within_reach`), after as many periods without a
+    trusted fix as the time classifier's current run of flags. ``measured``: the fix
+    reports both speed and heading, so the prediction moved with the measured
+    velocity and only the reach's constant part applies; such a fix is repaired so
+    even in a *permanent* fault (which still raises its alert): dead reckoning on a
+    measured velocity stays good for as long as the fault lasts, where the paper's
+    reason to leave a permanent fault alone (its estimate drifts too far to be
+    trusted) holds for a velocity guessed from the positions. ``dt``: the time step
+    to this fix, which the prediction advances by (a dropped fix is a longer step).
 
     ``drift``: the drift witness's flag. A fix the GRU passes but the witness
     flags is an anomaly of bias class ``dims[3]`` (``drift``, after the head's
@@ -403,8 +427,8 @@ def _verdict(
     recovery_step(
         rest[_REC : _REC + 2],
         S[rs : rs + N_RECOVERY_STATE],
-        code,
-        rest[_PERIOD],
+        TRANSIENT if code == PERMANENT and measured else code,
+        dt if dt > 0.0 else rest[_PERIOD],
         east,
         north,
         core_out[N_RESULT + O_EMA],
@@ -413,7 +437,7 @@ def _verdict(
         heading,
         rec_out,
     )
-    if code in (TRANSIENT, INTERMITTENT):
+    if code != NONE and (code != PERMANENT or measured):
         rec_out[0], rec_out[1] = within_reach(
             rest[_REACH : _REACH + 2],
             0.0 if measured else S[ts + T_RUN] * rest[_PERIOD],
@@ -431,7 +455,7 @@ def _verdict(
     out[O_TIME] = code
     out[O_LAT] = lat_c
     out[O_LON] = lon_c
-    out[O_ALERT] = rec_out[2]
+    out[O_ALERT] = 1.0 if code == PERMANENT else 0.0
     out[O_CONFIRM] = gru_out[1 + dims[3]] if dims[4] != 0 else np.nan
 
 
@@ -504,6 +528,7 @@ def grad_step(
         off_out[_SH + 1],
         off_out[_DRIFT_OUT],
         np.isfinite(speed) and np.isfinite(heading),
+        dt,
         out,
     )
 
@@ -958,5 +983,6 @@ def lanes_step(
             off_out[v, _SH + 1],
             off_out[v, _DRIFT_OUT],
             np.isfinite(speed[rows[v]]) and np.isfinite(heading[rows[v]]),
+            dt[rows[v]],
             out[rows[v]],
         )

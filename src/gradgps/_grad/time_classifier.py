@@ -19,6 +19,10 @@ permanent faults 20-100 points. So ``permanent_run=8`` (longer than any
 transient or burst plus a detector's spill-over), ``episode_gap=15``,
 ``intermittent_bursts=2``.
 
+The GRAD pipeline's verdicts read these thresholds through :class:`TimeSpans`:
+in fixes at 1 Hz and below, in the time those fixes take at 1 Hz above, so that
+a fault's type follows how long it lasts on a 10 Hz log as on a 1 Hz one.
+
 Causality has a price, stated here because labels depend on it: the *first*
 burst of an intermittent episode is labelled transient (nothing yet says it
 will recur) and the first ``permanent_run - 1`` points of a permanent fault are
@@ -42,6 +46,7 @@ __all__ = [
     "TIME_TYPES",
     "TimeClassifier",
     "TimeParams",
+    "TimeSpans",
     "classify_time",
     "classify_time_reference",
     "time_step",
@@ -71,6 +76,39 @@ class TimeParams:
                 )
         return np.array(
             [self.permanent_run, self.episode_gap, self.intermittent_bursts], dtype=np.float64
+        )
+
+
+@dataclass(frozen=True)
+class TimeSpans:
+    """How the GRAD pipeline's *verdicts* count :class:`TimeParams`' thresholds on a
+    stream of any rate (:class:`gradgps._grad.pipeline.PipelineParams`): in fixes at
+    1 Hz and below, and above 1 Hz in the time those fixes take at 1 Hz.
+
+    A fault's type is a property of how long it lasts: counted in fixes alone, a
+    0.6 s burst at 10 Hz was already ``permanent`` (6 flags in the shipped
+    settings) and passed through unrepaired, where 6 s of flags are needed at
+    1 Hz. Below 1 Hz the count stays in fixes, so that a run is still a run of
+    several fixes and not two unlucky ones. ``fixes_per_second`` (1) is the rate
+    at which the two agree.
+    """
+
+    fixes_per_second: float = 1.0
+
+    def at_period(self, params: TimeParams, period: float) -> TimeParams:
+        """``params`` for a stream sampled every ``period`` seconds."""
+        if not (self.fixes_per_second > 0.0 and np.isfinite(self.fixes_per_second)):
+            raise ConfigError(
+                f"time classifier fixes_per_second must be a finite number > 0, "
+                f"got {self.fixes_per_second}"
+            )
+        if not (period > 0.0 and np.isfinite(period)):
+            raise ConfigError(f"period must be a finite number > 0 s, got {period}")
+        scale = max(1.0, 1.0 / (period * self.fixes_per_second))
+        return TimeParams(
+            permanent_run=round(params.permanent_run * scale),
+            episode_gap=round(params.episode_gap * scale),
+            intermittent_bursts=params.intermittent_bursts,
         )
 
 
