@@ -183,20 +183,20 @@ def test_threaded_batch_gives_the_same_numbers(model_dir: Path, drives: pd.DataF
     _assert_same(one, two)
 
 
-def test_a_confirm_head_rides_along_without_changing_a_verdict(tmp_path, model_dir, drives):
-    """A model with a confirm head (the same random weights plus the head): every result
-    column is the plain model's, and the compiled pipeline's confirm output, in batch and
-    fix by fix, is the NumPy reference GRU's confirm head on the pipeline's features."""
+def test_a_confirm_head_settles_each_verdict_one_fix_late(tmp_path, model_dir, drives):
+    """A model with a confirm head: a fix's final verdict is the head's read at the next
+    fix of its segment against the confirm threshold (a segment's last fix keeps its
+    verdict at once); in batch that is the NumPy reference GRU's confirm head on the
+    pipeline's features, shifted by one fix; a stream's verdicts at once plus
+    ``Detector.settled`` give the batch rows exactly, also across a saved state."""
     from gradgps._grad.gru import reference_stream
     from gradgps._grad.model_io import load_model
-    from gradgps._grad.pipeline import O_CONFIRM, grad_features
+    from gradgps._grad.pipeline import O_CONFIRM, O_FLAG, grad_features
 
     confirm_dir = random_detector_model(tmp_path / "confirm", threshold=0.5, confirm_head=True)
     one = drives[drives["track"] == drives["track"].iloc[0]]
-    pd.testing.assert_frame_equal(
-        Detector(confirm_dir).detect(one), Detector(model_dir).detect(one)
-    )
     det = Detector(confirm_dir)
+    assert det.model_.params.confirm_threshold == 0.5
     _, usable, prepared, out = det._point_outputs(one)
     (k, _), *rest = list(prepared.segment_slices())
     assert not rest  # one segment: the reference runs it from a zero state
@@ -207,10 +207,44 @@ def test_a_confirm_head_rides_along_without_changing_a_verdict(tmp_path, model_d
     weights, config = load_model(confirm_dir)
     scaler = config["scaler"]
     ref, _ = reference_stream(weights, np.array(scaler["mean"]), np.array(scaler["std"]), features)
-    np.testing.assert_allclose(out[:, O_CONFIRM], ref.confirm, atol=1e-5)  # float32 sums
-    streamed = []
-    for r in one.iloc[usable].itertuples(index=False):
-        det.update(r.t, r.lat, r.lon, speed=r.speed, heading=r.heading)
-        streamed.append(det._out[O_CONFIRM])
-    np.testing.assert_array_equal(np.array(streamed), out[:, O_CONFIRM])
-    assert np.isnan(Detector(model_dir)._point_outputs(one)[3][:, O_CONFIRM]).all()
+    assert ref.confirm is not None
+    np.testing.assert_allclose(out[:-1, O_CONFIRM], ref.confirm[1:], atol=1e-5)  # float32 sums
+    assert np.isnan(out[-1, O_CONFIRM])
+    clear = np.abs(ref.confirm[1:] - 0.5) > 1e-4  # not within float32 noise of the threshold
+    np.testing.assert_array_equal(out[:-1, O_FLAG][clear], (ref.confirm[1:] >= 0.5)[clear])
+    assert out[-1, O_FLAG] == float(ref.anomaly[-1] >= 0.5)
+    plain = Detector(model_dir).detect(one)["anomaly"].to_numpy()
+    assert (out[:, O_FLAG] != plain).any()  # the head decides, not the anomaly head
+
+    def final_rows(stream: Detector, rows: pd.DataFrame) -> list[object]:
+        finals: list[object] = []
+        last = None
+        for r in rows.itertuples(index=False):
+            last = stream.update(r.t, r.lat, r.lon, speed=r.speed, heading=r.heading)
+            settled = stream.settled
+            if finals or settled is not None:
+                assert settled is not None
+                finals.append(settled)
+        finals.append(last)
+        return finals
+
+    fixes = one.iloc[usable]
+    want = [det._result(row) for row in out]
+    assert final_rows(Detector(confirm_dir), fixes) == want
+    first = Detector(confirm_dir)
+    half = len(fixes) // 2
+    head = final_rows(first, fixes.iloc[:half])[:-1]  # the last one was not final yet
+    second = Detector(confirm_dir).set_state(json.loads(json.dumps(first.get_state())))
+    tail = final_rows(second, fixes.iloc[half:])
+    assert second.settled is not None
+    assert [*head, *tail] == want
+
+
+def test_modes_that_write_each_verdict_at_once_refuse_a_settling_model(tmp_path):
+    from gradgps import FleetDetector, MultiTrackDetector
+
+    confirm_dir = random_detector_model(tmp_path / "confirm", threshold=0.5, confirm_head=True)
+    with pytest.raises(ConfigError, match="settle one fix late"):
+        FleetDetector(confirm_dir)
+    with pytest.raises(ConfigError, match="--chunk-size"):
+        MultiTrackDetector(confirm_dir)

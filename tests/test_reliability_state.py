@@ -247,6 +247,58 @@ _steps = st.lists(
 )
 
 
+@pytest.fixture(scope="module")
+def confirm_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from _gru_support import random_detector_model
+
+    return random_detector_model(tmp_path_factory.mktemp("confirm"), confirm_head=True)
+
+
+def _settled_feed(det: Detector, fixes: pd.DataFrame) -> pd.DataFrame:
+    """A stream's final verdicts: each fix's verdict at once, replaced by the settled one
+    when the next fix of its segment arrives."""
+    rows = []
+    for r in fixes.itertuples():
+        rows.append(det.update(r.t, r.lat, r.lon))
+        settled = det.settled
+        if settled is not None:
+            rows[-2] = settled
+    return pd.DataFrame([r.__dict__ for r in rows], index=fixes.index)
+
+
+@settings(max_examples=40, deadline=None)
+@given(steps=_steps, first_lat=st.sampled_from([48.1, -33.9, 0.0, 89.9]))
+def test_settled_verdicts_equal_batch_whatever_the_first_steps(
+    confirm_model: Path, steps: list[float], first_lat: float
+) -> None:
+    """Verdicts that settle one fix late (a confirm head) through the provisional period's
+    rebuilds and segment restarts: a stream's final verdicts are batch's, bit for bit,
+    also through a checkpoint at every cut."""
+    t = T0 + np.cumsum([0.0, *steps])
+    n = t.size
+    rng = np.random.default_rng(len(steps))
+    fixes = pd.DataFrame(
+        {
+            "track": "a",
+            "t": t,
+            "lat": first_lat + rng.normal(0, 1e-5, n),
+            "lon": 11.5 + np.arange(n) * 1e-4,
+        }
+    )
+    batch = Detector(confirm_model).detect(fixes)
+    _same(batch, _settled_feed(Detector(confirm_model), fixes))
+    for cut in range(1, n):
+        det = Detector(confirm_model)
+        first = _settled_feed(det, fixes.iloc[:cut])
+        restored = Detector(confirm_model).set_state(json.loads(json.dumps(det.get_state())))
+        rows = [*first.to_dict("records")]
+        for r in fixes.iloc[cut:].itertuples():
+            rows.append(restored.update(r.t, r.lat, r.lon).__dict__)
+            if restored.settled is not None:
+                rows[-2] = restored.settled.__dict__
+        _same(batch, pd.DataFrame(rows, index=fixes.index))
+
+
 @settings(max_examples=60, deadline=None)
 @given(steps=_steps, first_lat=st.sampled_from([48.1, -33.9, 0.0, 89.9]))
 def test_batch_equals_streaming_bit_for_bit_whatever_the_first_steps(

@@ -25,6 +25,7 @@ from gradgps._tracks.track import to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
 from _validation_drives import validation_positions
+from lagged_verdict_check import at_once as at_once_detector
 from lagged_verdict_check import confirmed
 
 DEFAULT_FEATURES = "offset_norm,fault_age_s,clean_distance,motion_nis,motion_speed"
@@ -41,6 +42,7 @@ def main() -> None:
     args = parser.parse_args()
     first, last = (int(v) for v in args.rows.split(":"))
     det = Detector(args.model)
+    once = at_once_detector(det)
     names = pipeline_feature_names(det.model_.params)
     wanted = args.features.split(",")
     for name, data, _, cmap, _ in validation_positions(None, args.data_dir, keep_native=True):
@@ -60,7 +62,7 @@ def main() -> None:
         values = np.sign(raw) * np.expm1(np.abs(raw))  # the pipeline's signed log1p undone
         east, north = pts["east"].to_numpy(), pts["north"].to_numpy()
         speed = np.r_[np.nan, np.hypot(np.diff(east), np.diff(north)) / np.diff(t)]
-        at_once = det.detect(fixes)["anomaly"].to_numpy() == 1
+        at_once = once.detect(fixes)["anomaly"].to_numpy() == 1
         late = confirmed(det, fixes) if args.confirm else None
         print(f"{name}, segment {k}, rows {first}..{last - 1} of {len(usable)}")
         head = ["fix", "speed m/s", *wanted, "at once"] + (

@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -33,15 +34,23 @@ from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import simulate_fleet
 from gradgps._eval.metrics import class_scores
 from gradgps._grad.detector import Detector
-from gradgps._grad.pipeline import O_BIAS, O_CONFIRM, O_FLAG
 from gradgps._tracks.track import ColumnMap, to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
 from _validation_drives import validation_positions
 
 
+def at_once(det: Detector) -> Detector:
+    """``det`` deciding every fix at once, also where its model has a confirm head (whose
+    verdicts the pipeline settles one fix late)."""
+    m = det.model_
+    once = Detector(m.path)
+    once.model_ = replace(m, params=replace(m.params, confirm_threshold=None))
+    return once
+
+
 def verdicts(det: Detector, fixes: pd.DataFrame, lag: int) -> np.ndarray:
-    flag = det.detect(fixes)["anomaly"].to_numpy() == 1
+    flag = at_once(det).detect(fixes)["anomaly"].to_numpy() == 1
     if lag == 0:
         return flag
     track = fixes["track"].astype(str).to_numpy()
@@ -51,21 +60,12 @@ def verdicts(det: Detector, fixes: pd.DataFrame, lag: int) -> np.ndarray:
 
 
 def confirmed(det: Detector, fixes: pd.DataFrame) -> np.ndarray:
-    """Per row: the confirm head's verdict read one point later (see the module doc)."""
+    """Per row: the settled verdict, the pipeline's own for a model with a confirm head
+    (:func:`gradgps._grad.pipeline.grad_step`; the module doc says the rule)."""
     m = det.model_
-    threshold = float(m.config["thresholds"]["confirm"])
-    _, usable, prepared, out = det._point_outputs(fixes)
-    starts = np.array([sl.start for _, sl in prepared.segment_slices()] + [len(out)], np.int64)
-    flag = out[:, O_FLAG] == 1
-    has_next = np.ones(len(out), bool)
-    has_next[starts[1:] - 1] = False
-    late = np.zeros(len(out), bool)
-    late[:-1] = out[1:, O_CONFIRM] >= threshold
-    drift = flag & (out[:, O_BIAS] == len(m.bias_classes))
-    final = np.where(has_next, late, flag) | drift
-    rows = np.ones(len(fixes), bool)  # an unusable fix is flagged, as detect() does
-    rows[usable] = prepared.to_rows(final.astype(float), fill=1.0) == 1
-    return rows
+    if not m.params.settles(m.dims):
+        raise SystemExit(f"--confirm needs a model with a confirm head; {m.path} has none")
+    return det.detect(fixes)["anomaly"].to_numpy() == 1
 
 
 def main() -> None:

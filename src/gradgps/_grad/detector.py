@@ -110,6 +110,7 @@ from .pipeline import (
     O_TIME,
     PERIOD_STEPS,
     PipelineParams,
+    _tail_end,
     grad_segments,
     grad_step,
     lanes_step,
@@ -195,7 +196,14 @@ def _load_cached(path: str, mtime_ns: int) -> GradModel:
             f"the ones this version computes ({names}); retrain the model"
         )
     threshold = float(config["thresholds"]["anomaly"])
-    params = PipelineParams(**{**params.__dict__, "threshold": threshold})
+    confirm = config["thresholds"].get("confirm")
+    params = PipelineParams(
+        **{
+            **params.__dict__,
+            "threshold": threshold,
+            "confirm_threshold": None if confirm is None else float(confirm),
+        }
+    )
     try:
         net = gru_model(weights, config)
     except GradGPSError as exc:
@@ -297,14 +305,15 @@ def _check_counters(P: NDArray[np.float64], S: NDArray[np.float64], seg_count: i
     for name, at in (("east", rs_e), ("north", rs_n)):
         count(f"rema {name} points", S[at + REMA_COUNT], seg_count, seg_count)
         count(f"rema {name} steps", S[at + REMA_NSTEPS], 0, seg_count)
-    tail = S.size - _N_TAIL_STATE
+    end = _tail_end(P, S)
+    tail = end - _N_TAIL_STATE
     count("offset points", S[tail], 0, seg_count)
     time_at = tail + N_OFFSET_STATE
     for k in (0, 2):  # run length, bursts
         count(f"time classifier [{k}]", S[time_at + k], 0, seg_count)
     rec_count = time_at + N_TIME_STATE + N_RECOVERY_STATE - 1
     count("recovery points", S[rec_count], 0, seg_count)
-    count("motion points", S[S.size - N_MOTION_STATE], 0, seg_count)
+    count("motion points", S[end - N_MOTION_STATE], 0, seg_count)
     if N_REMA_STATE <= REMA_NSTEPS:
         raise AssertionError("REMA state layout changed")
 
@@ -408,6 +417,19 @@ def _state(
     }
 
 
+def refuse_settling(model: GradModel, mode: str) -> None:
+    """Refuse a model whose verdicts settle one fix late (a confirm head,
+    :attr:`PipelineParams.confirm_threshold`) in a mode that writes each fix's verdict
+    at once: it would not give the whole-file verdicts there yet."""
+    if model.params.settles(model.dims):
+        raise ConfigError(
+            f"{model.path}: this model's verdicts settle one fix late (it has a confirm "
+            f"head), which {mode} does not support yet; read the whole file with "
+            "gradgps detect (no --chunk-size, no --follow), or use Detector.update and "
+            "Detector.settled"
+        )
+
+
 def track_input(data: Any, **columns: Unpack[ColumnKeywords]) -> TrackInput:
     """``data`` as a :class:`~gradgps._tracks.objects.TrackInput`, its columns named by the
     keywords that :func:`gradgps.detect`, :func:`gradgps.clean` and :class:`Detector`'s
@@ -450,7 +472,9 @@ class Detector:
             )
         self.model_ = loaded
         self._settings = _settings_checksum(loaded)
+        self._settles = loaded.params.settles(loaded.dims)
         self._out = np.zeros(N_POINT_OUT)
+        self._settled = np.full(N_POINT_OUT, np.nan)
         self._reset()
 
     # -- streaming ---------------------------------------------------------
@@ -482,7 +506,7 @@ class Detector:
         buffers that :func:`_stream_fix` carves the same way (few arrays to pass)."""
         assert self._P is not None
         work = new_work(self._P)
-        self._w64 = np.concatenate([*work[1:4], np.zeros(N_POINT_OUT)])
+        self._w64 = np.concatenate([*work[1:4], np.zeros(2 * N_POINT_OUT)])
         self._w32 = np.concatenate(work[4:])
         views = []
         for buffer, parts in ((self._w64, work[1:4]), (self._w32, work[4:])):
@@ -491,7 +515,9 @@ class Detector:
                 views.append(buffer[at : at + part.size])
                 at += part.size
         self._work = (work[0], *views)
-        self._out = self._w64[-N_POINT_OUT:]
+        self._out = self._w64[-2 * N_POINT_OUT : -N_POINT_OUT]
+        self._settled = self._w64[-N_POINT_OUT:]
+        self._settled[O_FLAG] = np.nan
 
     def _step(self, dt: float, lat: float, lon: float, speed: float, heading: float) -> None:
         assert self._P is not None
@@ -510,6 +536,7 @@ class Detector:
             speed,
             heading,
             self._out,
+            self._settled,
         )
 
     def update(
@@ -538,9 +565,16 @@ class Detector:
 
         ``channels`` (other sensor readings) are accepted for interface
         compatibility and ignored by the position model.
+
+        A model with a confirm head settles each verdict one fix late
+        (:attr:`settled`): what this returns is then the fix's verdict at once,
+        final only if no later fix of its segment comes; :meth:`detect` gives the
+        final ones.
         """
         t_f = t if type(t) is float else _time_number(t)
         lat_f, lon_f = as_number(lat), as_number(lon)
+        if self._settles:
+            self._settled[O_FLAG] = math.nan  # none until a step settles one
         if (
             self._seg_count > PERIOD_STEPS  # the period is final, no warm-up kept
             and self._work is not None
@@ -604,9 +638,25 @@ class Detector:
         self._last_t = t_f
         return self._point()
 
+    @property
+    def settled(self) -> PointResult | None:
+        """The final verdict of the usable fix before the one :meth:`update` just read,
+        where this model's verdicts settle one fix late (it has a confirm head: the head
+        judges a fix once the next fix of its segment has been read; the time type and
+        repair follow that verdict). ``None`` when the last update settled none: its fix
+        began a segment or was not used, or the model decides at once. A stream's final
+        verdicts are these, plus the verdict at once of each segment's last fix: what
+        :meth:`detect` gives for the same fixes."""
+        if np.isnan(self._settled[O_FLAG]):
+            return None
+        return self._result(self._settled)
+
     def _point(self) -> PointResult:
         """The verdict the last step wrote into ``self._out``."""
-        flag, score, bias, kind, lat_c, lon_c, alert, _confirm = self._out.tolist()
+        return self._result(self._out)
+
+    def _result(self, row: NDArray[np.float64]) -> PointResult:
+        flag, score, bias, kind, lat_c, lon_c, alert, _confirm = row.tolist()
         return usable_point(
             int(flag),
             score,
@@ -937,6 +987,7 @@ class MultiTrackDetector:
         self.model = model
         self.threshold = threshold
         self.detectors: dict[Hashable, Detector] = {}
+        refuse_settling(load_grad_model(model), "chunked reading (--chunk-size) and --follow")
 
     def detector(self, track: Hashable) -> Detector:
         """The streaming Detector of ``track`` (made on first sight)."""
@@ -1106,7 +1157,8 @@ def _stream_fix(
     invalid), -1 without touching the state when the segment rule must decide (a gap
     over ``max_gap_s``, a fix beyond :data:`FRAME_RADIUS_M`), else :func:`grad_step` with
     the work arrays carved from ``w64``/``w32`` as :meth:`Detector._make_work` lays them
-    out (outputs in the last :data:`N_POINT_OUT` of ``w64``) and 0.
+    out (the fix's outputs, then a settled verdict of the fix before, in the last
+    2 x :data:`N_POINT_OUT` of ``w64``) and 0.
 
     Fewer, flat arguments than ``grad_step``'s: numba unboxes every array of a call
     (about 70 ns each), and the work tuple held seven."""
@@ -1116,7 +1168,7 @@ def _stream_fix(
     dt = t - last_t
     if dt > max_gap_s or far_apart_scalar(lat0, lon0, lat, lon, FRAME_RADIUS_M):
         return -1
-    n_core = w64.size - _N_OFF_OUT - 3 - N_POINT_OUT
+    n_core = w64.size - _N_OFF_OUT - 3 - 2 * N_POINT_OUT
     n_x = dims[0]
     n_scratch = w32.size - n_x - 1 - dims[3] - dims[4]
     work = (
@@ -1128,7 +1180,21 @@ def _stream_fix(
         w32[n_x : n_x + n_scratch],
         w32[n_x + n_scratch :],
     )
-    grad_step(P, S, H, gp, work, dt, lat, lon, speed, heading, w64[w64.size - N_POINT_OUT :])
+    n = w64.size
+    grad_step(
+        P,
+        S,
+        H,
+        gp,
+        work,
+        dt,
+        lat,
+        lon,
+        speed,
+        heading,
+        w64[n - 2 * N_POINT_OUT : n - N_POINT_OUT],
+        w64[n - N_POINT_OUT :],
+    )
     return 0
 
 
@@ -1355,7 +1421,9 @@ class FleetDetector:
         self.threshold = threshold
         self._template = Detector(model, threshold=threshold)
         m = self._template.model_
+        refuse_settling(m, "the fleet step (FleetDetector, detect-fleet, serve-redis)")
         self.model_ = m
+        self._settled = np.full(N_POINT_OUT, np.nan)
         self._gp = m.gru_params
         self._max_gap = float(m.params.max_gap_s)
         self._h_len = int(m.dims[1] + m.dims[2])
@@ -1514,6 +1582,7 @@ class FleetDetector:
             speed,
             heading,
             out,
+            self._settled,
         )
 
     def _update_one(self, s: int, fix: Fix, receiver: int, out: FloatArray) -> int:

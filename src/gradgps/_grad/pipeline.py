@@ -60,6 +60,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from .._exceptions import ConfigError
 from .._tracks.geo import N_FRAME_CONSTANTS, LocalFrame, to_geodetic_scalar, to_local_scalar
 from .core import (
     _P_CROSS,
@@ -149,7 +150,29 @@ _DRIFT_ON = _MOTION + N_MOTION_PARAMS
 _DRIFT = _DRIFT_ON + 1
 # The recovery's reach (gradgps._grad.recovery.within_reach): reach_m, reach_accel_mps2.
 _REACH = _DRIFT + N_DRIFT_PARAMS
-N_REST_PARAMS = _REACH + 2
+# The confirm head's threshold when verdicts settle one fix late (0: at once).
+_SETTLE = _REACH + 2
+N_REST_PARAMS = _SETTLE + 1
+# A settling segment's state ends with its pending fix (the last one read, whose
+# verdict waits for the next fix): whether there is one, its inputs to the verdict,
+# then scratch for the time classifier's and the recovery's states (the pending fix's
+# verdict at once is worked out on copies, so the state keeps the settled history).
+(
+    _PEND_HAS,
+    _PEND_E,
+    _PEND_N,
+    _PEND_SPEED,
+    _PEND_HEADING,
+    _PEND_EMA_E,
+    _PEND_EMA_N,
+    _PEND_DRIFT,
+    _PEND_MEASURED,
+    _PEND_DT,
+    _PEND_SCORE,
+    _PEND_CLASS,
+    _PEND_SCRATCH,
+) = range(13)
+N_PENDING = _PEND_SCRATCH + N_TIME_STATE + N_RECOVERY_STATE
 # ``off_out`` scratch: offset features, motion features, then the speed and
 # heading the pipeline used for the point (reported, or the motion model's).
 _SH = N_OFFSET_FEATURES + N_MOTION_FEATURES
@@ -190,6 +213,13 @@ class PipelineParams:
     and heading) its defaults, chosen on the validation drives, flagged 20.5 % of the
     clean fixes as drift (721 of 3,512; `gradgps bench --suite robustness`, cell
     ``+speed+heading``), where the validation drives gave 0.00 %."""
+    confirm_threshold: float | None = None
+    """Where the network has a confirm head (a second anomaly head that judges the
+    previous fix): its threshold, and each fix's verdict *settles* one fix late: the
+    confirm head's read at the next fix of the segment decides it (the anomaly head's
+    at once at a segment's last fix), and its time type and repair follow that
+    verdict (:func:`grad_step`). ``None``: verdicts at once. Set from the model's
+    ``thresholds.confirm`` when it is loaded, never saved in the pipeline settings."""
     verdict_time: TimeSpans | None = field(default_factory=TimeSpans)
     """How the verdicts' time types (and so which faults are permanent) count ``time``'s
     thresholds at each segment's period: in fixes up to 1 Hz, in the time those take
@@ -211,7 +241,9 @@ class PipelineParams:
     def to_dict(self) -> dict[str, Any]:
         from dataclasses import asdict
 
-        return asdict(self)
+        data = asdict(self)
+        del data["confirm_threshold"]  # the model's thresholds.confirm, not a setting
+        return data
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PipelineParams:
@@ -252,9 +284,26 @@ class PipelineParams:
                 [0.0 if self.drift is None else 1.0],
                 np.zeros(N_DRIFT_PARAMS) if self.drift is None else self.drift.to_array(),
                 self.recovery.reach_array(),
+                [self._settle(dims)],
             ]
         )
         return np.concatenate([core, rest])
+
+    def _settle(self, dims: NDArray[np.int64]) -> float:
+        """``P``'s settle slot: the confirm threshold where the network has the head and
+        one is set, else 0."""
+        if self.confirm_threshold is None or int(dims[4]) == 0:
+            return 0.0
+        if not 0.0 < self.confirm_threshold < 1.0:
+            raise ConfigError(
+                f"the confirm threshold must be in (0, 1), got {self.confirm_threshold}"
+            )
+        return float(self.confirm_threshold)
+
+    def settles(self, dims: NDArray[np.int64]) -> bool:
+        """Whether a network of ``dims`` gives its verdicts one fix late (see
+        :attr:`confirm_threshold`)."""
+        return self._settle(dims) > 0.0
 
 
 def _drift_params(data: dict[str, Any]) -> DriftParams | None:
@@ -274,9 +323,21 @@ def pipeline_feature_names(params: PipelineParams) -> list[str]:
 def new_state(P: FloatArray) -> FloatArray:
     """Fresh ``S`` for a segment with parameters ``P``."""
     core = core_new_state(P[:N_CORE_PARAMS])
-    rest = np.zeros(_N_TAIL_STATE)
+    rest = np.zeros(_N_TAIL_STATE + _pending_size(P))
     rest[N_OFFSET_STATE + T_GAP] = np.inf
     return np.concatenate([core, rest])
+
+
+@numba.njit(cache=True)
+def _pending_size(P: FloatArray) -> int:
+    """The pending block's length at the end of ``S`` (0 where verdicts come at once)."""
+    return N_PENDING if P[N_CORE_PARAMS + _SETTLE] > 0.0 else 0
+
+
+@numba.njit(cache=True)
+def _tail_end(P: FloatArray, S: FloatArray) -> int:
+    """Where the tail blocks of ``S`` end (before a pending block)."""
+    return S.size - _pending_size(P)
 
 
 @numba.njit(cache=True)
@@ -318,16 +379,17 @@ def _features_point(
     """
     Pc = P[:N_CORE_PARAMS]
     rest = P[N_CORE_PARAMS:]
-    core_size = S.size - _N_TAIL_STATE
+    end = _tail_end(P, S)
+    core_size = end - _N_TAIL_STATE
     east, north = to_local_scalar(rest[_FRAME : _FRAME + N_FRAME_CONSTANTS], lat, lon)
     off_speed = speed
     off_heading = heading
     if rest[_MOTION_ON] != 0.0:
-        ms = S.size - N_MOTION_STATE
+        ms = end - N_MOTION_STATE
         m_out = off_out[N_OFFSET_FEATURES:_SH]
-        motion_step(rest[_MOTION : _MOTION + N_MOTION_PARAMS], S[ms:], dt, east, north, m_out)
+        motion_step(rest[_MOTION : _MOTION + N_MOTION_PARAMS], S[ms:end], dt, east, north, m_out)
         if not (np.isfinite(speed) and np.isfinite(heading)):
-            m_speed, m_heading = motion_velocity(S[ms:])
+            m_speed, m_heading = motion_velocity(S[ms:end])
             if not np.isfinite(speed):
                 speed = m_speed
             if not np.isfinite(heading):
@@ -409,30 +471,85 @@ def _verdict(
     classes: the head has no drift class); the GRU's own verdicts stand.
     """
     rest = P[N_CORE_PARAMS:]
-    core_size = S.size - _N_TAIL_STATE
-    ts = core_size + N_OFFSET_STATE
+    ts = _tail_end(P, S) - _N_TAIL_STATE + N_OFFSET_STATE
     rs = ts + N_TIME_STATE
     score = float(gru_out[0])
-    flag = 1.0 if score >= rest[_THR] else 0.0
-    best = 0
-    if flag != 0.0:
-        best = 1
-        for k in range(2, dims[3]):
-            if gru_out[1 + k] > gru_out[1 + best]:
-                best = k
-    elif drift != 0.0:
-        flag = 1.0
-        best = dims[3]
-    code = time_step(rest[_TIME : _TIME + 3], S[ts : ts + N_TIME_STATE], flag)
-    recovery_step(
-        rest[_REC : _REC + 2],
+    flag, best = _at_once(rest[_THR], dims, gru_out, drift)
+    _apply(
+        P,
+        S[ts : ts + N_TIME_STATE],
         S[rs : rs + N_RECOVERY_STATE],
-        TRANSIENT if code == PERMANENT and measured else code,
-        dt if dt > 0.0 else rest[_PERIOD],
+        flag,
+        best,
+        score,
+        gru_out[1 + dims[3]] if dims[4] != 0 else np.nan,
         east,
         north,
         core_out[N_RESULT + O_EMA],
         core_out[N_RESULT + N_OUT + O_EMA],
+        speed,
+        heading,
+        measured,
+        dt,
+        rec_out,
+        out,
+    )
+
+
+@numba.njit(cache=True)
+def _anomaly_class(dims: Any, gru_out: Any) -> int:
+    """The bias head's most likely anomaly class (1 .. K-1; 0 is normal)."""
+    best = 1
+    for k in range(2, dims[3]):
+        if gru_out[1 + k] > gru_out[1 + best]:
+            best = k
+    return best
+
+
+@numba.njit(cache=True)
+def _at_once(threshold: float, dims: Any, gru_out: Any, drift: float) -> tuple[float, int]:
+    """The anomaly head's verdict on its own fix: (flag, bias class), the drift witness
+    flagging what the head passes as class ``dims[3]``."""
+    if gru_out[0] >= threshold:
+        return 1.0, _anomaly_class(dims, gru_out)
+    if drift != 0.0:
+        return 1.0, int(dims[3])
+    return 0.0, 0
+
+
+@numba.njit(cache=True)
+def _apply(
+    P: FloatArray,
+    time_state: FloatArray,
+    rec_state: FloatArray,
+    flag: float,
+    best: int,
+    score: float,
+    confirm: float,
+    east: float,
+    north: float,
+    ema_e: float,
+    ema_n: float,
+    speed: float,
+    heading: float,
+    measured: bool,
+    dt: float,
+    rec_out: FloatArray,
+    out: FloatArray,
+) -> None:
+    """A decided fix: time type, repair, clean position in degrees, into ``out``
+    (advancing ``time_state`` and ``rec_state``; see :func:`_verdict`)."""
+    rest = P[N_CORE_PARAMS:]
+    code = time_step(rest[_TIME : _TIME + 3], time_state, flag)
+    recovery_step(
+        rest[_REC : _REC + 2],
+        rec_state,
+        TRANSIENT if code == PERMANENT and measured else code,
+        dt if dt > 0.0 else rest[_PERIOD],
+        east,
+        north,
+        ema_e,
+        ema_n,
         speed,
         heading,
         rec_out,
@@ -440,7 +557,7 @@ def _verdict(
     if code != NONE and (code != PERMANENT or measured):
         rec_out[0], rec_out[1] = within_reach(
             rest[_REACH : _REACH + 2],
-            0.0 if measured else S[ts + T_RUN] * rest[_PERIOD],
+            0.0 if measured else time_state[T_RUN] * rest[_PERIOD],
             east,
             north,
             rec_out[0],
@@ -456,7 +573,109 @@ def _verdict(
     out[O_LAT] = lat_c
     out[O_LON] = lon_c
     out[O_ALERT] = 1.0 if code == PERMANENT else 0.0
-    out[O_CONFIRM] = gru_out[1 + dims[3]] if dims[4] != 0 else np.nan
+    out[O_CONFIRM] = confirm
+
+
+@numba.njit(cache=True)
+def _settle(
+    P: FloatArray,
+    S: FloatArray,
+    dims: Any,
+    gru_out: Any,
+    core_out: FloatArray,
+    rec_out: FloatArray,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+    drift: float,
+    measured: bool,
+    dt: float,
+    out: FloatArray,
+    settled: FloatArray,
+) -> None:
+    """:func:`_verdict` for a network whose verdicts settle one fix late
+    (:attr:`PipelineParams.confirm_threshold`).
+
+    The fix read before this one (the pending fix in ``S``) is decided by the confirm
+    head's read now (``gru_out[1 + dims[3]]``) against the confirm threshold (the
+    drift witness still flags what the head passes), and its time type and repair
+    advance the state: ``settled``, final. This fix then becomes the pending one, and
+    its verdict at once (the anomaly head's, on copies of the time classifier's and
+    the recovery's states, so the state keeps only settled verdicts) goes to ``out``:
+    what a stream reports at once, and the final verdict of a segment's last fix.
+    ``settled[O_FLAG]`` is NaN when there was no pending fix (a segment's first);
+    ``O_CONFIRM`` of a settled fix is the read that decided it, of an at-once one NaN.
+    """
+    rest = P[N_CORE_PARAMS:]
+    end = _tail_end(P, S)
+    ts = end - _N_TAIL_STATE + N_OFFSET_STATE
+    rs = ts + N_TIME_STATE
+    pend = S[end:]
+    if pend[_PEND_HAS] != 0.0:
+        confirm = float(gru_out[1 + dims[3]])
+        flag, best = 0.0, 0
+        if confirm >= rest[_SETTLE]:
+            flag, best = 1.0, int(pend[_PEND_CLASS])
+        elif pend[_PEND_DRIFT] != 0.0:
+            flag, best = 1.0, int(dims[3])
+        _apply(
+            P,
+            S[ts : ts + N_TIME_STATE],
+            S[rs : rs + N_RECOVERY_STATE],
+            flag,
+            best,
+            pend[_PEND_SCORE],
+            confirm,
+            pend[_PEND_E],
+            pend[_PEND_N],
+            pend[_PEND_EMA_E],
+            pend[_PEND_EMA_N],
+            pend[_PEND_SPEED],
+            pend[_PEND_HEADING],
+            pend[_PEND_MEASURED] != 0.0,
+            pend[_PEND_DT],
+            rec_out,
+            settled,
+        )
+    else:
+        settled[O_FLAG] = np.nan
+    pend[_PEND_HAS] = 1.0
+    pend[_PEND_E] = east
+    pend[_PEND_N] = north
+    pend[_PEND_SPEED] = speed
+    pend[_PEND_HEADING] = heading
+    pend[_PEND_EMA_E] = core_out[N_RESULT + O_EMA]
+    pend[_PEND_EMA_N] = core_out[N_RESULT + N_OUT + O_EMA]
+    pend[_PEND_DRIFT] = drift
+    pend[_PEND_MEASURED] = 1.0 if measured else 0.0
+    pend[_PEND_DT] = dt
+    pend[_PEND_SCORE] = gru_out[0]
+    pend[_PEND_CLASS] = _anomaly_class(dims, gru_out)
+    scratch_t = pend[_PEND_SCRATCH : _PEND_SCRATCH + N_TIME_STATE]
+    scratch_r = pend[_PEND_SCRATCH + N_TIME_STATE : _PEND_SCRATCH + N_TIME_STATE + N_RECOVERY_STATE]
+    scratch_t[:] = S[ts : ts + N_TIME_STATE]
+    scratch_r[:] = S[rs : rs + N_RECOVERY_STATE]
+    flag, best = _at_once(rest[_THR], dims, gru_out, drift)
+    _apply(
+        P,
+        scratch_t,
+        scratch_r,
+        flag,
+        best,
+        gru_out[0],
+        np.nan,
+        east,
+        north,
+        core_out[N_RESULT + O_EMA],
+        core_out[N_RESULT + N_OUT + O_EMA],
+        speed,
+        heading,
+        measured,
+        dt,
+        rec_out,
+        out,
+    )
 
 
 @numba.njit(cache=True)
@@ -505,16 +724,42 @@ def grad_step(
     speed: float,
     heading: float,
     out: FloatArray,
+    settled: FloatArray,
 ) -> None:
-    """One fix of one segment: advance ``S`` and ``H`` and write the :data:`N_POINT_OUT` outputs into ``out``.
+    """One fix of one segment: advance ``S`` and ``H`` and write the fix's :data:`N_POINT_OUT`
+    outputs into ``out``.
 
-    ``work``: :func:`new_work` of this segment's ``P``.
+    ``work``: :func:`new_work` of this segment's ``P``. Where verdicts settle one fix
+    late (:attr:`PipelineParams.confirm_threshold`), ``out`` is this fix's verdict at
+    once and ``settled`` the previous fix's final one (``settled[O_FLAG]`` NaN: none,
+    at a segment's first fix; see :func:`_settle`); otherwise ``settled`` is not
+    touched and ``out`` is final.
     """
     dims, core_out, off_out, rec_out, x, scratch, gru_out = work
     east, north = _features_point(P, S, core_out, off_out, dt, lat, lon, speed, heading, x)
     _drift_point(P, S, off_out, dt, east, north, speed, heading)
     _recurrent_step(gp, dims, x, H, scratch)
     _heads(gp, dims, H, scratch, gru_out)
+    measured = np.isfinite(speed) and np.isfinite(heading)
+    if P[N_CORE_PARAMS + _SETTLE] > 0.0:
+        _settle(
+            P,
+            S,
+            dims,
+            gru_out,
+            core_out,
+            rec_out,
+            east,
+            north,
+            off_out[_SH],
+            off_out[_SH + 1],
+            off_out[_DRIFT_OUT],
+            measured,
+            dt,
+            out,
+            settled,
+        )
+        return
     _verdict(
         P,
         S,
@@ -527,7 +772,7 @@ def grad_step(
         off_out[_SH],
         off_out[_SH + 1],
         off_out[_DRIFT_OUT],
-        np.isfinite(speed) and np.isfinite(heading),
+        measured,
         dt,
         out,
     )
@@ -551,7 +796,7 @@ def _drift_point(
     off_out[_DRIFT_OUT] = 0.0
     off_out[_DRIFT_OUT + 1] = 0.0
     if rest[_DRIFT_ON] != 0.0:
-        ds = S.size - N_MOTION_STATE - N_DRIFT_STATE
+        ds = _tail_end(P, S) - N_MOTION_STATE - N_DRIFT_STATE
         drift_step(
             rest[_DRIFT : _DRIFT + N_DRIFT_PARAMS],
             S[ds : ds + N_DRIFT_STATE],
@@ -575,12 +820,25 @@ def _segment_kernel(
     lon: FloatArray,
     speed: FloatArray,
     heading: FloatArray,
-) -> FloatArray:
+) -> tuple[FloatArray, FloatArray]:
+    """Rows of one stretch of a segment, each fix's final verdict: where verdicts settle
+    one fix late, each row is overwritten by its settled verdict when the next fix is
+    read, and the last keeps its verdict at once (the segment may go on: the caller
+    knows). Also returns the settled verdict of the fix before the stretch (NaN flag:
+    none, or verdicts at once), for a stretch that continues a state."""
     work = new_work(P)
     out = np.empty((lat.size, N_POINT_OUT))
+    settled = np.full(N_POINT_OUT, np.nan)
+    before = np.full(N_POINT_OUT, np.nan)
     for i in range(lat.size):
-        grad_step(P, S, H, gp, work, dt[i], lat[i], lon[i], speed[i], heading[i], out[i])
-    return out
+        grad_step(P, S, H, gp, work, dt[i], lat[i], lon[i], speed[i], heading[i], out[i], settled)
+        if not np.isnan(settled[O_FLAG]):
+            if i > 0:
+                out[i - 1] = settled
+            else:
+                before[:] = settled
+            settled[O_FLAG] = np.nan
+    return out, before
 
 
 @numba.njit(cache=True)
@@ -625,9 +883,12 @@ def _batch_segment(k: int, batch: Any) -> None:
         return
     S = Ss[s_off[k] : s_off[k + 1]].copy()
     H = Hs[k].copy()
-    out[a:b] = _segment_kernel(
+    rows, before = _segment_kernel(
         Ps[k], S, H, gp, dt[a:b], lat[a:b], lon[a:b], speed[a:b], heading[a:b]
     )
+    out[a:b] = rows
+    if not np.isnan(before[O_FLAG]):  # a settled verdict for the last warm-up row
+        out[a - 1] = before
 
 
 # Two drivers over the same per-segment step: one thread (the default: safe to call from
@@ -729,6 +990,7 @@ def _warm_up(
     P = S = np.zeros(0)
     H = np.zeros(h_len, np.float32)
     current = math.nan
+    settles = params.settles(dims)
     for j, period in enumerate(periods):
         if period != current:
             current = period
@@ -740,8 +1002,15 @@ def _warm_up(
         d = dt[rows].copy()
         if rows.start == a:
             d[0] = 0.0
-        o = _segment_kernel(P, S, H, gp, d, lat[rows], lon[rows], speed[rows], heading[rows])
+        o, before = _segment_kernel(
+            P, S, H, gp, d, lat[rows], lon[rows], speed[rows], heading[rows]
+        )
         out[a + j] = o[-1]
+        # Settling verdicts: the previous row as the stream had it final at this fix.
+        if settles and len(o) > 1:
+            out[a + j - 1] = o[-2]
+        elif not np.isnan(before[O_FLAG]):
+            out[a + j - 1] = before
     return P, S, H
 
 

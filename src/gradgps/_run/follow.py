@@ -57,7 +57,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from .._exceptions import ConfigError, InputError
-from .._grad.detector import Detector, MultiTrackDetector
+from .._grad.detector import Detector, MultiTrackDetector, refuse_settling
 from .._io.nmea import STALE_DATE_S, Malformed, parse_gga, parse_rmc, split_sentence
 from .._io.times import iso_utc_one, time_of_day_utc
 from .._result import RESULT_COLUMNS, PointResult
@@ -402,7 +402,9 @@ def follow_lines(
                 follower = _CsvFollower(*header, MultiTrackDetector(model, threshold=threshold))
                 write(_csv_text(follower.out_header()))
                 continue
-            follower = _NmeaFollower(Detector(model, threshold=threshold))
+            single = Detector(model, threshold=threshold)
+            refuse_settling(single.model_, "--follow")
+            follower = _NmeaFollower(single)
             write(_csv_text(follower.out_header()))
         fields, result = follower.line(text)
         write(_csv_text(fields))
