@@ -241,10 +241,27 @@ def test_a_confirm_head_settles_each_verdict_one_fix_late(tmp_path, model_dir, d
 
 
 def test_modes_that_write_each_verdict_at_once_refuse_a_settling_model(tmp_path):
-    from gradgps import FleetDetector, MultiTrackDetector
+    from click.testing import CliRunner
+
+    from gradgps import FleetDetector
+    from gradgps._cli import main
 
     confirm_dir = random_detector_model(tmp_path / "confirm", threshold=0.5, confirm_head=True)
     with pytest.raises(ConfigError, match="settle one fix late"):
         FleetDetector(confirm_dir)
-    with pytest.raises(ConfigError, match="--chunk-size"):
-        MultiTrackDetector(confirm_dir)
+    fixes = tmp_path / "fixes.csv"
+    pd.DataFrame({"t": [0.0, 1.0], "lat": [48.1, 48.1001], "lon": [11.5, 11.5]}).to_csv(
+        fixes, index=False
+    )
+    follow = CliRunner().invoke(
+        main, ["detect", str(fixes), "--follow", "--model", str(confirm_dir), "-o", "-"]
+    )
+    assert follow.exit_code != 0
+    assert "--follow does not support yet" in follow.output
+    (tmp_path / "in").mkdir()
+    fleet = CliRunner().invoke(
+        main, ["detect-fleet", str(tmp_path / "in"), "-o", str(tmp_path / "out"),
+               "--model", str(confirm_dir)],
+    )  # fmt: skip
+    assert fleet.exit_code != 0
+    assert "detect-fleet does not support yet" in fleet.output

@@ -217,6 +217,71 @@ def test_chunked_equals_batch_on_the_whole_file(
     _assert_same(got, batch)
 
 
+@pytest.mark.parametrize("chunk_size", [1, 2, 97])
+def test_chunked_gives_settled_verdicts_as_batch_does(tmp_path: Path, chunk_size: int) -> None:
+    """A model whose verdicts settle one fix late (a confirm head): each chunk's rows are
+    written once the next chunk has settled its tracks' last fixes, so the file equals
+    batch on the whole file, bit for bit, with invalid fixes between a pending fix and
+    the one that settles it, and through the events and counts read from the chunks."""
+    from _gru_support import random_detector_model
+    from gradgps._run.settings import RunSettings
+
+    model = random_detector_model(tmp_path / "confirm", threshold=0.5, confirm_head=True)
+    fleet = simulate_fleet(3, 2.0, 1.0, seed=21)
+    fleet = fleet.sort_values("t", kind="stable").reset_index(drop=True)
+    fleet.loc[[10, 11, 40, 200], "lat"] = np.nan  # invalid, never stepped
+    path = tmp_path / "fleet.csv"
+    fleet.to_csv(path, index=False)
+    out = tmp_path / "out.parquet"
+    seen: list[pd.DataFrame] = []
+    summary = detect_csv_in_chunks(
+        path,
+        out,
+        settings=RunSettings(model=model),
+        chunk_size=chunk_size,
+        on_result=lambda fixes, result, frame: seen.append(result.copy()),
+    )
+    source = pd.read_csv(path, dtype={"track": str})
+    batch = Detector(model).detect(to_fixes(source))
+    assert Detector(model).model_.params.settles(Detector(model).model_.dims)
+    got = pd.read_parquet(out)
+    _assert_same(got, batch)
+    _assert_same(pd.concat(seen, ignore_index=True), batch)
+    assert summary.anomalies == int(batch["anomaly"].sum())
+    assert summary.invalid == 4
+
+
+def test_chunked_writes_what_waits_too_long_at_once_and_says_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Bounded memory before settled verdicts: with room for only 2 rows behind a chunk,
+    one-row chunks of three interleaved tracks are written before their fixes settle;
+    they keep their verdicts at once, the run says how many, and the rest is batch's."""
+    import gradgps._run.chunked as chunked
+    from _gru_support import random_detector_model
+    from gradgps._run.settings import RunSettings
+
+    model = random_detector_model(tmp_path / "confirm", threshold=0.5, confirm_head=True)
+    fleet = simulate_fleet(3, 1.0, 1.0, seed=21)
+    fleet = fleet.sort_values("t", kind="stable").reset_index(drop=True)
+    path = tmp_path / "fleet.csv"
+    fleet.to_csv(path, index=False)
+    monkeypatch.setattr(chunked, "HOLD_ROWS", 1)
+    summary = chunked.detect_csv_in_chunks(
+        path, tmp_path / "out.csv", settings=RunSettings(model=model), chunk_size=1
+    )
+    (warning,) = summary.warnings
+    count = int(warning.split(" ")[0].replace(",", ""))
+    assert count > 0
+    assert "keep their verdict at once" in warning
+    got = pd.read_csv(tmp_path / "out.csv")
+    batch = Detector(model).detect(to_fixes(pd.read_csv(path, dtype={"track": str})))
+    differ = (got["score"].to_numpy() != batch["score"].to_numpy()) | (
+        got["anomaly"].to_numpy() != batch["anomaly"].to_numpy()
+    )
+    assert 0 < differ.sum() <= count
+
+
 def test_chunked_csv_and_gzip_outputs(tmp_path: Path, sorted_csv: Path) -> None:
     detect_csv_in_chunks(sorted_csv, tmp_path / "a.csv", chunk_size=50)
     detect_csv_in_chunks(sorted_csv, tmp_path / "b.csv.gz", chunk_size=50)

@@ -59,7 +59,7 @@ import json
 import math
 import os
 from collections.abc import Callable, Hashable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
@@ -424,9 +424,8 @@ def refuse_settling(model: GradModel, mode: str) -> None:
     if model.params.settles(model.dims):
         raise ConfigError(
             f"{model.path}: this model's verdicts settle one fix late (it has a confirm "
-            f"head), which {mode} does not support yet; read the whole file with "
-            "gradgps detect (no --chunk-size, no --follow), or use Detector.update and "
-            "Detector.settled"
+            f"head), which {mode} does not support yet; use gradgps detect without "
+            "--follow, Detector.detect, or Detector.update with Detector.settled"
         )
 
 
@@ -987,7 +986,11 @@ class MultiTrackDetector:
         self.model = model
         self.threshold = threshold
         self.detectors: dict[Hashable, Detector] = {}
-        refuse_settling(load_grad_model(model), "chunked reading (--chunk-size) and --follow")
+        # Where verdicts settle one fix late: per track, the frame last returned by
+        # update_fixes that holds its pending fix, and the fix's row in it.
+        self._pending: dict[Hashable, tuple[pd.DataFrame, int]] = {}
+        loaded = load_grad_model(model)
+        self.settles = loaded.params.settles(loaded.dims)
 
     def detector(self, track: Hashable) -> Detector:
         """The streaming Detector of ``track`` (made on first sight)."""
@@ -1018,7 +1021,16 @@ class MultiTrackDetector:
 
         The result has the batch result columns (``anomaly`` ... ``invalid_reason``)
         and ``fixes``' index.
+
+        Where the model's verdicts settle one fix late (:attr:`Detector.settled`), each
+        row holds its final verdict, except each track's last usable fix, whose verdict
+        at once stands until that track's next fix arrives: the next call then writes
+        the settled verdict into the row of the frame this call returned. So write a
+        frame once the next call has returned (or at the end of the input, when the
+        verdicts at once are final): what the chunked reader does.
         """
+        if self.settles:
+            return self._update_settling(fixes)
         n = len(fixes)
         nan = [float("nan")] * n
         tracks = fixes["track"].to_numpy(object)
@@ -1044,6 +1056,62 @@ class MultiTrackDetector:
             for i in range(n)
         )
         return results_frame(results, fixes.index)
+
+    def _update_settling(self, fixes: pd.DataFrame) -> pd.DataFrame:
+        """:meth:`update_fixes` for a model whose verdicts settle one fix late."""
+        n = len(fixes)
+        tracks = [str(v) for v in fixes["track"].to_numpy(object)]
+        columns = {
+            name: (
+                fixes[name].to_numpy(np.float64).tolist() if name in fixes else [float("nan")] * n
+            )
+            for name in ("t", "lat", "lon", "speed", "heading", "fix_quality", "satellites")
+        }
+        results: list[PointResult] = []
+        here: dict[str, int] = {}  # track -> its pending fix's row in this call
+        late: list[tuple[pd.DataFrame, int, PointResult]] = []
+        for i, track in enumerate(tracks):
+            det = self.detector(track)
+            results.append(
+                det.update(
+                    columns["t"][i],
+                    columns["lat"][i],
+                    columns["lon"][i],
+                    columns["speed"][i],
+                    columns["heading"][i],
+                    fix_quality=columns["fix_quality"][i],
+                    satellites=columns["satellites"][i],
+                )
+            )
+            settled = det.settled
+            if settled is not None:
+                if track in here:
+                    results[here[track]] = settled
+                elif track in self._pending:  # else its frame was released, written
+                    frame, row = self._pending.pop(track)
+                    late.append((frame, row, settled))
+            if results[-1].invalid_reason == "":
+                here[track] = i
+        for frame, row, settled in late:
+            for j, value in enumerate(astuple(settled)):
+                frame.iat[row, j] = value
+        out = results_frame(results, fixes.index)
+        for name, i in here.items():
+            self._pending[name] = (out, i)
+        return out
+
+    def pending_frames(self) -> set[int]:
+        """The ``id`` of every frame :meth:`update_fixes` returned that still holds a fix
+        whose verdict has not settled (empty where verdicts come at once)."""
+        return {id(frame) for frame, _ in self._pending.values()}
+
+    def release(self, frame: pd.DataFrame) -> int:
+        """Stop settling the fixes of ``frame`` (it is being written): they keep their
+        verdicts at once. Returns how many there were."""
+        gone = [track for track, (held, _) in self._pending.items() if held is frame]
+        for track in gone:
+            del self._pending[track]
+        return len(gone)
 
 
 #: Deprecated name of :class:`MultiTrackDetector` (kept so old code still imports).

@@ -17,10 +17,16 @@ batch detection does; sort the file first if that matters.
 
 Every input row gives exactly one output row, in input order; invalid fixes
 are flagged, never dropped.
+
+A model whose verdicts settle one fix late (a confirm head) decides a fix when
+the next fix of its track arrives, possibly in a later chunk: a chunk waits
+until its tracks' last fixes are settled, within :data:`HOLD_ROWS` rows behind
+it (see :func:`detect_csv_in_chunks`).
 """
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import os
 import time
@@ -28,6 +34,7 @@ import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -42,6 +49,10 @@ from .fleet_dask import PartitionSummary, VehiclePartition
 from .settings import DEFAULT_SETTINGS, RunSettings
 
 __all__ = ["DetectSummary", "detect_csv_in_chunks", "detect_partition", "no_fixes"]
+
+#: Rows (at least; a chunk's size if more) that may wait behind a chunk whose tracks'
+#: last fixes have not settled yet, before it is written with their verdicts at once.
+HOLD_ROWS = 10_000
 
 
 @dataclass(frozen=True)
@@ -105,6 +116,7 @@ def detect_csv_in_chunks(
     if on_start is not None:
         on_start(chunks.n_rows)
     counts = np.zeros(3, np.int64)
+    unsettled = [0]
     checks = InputChecks(*validated_rates(load_grad_model(settings.model).config))
     rows = 0
     with contextlib.ExitStack() as stack:
@@ -113,11 +125,10 @@ def detect_csv_in_chunks(
             if output is None
             else stack.enter_context(TableWriter(Path(output), RESULT_DTYPES))
         )
-        for table in chunks:
-            fixes = to_fixes(table)
-            checks.add(fixes)
-            result = streams.update_fixes(fixes)
-            counts += (
+
+        def emit(table: Any, fixes: pd.DataFrame, result: pd.DataFrame) -> None:
+            nonlocal rows
+            counts[:] += (
                 int(result["anomaly"].sum()),
                 int((result["invalid_reason"] != "").sum()),
                 int(result["alert"].sum()),
@@ -132,6 +143,34 @@ def detect_csv_in_chunks(
                 on_result(fixes, result, table.frame)
             if on_chunk is not None:
                 on_chunk(len(result))
+
+        # Where verdicts settle one fix late, a chunk's rows are final once every track's
+        # last fix in it has been settled by that track's next fix, in a later chunk
+        # (MultiTrackDetector.update_fixes): chunks wait, in order, until then, or until
+        # more than HOLD_ROWS rows wait behind them (bounded memory), and then are written
+        # with the verdicts at once of the fixes still pending (counted in a warning).
+        held: collections.deque[tuple[Any, pd.DataFrame, pd.DataFrame]] = collections.deque()
+        held_rows = 0
+        hold_cap = max(chunk_size, HOLD_ROWS)
+        for table in chunks:
+            fixes = to_fixes(table)
+            checks.add(fixes)
+            result = streams.update_fixes(fixes)
+            if not streams.settles:
+                emit(table, fixes, result)
+                continue
+            held.append((table, fixes, result))
+            held_rows += len(result)
+            waiting = streams.pending_frames()
+            while held and (
+                id(held[0][2]) not in waiting or held_rows - len(held[0][2]) > hold_cap
+            ):
+                first = held.popleft()
+                held_rows -= len(first[2])
+                unsettled[0] += streams.release(first[2])
+                emit(*first)
+        while held:
+            emit(*held.popleft())
         if writer is not None and not writer.started:  # no chunk: still write our columns
             empty = pd.DataFrame([], columns=list(chunks.header), dtype=object)
             writer.write(pd.concat([empty, streams.update_fixes(no_fixes())], axis=1))
@@ -142,7 +181,16 @@ def detect_csv_in_chunks(
         alerts=int(counts[2]),
         tracks=len(streams.detectors),
         seconds=time.perf_counter() - started,
-        warnings=tuple(checks.warnings()),
+        warnings=tuple(checks.warnings())
+        + (
+            (
+                f"{unsettled[0]:,} fixes keep their verdict at once: their track's next fix "
+                f"came more than {max(chunk_size, HOLD_ROWS):,} rows later in the file; a "
+                "larger --chunk-size, or the file sorted by track, gives their settled ones",
+            )
+            if unsettled[0]
+            else ()
+        ),
     )
 
 

@@ -57,7 +57,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from .._exceptions import ConfigError, InputError
-from .._grad.detector import Detector, MultiTrackDetector, refuse_settling
+from .._grad.detector import Detector, MultiTrackDetector, load_grad_model, refuse_settling
 from .._io.nmea import STALE_DATE_S, Malformed, parse_gga, parse_rmc, split_sentence
 from .._io.times import iso_utc_one, time_of_day_utc
 from .._result import RESULT_COLUMNS, PointResult
@@ -399,7 +399,9 @@ def follow_lines(
             if start.skipped and warn is not None:
                 warn(start.warning("NMEA sentence" if header is None else "CSV header"))
             if header is not None:
-                follower = _CsvFollower(*header, MultiTrackDetector(model, threshold=threshold))
+                streams = MultiTrackDetector(model, threshold=threshold)
+                refuse_settling(load_grad_model(model), "--follow")
+                follower = _CsvFollower(*header, streams)
                 write(_csv_text(follower.out_header()))
                 continue
             single = Detector(model, threshold=threshold)
