@@ -470,19 +470,58 @@ def _verdict(
     flags is an anomaly of bias class ``dims[3]`` (``drift``, after the head's
     classes: the head has no drift class); the GRU's own verdicts stand.
     """
-    rest = P[N_CORE_PARAMS:]
     ts = _tail_end(P, S) - _N_TAIL_STATE + N_OFFSET_STATE
     rs = ts + N_TIME_STATE
-    score = float(gru_out[0])
-    flag, best = _at_once(rest[_THR], dims, gru_out, drift)
-    _apply(
+    _decide_at_once(
         P,
         S[ts : ts + N_TIME_STATE],
         S[rs : rs + N_RECOVERY_STATE],
+        dims,
+        gru_out,
+        core_out,
+        rec_out,
+        east,
+        north,
+        speed,
+        heading,
+        drift,
+        measured,
+        dt,
+        gru_out[1 + dims[3]] if dims[4] != 0 else np.nan,
+        out,
+    )
+
+
+@numba.njit(cache=True)
+def _decide_at_once(
+    P: FloatArray,
+    time_state: FloatArray,
+    rec_state: FloatArray,
+    dims: Any,
+    gru_out: Any,
+    core_out: FloatArray,
+    rec_out: FloatArray,
+    east: float,
+    north: float,
+    speed: float,
+    heading: float,
+    drift: float,
+    measured: bool,
+    dt: float,
+    confirm: float,
+    out: FloatArray,
+) -> None:
+    """The anomaly head's verdict on its own fix (:func:`_at_once`), applied on the given
+    time classifier's and recovery's states (:func:`_apply`)."""
+    flag, best = _at_once(P[N_CORE_PARAMS + _THR], dims, gru_out, drift)
+    _apply(
+        P,
+        time_state,
+        rec_state,
         flag,
         best,
-        score,
-        gru_out[1 + dims[3]] if dims[4] != 0 else np.nan,
+        float(gru_out[0]),
+        confirm,
         east,
         north,
         core_out[N_RESULT + O_EMA],
@@ -656,24 +695,22 @@ def _settle(
     scratch_r = pend[_PEND_SCRATCH + N_TIME_STATE : _PEND_SCRATCH + N_TIME_STATE + N_RECOVERY_STATE]
     scratch_t[:] = S[ts : ts + N_TIME_STATE]
     scratch_r[:] = S[rs : rs + N_RECOVERY_STATE]
-    flag, best = _at_once(rest[_THR], dims, gru_out, drift)
-    _apply(
+    _decide_at_once(
         P,
         scratch_t,
         scratch_r,
-        flag,
-        best,
-        gru_out[0],
-        np.nan,
+        dims,
+        gru_out,
+        core_out,
+        rec_out,
         east,
         north,
-        core_out[N_RESULT + O_EMA],
-        core_out[N_RESULT + N_OUT + O_EMA],
         speed,
         heading,
+        drift,
         measured,
         dt,
-        rec_out,
+        np.nan,
         out,
     )
 
