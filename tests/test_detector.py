@@ -241,14 +241,15 @@ def test_a_confirm_head_settles_each_verdict_one_fix_late(tmp_path, model_dir, d
 
 
 def test_modes_that_write_each_verdict_at_once_refuse_a_settling_model(tmp_path):
+    """--follow and detect-fleet write each fix's verdict at once (serve-redis too: its
+    refusal is in tests/test_fleet_redis.py); the FleetDetector itself settles."""
     from click.testing import CliRunner
 
     from gradgps import FleetDetector
     from gradgps._cli import main
 
     confirm_dir = random_detector_model(tmp_path / "confirm", threshold=0.5, confirm_head=True)
-    with pytest.raises(ConfigError, match="settle one fix late"):
-        FleetDetector(confirm_dir)
+    assert FleetDetector(confirm_dir).update(1, 0.0, 48.1, 11.5).anomaly in (0, 1)
     fixes = tmp_path / "fixes.csv"
     pd.DataFrame({"t": [0.0, 1.0], "lat": [48.1, 48.1001], "lon": [11.5, 11.5]}).to_csv(
         fixes, index=False

@@ -226,3 +226,14 @@ def test_worker_settings_are_checked(server: Any) -> None:
         RedisStreamWorker(_client(server), IN, IN, GROUP, "w")
     with pytest.raises(ConfigError, match="consumer"):
         RedisStreamWorker(_client(server), IN, OUT, GROUP, "")
+
+
+def test_a_model_whose_verdicts_settle_late_is_refused(server: Any, tmp_path: Any) -> None:
+    """One output per message, at once: a model with a confirm head (its verdicts settle
+    one fix late) is refused with the mode named, not served half right."""
+    from _gru_support import random_detector_model
+    from gradgps import ConfigError
+
+    model = random_detector_model(tmp_path / "confirm", confirm_head=True)
+    with pytest.raises(ConfigError, match="serve-redis does not support yet"):
+        RedisStreamWorker(_client(server), "fixes", "results", "workers", "w1", model=model)

@@ -49,15 +49,20 @@ def test_lanes_step_carries_a_confirm_head_bit_for_bit(tmp_path) -> None:
     from gradgps._grad.pipeline import O_CONFIRM
 
     m = load_grad_model(random_detector_model(tmp_path, confirm_head=True))
-    # The lanes decide at once (FleetDetector refuses a model whose verdicts settle one
-    # fix late); the head's output still rides along in them.
+    # Verdicts that settle one fix late (the loaded model's confirm threshold)...
+    out, settled = _check_lanes(m, 5)
+    assert np.isnan(out[:, O_CONFIRM]).all()  # at once: no confirm read yet
+    assert np.isfinite(settled[:, O_CONFIRM]).all()  # settled: the read that decided it
+    # ... and at once, the head's output riding along.
     m = dataclasses.replace(m, params=dataclasses.replace(m.params, confirm_threshold=None))
-    out = _check_lanes(m, 5)
+    out, settled = _check_lanes(m, 5)
     assert np.isfinite(out[:, O_CONFIRM]).all()
+    assert np.isnan(settled).all()
 
 
-def _check_lanes(m, n: int) -> np.ndarray:  # type: ignore[no-untyped-def]
-    """Step ``n`` streams of model ``m`` both ways, assert equal bits; the last outputs."""
+def _check_lanes(m, n: int) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
+    """Step ``n`` streams of model ``m`` both ways, assert equal bits; the last outputs (at
+    once, and settled)."""
     steps = 60
     data = _streams(n, steps, seed=n)
     periods = [(0.2, 1.0, 2.0)[v % 3] for v in range(n)]
@@ -80,21 +85,26 @@ def _check_lanes(m, n: int) -> np.ndarray:  # type: ignore[no-untyped-def]
         dt = np.array([0.0 if k == 0 else periods[v] for v in slot])
         cols = {name: np.ascontiguousarray(data[name][k][slot]) for name in data}
         out = np.full((n, N_POINT_OUT), np.nan)
+        settled = np.full((n, N_POINT_OUT), np.nan)
         lanes_step(
             Ps, Ss, s_off, s_len, Hs, m.gru_params, work, slot, rows, n, dt,
-            cols["lat"], cols["lon"], cols["speed"], cols["heading"], out,
+            cols["lat"], cols["lon"], cols["speed"], cols["heading"], out, settled,
         )  # fmt: skip
-        unused = np.full(N_POINT_OUT, np.nan)  # a settled verdict: none, these decide at once
         for v, s in enumerate(slot):
             expected = np.empty(N_POINT_OUT)
+            expected_settled = np.full(N_POINT_OUT, np.nan)
             grad_step(
                 Ps[s], ref_S[s], ref_H[s], m.gru_params, ref_work[s], dt[v],
                 cols["lat"][v], cols["lon"][v], cols["speed"][v], cols["heading"][v], expected,
-                unused,
+                expected_settled,
             )  # fmt: skip
             assert out[v].view(np.int64).tolist() == expected.view(np.int64).tolist(), (k, s)
+            assert settled[v].view(np.int64).tolist() == expected_settled.view(np.int64).tolist(), (
+                k,
+                s,
+            )
     for s in range(n):
         a = s_off[s]
         assert Ss[a : a + s_len[s]].view(np.int64).tolist() == ref_S[s].view(np.int64).tolist()
         assert Hs[s].view(np.int32).tolist() == ref_H[s].view(np.int32).tolist()
-    return out
+    return out, settled

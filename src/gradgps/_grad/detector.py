@@ -59,7 +59,7 @@ import json
 import math
 import os
 from collections.abc import Callable, Hashable, Iterable, Mapping, Sequence
-from dataclasses import astuple, dataclass
+from dataclasses import astuple, dataclass, replace
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
@@ -1289,6 +1289,7 @@ def _fleet_kernel(
     receiver: NDArray[np.int64],
     todo: NDArray[np.int64],
     out: FloatArray,
+    settled: FloatArray,
     code: NDArray[np.int64],
     deferred: NDArray[np.int64],
 ) -> int:
@@ -1322,6 +1323,7 @@ def _fleet_kernel(
         speed,
         heading,
         out,
+        settled,
     )
     n_block = 0
     n_def = 0
@@ -1366,9 +1368,9 @@ def _score_block(block: Any, n: int, in_block: NDArray[np.bool_]) -> None:
     :func:`lanes_step`'s arguments but ``n``) and mark its vehicles free again."""
     if n == 0:
         return
-    Ps, Ss, s_off, s_len, Hs, gp, work, slots, rows, dt, lat, lon, speed, heading, out = block
+    Ps, Ss, s_off, s_len, Hs, gp, work, slots, rows, dt, lat, lon, speed, heading, out, done = block
     lanes_step(
-        Ps, Ss, s_off, s_len, Hs, gp, work, slots, rows, n, dt, lat, lon, speed, heading, out
+        Ps, Ss, s_off, s_len, Hs, gp, work, slots, rows, n, dt, lat, lon, speed, heading, out, done
     )
     for v in range(n):
         in_block[slots[v]] = False
@@ -1391,9 +1393,22 @@ class FleetResult:
     lon_clean: FloatArray
     alert: NDArray[np.int8]
     invalid_reason: NDArray[np.object_]
+    settled: FleetResult | None = None
+    """Where the model's verdicts settle one fix late (a confirm head,
+    :attr:`Detector.settled`): entry ``i`` is the final verdict of the usable fix of
+    vehicle ``i`` read before fix ``i``, where fix ``i`` settled one
+    (``has_settled[i]``; elsewhere the entry means nothing). ``None``: verdicts at once."""
+    has_settled: NDArray[np.bool_] | None = None
 
     def __len__(self) -> int:
         return int(self.score.size)
+
+    def settled_point(self, i: int) -> PointResult | None:
+        """The verdict fix ``i`` settled, as :attr:`Detector.settled` gives it after that
+        fix (``None``: it settled none)."""
+        if self.settled is None or self.has_settled is None or not self.has_settled[i]:
+            return None
+        return self.settled.point(i)
 
     def point(self, i: int) -> PointResult:
         """Fix ``i``'s verdict as the :class:`PointResult` a Detector returns."""
@@ -1489,9 +1504,8 @@ class FleetDetector:
         self.threshold = threshold
         self._template = Detector(model, threshold=threshold)
         m = self._template.model_
-        refuse_settling(m, "the fleet step (FleetDetector, detect-fleet, serve-redis)")
         self.model_ = m
-        self._settled = np.full(N_POINT_OUT, np.nan)
+        self._settles = m.params.settles(m.dims)
         self._gp = m.gru_params
         self._max_gap = float(m.params.max_gap_s)
         self._h_len = int(m.dims[1] + m.dims[2])
@@ -1635,7 +1649,15 @@ class FleetDetector:
         self._H[s] = 0.0
 
     def _step(
-        self, s: int, dt: float, lat: float, lon: float, speed: float, heading: float, out: Any
+        self,
+        s: int,
+        dt: float,
+        lat: float,
+        lon: float,
+        speed: float,
+        heading: float,
+        out: Any,
+        settled: Any,
     ) -> None:
         a = int(self._s_off[s])
         grad_step(
@@ -1650,11 +1672,14 @@ class FleetDetector:
             speed,
             heading,
             out,
-            self._settled,
+            settled,
         )
 
-    def _update_one(self, s: int, fix: Fix, receiver: int, out: FloatArray) -> int:
-        """:meth:`Detector.update` of ``fix`` on slot ``s``: writes the outputs into ``out``,
+    def _update_one(
+        self, s: int, fix: Fix, receiver: int, out: FloatArray, settled: FloatArray
+    ) -> int:
+        """:meth:`Detector.update` of ``fix`` on slot ``s``: writes the outputs into ``out``
+        (and a settled verdict of the vehicle's previous fix into ``settled``),
         returns the invalid reason's code in :data:`REASONS` (0 for a usable fix;
         ``receiver``: the receiver's verdict as :func:`_receiver_codes` gives it)."""
         t = fix[0]
@@ -1673,7 +1698,7 @@ class FleetDetector:
             self._warm[s],
             self._max_gap,
             lambda period, lat0, lon0: self._new_segment(s, period, lat0, lon0),
-            lambda dt, la, lo, sp, hd: self._step(s, dt, la, lo, sp, hd, out),
+            lambda dt, la, lo, sp, hd: self._step(s, dt, la, lo, sp, hd, out, settled),
         )
         self._seg[s] = 1 if restarted else seg + 1
         self._last[s] = t
@@ -1736,6 +1761,7 @@ class FleetDetector:
         heading_f = _reading_column(heading, n)
         receiver = _receiver_codes(fix_quality, satellites, n)
         out = np.full((n, N_POINT_OUT), np.nan)
+        settled = np.full((n, N_POINT_OUT), np.nan)
         code = np.zeros(n, np.int64)
         todo = np.arange(n, dtype=np.int64)
         deferred = np.empty(n, np.int64)
@@ -1764,6 +1790,7 @@ class FleetDetector:
                     receiver,
                     todo,
                     out,
+                    settled,
                     code,
                     deferred,
                 )
@@ -1781,13 +1808,20 @@ class FleetDetector:
                     continue
                 t_i, lat_i, lon_i, speed_i, heading_i = (float(c[i]) for c in columns)
                 fix = (t_i, lat_i, lon_i, speed_i, heading_i)
-                code[i] = self._update_one(s, fix, int(receiver[i]), out[i])
+                settled[i, O_FLAG] = math.nan  # only the last of a replay's steps counts
+                code[i] = self._update_one(s, fix, int(receiver[i]), out[i], settled[i])
                 if round_ < _MAX_ROUNDS and self._seg[s] > PERIOD_STEPS:
                     final.add(s)
             if not back:
                 break
             todo = np.array(back, np.int64)
-        return self._result(out, code)
+        result = self._result(out, code)
+        if not self._settles:
+            return result
+        has = ~np.isnan(settled[:, O_FLAG])
+        # Entries that settled none are built as unusable fixes (code 1): they mean nothing.
+        previous = self._result(np.where(has[:, None], settled, np.nan), np.where(has, 0, 1))
+        return replace(result, settled=previous, has_settled=has)
 
     def _result(self, out: FloatArray, code: NDArray[np.int64]) -> FleetResult:
         reasons = self._reasons[code]
@@ -1849,6 +1883,24 @@ class FleetDetector:
             self._H[s] = H
 
 
+def _fleet_result(results: Sequence[PointResult]) -> FleetResult:
+    """Per-fix results as one :class:`FleetResult`."""
+
+    def column(name: str, dtype: Any) -> NDArray[Any]:
+        return np.array([getattr(r, name) for r in results], dtype)
+
+    return FleetResult(
+        anomaly=column("anomaly", np.int8),
+        score=column("score", np.float64),
+        bias_type=column("bias_type", object),
+        time_type=column("time_type", object),
+        lat_clean=column("lat_clean", np.float64),
+        lon_clean=column("lon_clean", np.float64),
+        alert=column("alert", np.int8),
+        invalid_reason=column("invalid_reason", object),
+    )
+
+
 class ReferenceFleet:
     """The readable reference of :class:`FleetDetector`: one :class:`Detector` per vehicle,
     fed fix by fix. Same interface (``update_many``, ``get_state``, ``set_state``, ``drop``)
@@ -1879,32 +1931,29 @@ class ReferenceFleet:
         def at(values: Any, i: int) -> Any:
             return None if values is None else values[i]
 
-        results = [
-            self.tracks.detector(v).update(
-                t[i],
-                lat[i],
-                lon[i],
-                at(speed, i),
-                at(heading, i),
-                fix_quality=at(fix_quality, i),
-                satellites=at(satellites, i),
+        results = []
+        settled: list[PointResult | None] = []
+        for i, v in enumerate(vehicle_ids):
+            det = self.tracks.detector(v)
+            results.append(
+                det.update(
+                    t[i],
+                    lat[i],
+                    lon[i],
+                    at(speed, i),
+                    at(heading, i),
+                    fix_quality=at(fix_quality, i),
+                    satellites=at(satellites, i),
+                )
             )
-            for i, v in enumerate(vehicle_ids)
-        ]
-
-        def column(name: str, dtype: Any) -> NDArray[Any]:
-            return np.array([getattr(r, name) for r in results], dtype)
-
-        return FleetResult(
-            anomaly=column("anomaly", np.int8),
-            score=column("score", np.float64),
-            bias_type=column("bias_type", object),
-            time_type=column("time_type", object),
-            lat_clean=column("lat_clean", np.float64),
-            lon_clean=column("lon_clean", np.float64),
-            alert=column("alert", np.int8),
-            invalid_reason=column("invalid_reason", object),
-        )
+            settled.append(det.settled)
+        result = _fleet_result(results)
+        if not self.tracks.settles:
+            return result
+        has = np.array([r is not None for r in settled], np.bool_)
+        none = PointResult.invalid("")
+        previous = _fleet_result([r if r is not None else none for r in settled])
+        return replace(result, settled=previous, has_settled=has)
 
     def get_state(self, vehicle: Hashable) -> dict[str, Any]:
         return self.detectors[vehicle].get_state()

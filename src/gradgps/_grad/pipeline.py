@@ -1234,12 +1234,15 @@ def lanes_step(
     speed: FloatArray,
     heading: FloatArray,
     out: FloatArray,
+    settled: FloatArray,
 ) -> None:
     """One fix for each of ``n`` streams (no stream twice), as :func:`grad_step` scores it.
 
     Stream ``v`` has parameters ``Ps[slot[v]]``, state ``Ss[s_off[slot[v]]:][:s_len[slot[v]]]``
     and GRU state ``Hs[slot[v]]``; its fix is row ``rows[v]`` of ``dt``, ``lat``, ``lon``,
-    ``speed``, ``heading``, and its :data:`N_POINT_OUT` outputs go to ``out[rows[v]]``. ``work``:
+    ``speed``, ``heading``, and its :data:`N_POINT_OUT` outputs go to ``out[rows[v]]``
+    (and, where verdicts settle one fix late, the previous fix's final verdict to
+    ``settled[rows[v]]``, as :func:`grad_step` writes them). ``work``:
     :func:`new_lane_work` (for at least ``n`` streams).
     """
     dims, core_out, off_out, rec_out, x, xt, ht, gi, gh, scratch, gru_out, en = work
@@ -1276,9 +1279,31 @@ def lanes_step(
             H[k] = ht[k, v]
         _heads(gp, dims, H, scratch, gru_out)
         a = s_off[s]
+        S = Ss[a : a + s_len[s]]
+        i = rows[v]
+        measured = np.isfinite(speed[i]) and np.isfinite(heading[i])
+        if Ps[s][N_CORE_PARAMS + _SETTLE] > 0.0:
+            _settle(
+                Ps[s],
+                S,
+                dims,
+                gru_out,
+                core_out[v],
+                rec_out,
+                en[v, 0],
+                en[v, 1],
+                off_out[v, _SH],
+                off_out[v, _SH + 1],
+                off_out[v, _DRIFT_OUT],
+                measured,
+                dt[i],
+                out[i],
+                settled[i],
+            )
+            continue
         _verdict(
             Ps[s],
-            Ss[a : a + s_len[s]],
+            S,
             dims,
             gru_out,
             core_out[v],
@@ -1288,7 +1313,7 @@ def lanes_step(
             off_out[v, _SH],
             off_out[v, _SH + 1],
             off_out[v, _DRIFT_OUT],
-            np.isfinite(speed[rows[v]]) and np.isfinite(heading[rows[v]]),
-            dt[rows[v]],
-            out[rows[v]],
+            measured,
+            dt[i],
+            out[i],
         )

@@ -350,9 +350,11 @@ class RedisStreamWorker:
         if self.key_prefix is None:
             self.key_prefix = f"gradgps:{self.input_stream}:{self.group}:"
         self._check()
-        from .._grad.detector import FleetDetector
+        from .._grad.detector import FleetDetector, refuse_settling
 
         self._fleet = FleetDetector(self.model, threshold=self.threshold)
+        # One output per message, at once: no place yet for a verdict settled later.
+        refuse_settling(self._fleet.model_, "serve-redis")
         self._tracks = OrderedDict()
         self._route = self.client.register_script(ROUTE_SCRIPT)
         self._read = self.client.register_script(READ_SCRIPT)
