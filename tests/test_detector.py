@@ -255,7 +255,16 @@ def test_modes_that_write_each_verdict_at_once_refuse_a_settling_model(tmp_path)
         fixes, index=False
     )
     follow = CliRunner().invoke(
-        main, ["detect", str(fixes), "--follow", "--model", str(confirm_dir), "-o", "-"]
+        main,
+        [
+            "detect",
+            str(fixes),
+            "--follow",
+            "--model",
+            str(confirm_dir),
+            "-o",
+            str(tmp_path / "o.csv"),
+        ],
     )
     assert follow.exit_code != 0
     assert "--follow does not support yet" in follow.output
