@@ -275,3 +275,20 @@ def test_modes_that_write_each_verdict_at_once_refuse_a_settling_model(tmp_path)
     )  # fmt: skip
     assert fleet.exit_code != 0
     assert "detect-fleet does not support yet" in fleet.output
+
+
+def test_a_state_is_refused_under_another_confirm_threshold(tmp_path):
+    """The confirm threshold decides the pending fix a settling state holds: a state saved
+    under one is refused under another, as for any setting."""
+    confirm_dir = random_detector_model(tmp_path / "a", threshold=0.5, confirm_head=True)
+    other = tmp_path / "b"
+    other.mkdir()
+    (other / "weights.npz").write_bytes((confirm_dir / "weights.npz").read_bytes())
+    cfg = json.loads((confirm_dir / "config.json").read_text())
+    cfg["thresholds"]["confirm"] = 0.6
+    (other / "config.json").write_text(json.dumps(cfg))
+    det = Detector(confirm_dir)
+    det.update(0.0, 41.0, -96.0)
+    Detector(confirm_dir).set_state(det.get_state())
+    with pytest.raises(ConfigError):
+        Detector(other).set_state(det.get_state())

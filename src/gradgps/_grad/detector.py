@@ -288,6 +288,9 @@ def _settings_checksum(model: GradModel) -> str:
         "bias_classes": list(model.bias_classes),
         "state_format": _STATE_FORMAT,
     }
+    if model.params.confirm_threshold is not None:
+        # It decides the pending fix a state holds; absent from older states' settings.
+        settings["confirm_threshold"] = model.params.confirm_threshold
     text = json.dumps(settings, sort_keys=True, default=str, allow_nan=True)
     return hashlib.sha256(text.encode()).hexdigest()
 
