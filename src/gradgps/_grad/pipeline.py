@@ -183,9 +183,11 @@ _N_OFF_OUT = _DRIFT_OUT + N_DRIFT_OUT
 _NIS = MOTION_FEATURES.index("motion_nis")
 # State blocks after the core's: offset, time, recovery, drift witness, motion.
 _N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_DRIFT_STATE + N_MOTION_STATE
-# Per-point outputs. O_CONFIRM: the confirm head's P(anomaly) of the point *before*
-# this one in the segment, read with this point seen (NaN without the head;
-# meaningless at a segment's first point).
+# Per-point outputs. O_CONFIRM, with a confirm head: where verdicts settle one fix late,
+# the head's P(anomaly) of the point, read at the next point (the read that decided it;
+# NaN for a verdict at once); where they do not, the head's P(anomaly) of the point
+# *before* this one, read with this point seen (meaningless at a segment's first
+# point). NaN without the head.
 O_FLAG, O_SCORE, O_BIAS, O_TIME, O_LAT, O_LON, O_ALERT, O_CONFIRM = range(8)
 N_POINT_OUT = 8
 #: Time steps a segment's sampling period is the median of (see the module docstring).
@@ -257,11 +259,7 @@ class PipelineParams:
             max_gap_s=float(data["max_gap_s"]),
             motion=MotionParams(**data["motion"]).checked() if data.get("motion") else None,
             drift=_drift_params(data),
-            verdict_time=(
-                TimeSpans(**data["verdict_time"])
-                if data.get("verdict_time") is not None
-                else (None if "verdict_time" in data else TimeSpans())
-            ),
+            verdict_time=_verdict_time(data),
         )
 
     def array(self, period: float, frame: LocalFrame, dims: NDArray[np.int64]) -> FloatArray:
@@ -304,6 +302,14 @@ class PipelineParams:
         """Whether a network of ``dims`` gives its verdicts one fix late (see
         :attr:`confirm_threshold`)."""
         return self._settle(dims) > 0.0
+
+
+def _verdict_time(data: dict[str, Any]) -> TimeSpans | None:
+    """How a saved ``pipeline`` block counts the verdicts' time types: absent (a model
+    saved before it existed) means the default :class:`TimeSpans`, ``null`` fixes."""
+    if "verdict_time" not in data:
+        return TimeSpans()
+    return None if data["verdict_time"] is None else TimeSpans(**data["verdict_time"])
 
 
 def _drift_params(data: dict[str, Any]) -> DriftParams | None:
@@ -450,10 +456,12 @@ def _verdict(
     measured: bool,
     dt: float,
     out: FloatArray,
+    settled: FloatArray,
 ) -> None:
     """The network's outputs ``gru_out`` -> threshold -> time type -> recovery -> clean
     position in degrees (the part of :func:`grad_step` after the GRU, shared with the
-    many-stream step :func:`lanes_step`).
+    many-stream step :func:`lanes_step`): into ``out``, or, where verdicts settle one
+    fix late, :func:`_settle` (``out`` at once, ``settled`` the previous fix's).
 
     A transient or intermittent fix's clean position is the recovery's prediction held
     within reach of the fix (:func:`within_reach`), after as many periods without a
@@ -470,6 +478,25 @@ def _verdict(
     flags is an anomaly of bias class ``dims[3]`` (``drift``, after the head's
     classes: the head has no drift class); the GRU's own verdicts stand.
     """
+    if P[N_CORE_PARAMS + _SETTLE] > 0.0:
+        _settle(
+            P,
+            S,
+            dims,
+            gru_out,
+            core_out,
+            rec_out,
+            east,
+            north,
+            speed,
+            heading,
+            drift,
+            measured,
+            dt,
+            out,
+            settled,
+        )
+        return
     ts = _tail_end(P, S) - _N_TAIL_STATE + N_OFFSET_STATE
     rs = ts + N_TIME_STATE
     _decide_at_once(
@@ -777,26 +804,6 @@ def grad_step(
     _drift_point(P, S, off_out, dt, east, north, speed, heading)
     _recurrent_step(gp, dims, x, H, scratch)
     _heads(gp, dims, H, scratch, gru_out)
-    measured = np.isfinite(speed) and np.isfinite(heading)
-    if P[N_CORE_PARAMS + _SETTLE] > 0.0:
-        _settle(
-            P,
-            S,
-            dims,
-            gru_out,
-            core_out,
-            rec_out,
-            east,
-            north,
-            off_out[_SH],
-            off_out[_SH + 1],
-            off_out[_DRIFT_OUT],
-            measured,
-            dt,
-            out,
-            settled,
-        )
-        return
     _verdict(
         P,
         S,
@@ -809,9 +816,10 @@ def grad_step(
         off_out[_SH],
         off_out[_SH + 1],
         off_out[_DRIFT_OUT],
-        measured,
+        np.isfinite(speed) and np.isfinite(heading),
         dt,
         out,
+        settled,
     )
 
 
@@ -1279,31 +1287,10 @@ def lanes_step(
             H[k] = ht[k, v]
         _heads(gp, dims, H, scratch, gru_out)
         a = s_off[s]
-        S = Ss[a : a + s_len[s]]
         i = rows[v]
-        measured = np.isfinite(speed[i]) and np.isfinite(heading[i])
-        if Ps[s][N_CORE_PARAMS + _SETTLE] > 0.0:
-            _settle(
-                Ps[s],
-                S,
-                dims,
-                gru_out,
-                core_out[v],
-                rec_out,
-                en[v, 0],
-                en[v, 1],
-                off_out[v, _SH],
-                off_out[v, _SH + 1],
-                off_out[v, _DRIFT_OUT],
-                measured,
-                dt[i],
-                out[i],
-                settled[i],
-            )
-            continue
         _verdict(
             Ps[s],
-            S,
+            Ss[a : a + s_len[s]],
             dims,
             gru_out,
             core_out[v],
@@ -1313,7 +1300,8 @@ def lanes_step(
             off_out[v, _SH],
             off_out[v, _SH + 1],
             off_out[v, _DRIFT_OUT],
-            measured,
+            np.isfinite(speed[i]) and np.isfinite(heading[i]),
             dt[i],
             out[i],
+            settled[i],
         )
