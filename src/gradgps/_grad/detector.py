@@ -1032,8 +1032,6 @@ class MultiTrackDetector:
         frame once the next call has returned (or at the end of the input, when the
         verdicts at once are final): what the chunked reader does.
         """
-        if self.settles:
-            return self._update_settling(fixes)
         n = len(fixes)
         nan = [float("nan")] * n
         tracks = fixes["track"].to_numpy(object)
@@ -1046,46 +1044,25 @@ class MultiTrackDetector:
             fixes["fix_quality"].to_numpy(np.float64).tolist() if "fix_quality" in fixes else nan
         )
         sats = fixes["satellites"].to_numpy(np.float64).tolist() if "satellites" in fixes else nan
-        results = (
-            self.detector(str(tracks[i])).update(
-                t[i],
-                lat[i],
-                lon[i],
-                speed[i],
-                heading[i],
-                fix_quality=quality[i],
-                satellites=sats[i],
-            )
-            for i in range(n)
-        )
-        return results_frame(results, fixes.index)
-
-    def _update_settling(self, fixes: pd.DataFrame) -> pd.DataFrame:
-        """:meth:`update_fixes` for a model whose verdicts settle one fix late."""
-        n = len(fixes)
-        tracks = [str(v) for v in fixes["track"].to_numpy(object)]
-        columns = {
-            name: (
-                fixes[name].to_numpy(np.float64).tolist() if name in fixes else [float("nan")] * n
-            )
-            for name in ("t", "lat", "lon", "speed", "heading", "fix_quality", "satellites")
-        }
         results: list[PointResult] = []
-        here: dict[str, int] = {}  # track -> its pending fix's row in this call
+        here: dict[str, int] = {}  # settling: track -> its pending fix's row in this call
         late: list[tuple[pd.DataFrame, int, PointResult]] = []
-        for i, track in enumerate(tracks):
+        for i in range(n):
+            track = str(tracks[i])
             det = self.detector(track)
             results.append(
                 det.update(
-                    columns["t"][i],
-                    columns["lat"][i],
-                    columns["lon"][i],
-                    columns["speed"][i],
-                    columns["heading"][i],
-                    fix_quality=columns["fix_quality"][i],
-                    satellites=columns["satellites"][i],
+                    t[i],
+                    lat[i],
+                    lon[i],
+                    speed[i],
+                    heading[i],
+                    fix_quality=quality[i],
+                    satellites=sats[i],
                 )
             )
+            if not self.settles:
+                continue
             settled = det.settled
             if settled is not None:
                 if track in here:
@@ -1811,7 +1788,6 @@ class FleetDetector:
                     continue
                 t_i, lat_i, lon_i, speed_i, heading_i = (float(c[i]) for c in columns)
                 fix = (t_i, lat_i, lon_i, speed_i, heading_i)
-                settled[i, O_FLAG] = math.nan  # only the last of a replay's steps counts
                 code[i] = self._update_one(s, fix, int(receiver[i]), out[i], settled[i])
                 if round_ < _MAX_ROUNDS and self._seg[s] > PERIOD_STEPS:
                     final.add(s)

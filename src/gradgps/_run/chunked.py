@@ -117,6 +117,7 @@ def detect_csv_in_chunks(
         on_start(chunks.n_rows)
     counts = np.zeros(3, np.int64)
     unsettled = [0]
+    hold_cap = max(chunk_size, HOLD_ROWS)
     checks = InputChecks(*validated_rates(load_grad_model(settings.model).config))
     rows = 0
     with contextlib.ExitStack() as stack:
@@ -151,7 +152,6 @@ def detect_csv_in_chunks(
         # with the verdicts at once of the fixes still pending (counted in a warning).
         held: collections.deque[tuple[Any, pd.DataFrame, pd.DataFrame]] = collections.deque()
         held_rows = 0
-        hold_cap = max(chunk_size, HOLD_ROWS)
         for table in chunks:
             fixes = to_fixes(table)
             checks.add(fixes)
@@ -185,7 +185,7 @@ def detect_csv_in_chunks(
         + (
             (
                 f"{unsettled[0]:,} fixes keep their verdict at once: their track's next fix "
-                f"came more than {max(chunk_size, HOLD_ROWS):,} rows later in the file; a "
+                f"came more than {hold_cap:,} rows later in the file; a "
                 "larger --chunk-size, or the file sorted by track, gives their settled ones",
             )
             if unsettled[0]
