@@ -21,9 +21,9 @@ simulator seed (4242) is one the training recipe does not use. Run:
 from __future__ import annotations
 
 import argparse
-import dataclasses
 
 import numpy as np
+from validation_check import with_reach
 
 from gradgps._data.simulator import (
     DEFAULT_ORIGIN,
@@ -57,14 +57,7 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=15.0)
     args = parser.parse_args()
     det = Detector(args.model)
-    recovery = det.model_.params.recovery
-    if args.reach_m is not None:
-        recovery = dataclasses.replace(recovery, reach_m=args.reach_m)
-    if args.reach_accel is not None:
-        recovery = dataclasses.replace(recovery, reach_accel_mps2=args.reach_accel)
-    det.model_ = dataclasses.replace(
-        det.model_, params=dataclasses.replace(det.model_.params, recovery=recovery)
-    )
+    recovery = with_reach(det, args.reach_m, args.reach_accel)
     frame = LocalFrame(*DEFAULT_ORIGIN)
     print(f"recovery: {recovery}")
     print(f"simulator seed {SEED}, {args.tracks} drives x {args.minutes:g} min, positions only")

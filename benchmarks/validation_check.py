@@ -29,6 +29,7 @@ import pandas as pd
 from gradgps._data.datasets import load_dataset
 from gradgps._eval.robustness import _cell, _variant_columns, decimate
 from gradgps._grad.detector import Detector
+from gradgps._grad.recovery import RecoveryParams
 from gradgps._tracks.track import ColumnMap, to_fixes
 
 DATASETS = ("driveplotr", "tuc", "nl_motorway", "nl_motorway_gopro", "austin2006", "nevada")
@@ -50,14 +51,7 @@ def main() -> None:
     parser.add_argument("--reach-accel", type=float, default=None)
     args = parser.parse_args()
     det = Detector(args.model, threshold=args.threshold)
-    recovery = det.model_.params.recovery
-    if args.reach_m is not None:
-        recovery = dataclasses.replace(recovery, reach_m=args.reach_m)
-    if args.reach_accel is not None:
-        recovery = dataclasses.replace(recovery, reach_accel_mps2=args.reach_accel)
-    det.model_ = dataclasses.replace(
-        det.model_, params=dataclasses.replace(det.model_.params, recovery=recovery)
-    )
+    recovery = with_reach(det, args.reach_m, args.reach_accel)
     print(f"recovery: {recovery}")
     head = "| data set | columns | rate | fixes | clean false alarms | anomaly F1 | normal recall |"
     rule = "|---|---|---|---|---|---|---|"
@@ -73,6 +67,20 @@ def main() -> None:
             picked = _variant_columns(table, full, variant)
             if picked is not None:
                 _check(det, name, variant, table, picked, args.repair)
+
+
+def with_reach(det: Detector, reach_m: float | None, reach_accel: float | None) -> RecoveryParams:
+    """Set the recovery's reach of ``det``'s model where given (``None``: the model's
+    own); returns the recovery settings it now has."""
+    recovery = det.model_.params.recovery
+    if reach_m is not None:
+        recovery = dataclasses.replace(recovery, reach_m=reach_m)
+    if reach_accel is not None:
+        recovery = dataclasses.replace(recovery, reach_accel_mps2=reach_accel)
+    det.model_ = dataclasses.replace(
+        det.model_, params=dataclasses.replace(det.model_.params, recovery=recovery)
+    )
+    return recovery
 
 
 def _check(

@@ -116,6 +116,17 @@ def _run(fleet: Any, rows: dict[str, Any], a: int, b: int) -> FleetResult:
     )
 
 
+def _move_a_state(fast: FleetDetector, ref: ReferenceFleet, moves: list[int]) -> None:
+    """Move the next listed vehicle's state across, if it has one: reference -> fleet and
+    fleet -> reference."""
+    if moves:
+        vehicle = f"car{moves.pop()}"
+        if vehicle in ref.detectors:
+            fast.drop(vehicle)
+            fast.set_state(vehicle, ref.get_state(vehicle))
+            ref.set_state(vehicle, fast.get_state(vehicle))
+
+
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(fleets())
 def test_fleet_equals_a_detector_per_vehicle_bit_for_bit(rows: dict[str, Any]) -> None:
@@ -128,13 +139,7 @@ def test_fleet_equals_a_detector_per_vehicle_bit_for_bit(rows: dict[str, Any]) -
             state = ref.get_state(vehicle)
             assert fast.get_state(vehicle) == state
             json.dumps(state, allow_nan=False)
-        if moves:
-            # Move one vehicle's state across: reference -> fleet and fleet -> reference.
-            vehicle = f"car{moves.pop()}"
-            if vehicle in ref.detectors:
-                fast.drop(vehicle)
-                fast.set_state(vehicle, ref.get_state(vehicle))
-                ref.set_state(vehicle, fast.get_state(vehicle))
+        _move_a_state(fast, ref, moves)
 
 
 @pytest.fixture(scope="module")
@@ -161,12 +166,7 @@ def test_a_settling_fleet_equals_a_detector_per_vehicle(
         assert [got.settled_point(i) for i in range(len(got))] == [
             want.settled_point(i) for i in range(len(want))
         ]
-        if moves:
-            vehicle = f"car{moves.pop()}"
-            if vehicle in ref.detectors:
-                fast.drop(vehicle)
-                fast.set_state(vehicle, ref.get_state(vehicle))
-                ref.set_state(vehicle, fast.get_state(vehicle))
+        _move_a_state(fast, ref, moves)
 
 
 def test_rare_cases_and_the_kernel_share_the_work() -> None:

@@ -254,16 +254,35 @@ def confirm_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return random_detector_model(tmp_path_factory.mktemp("confirm"), confirm_head=True)
 
 
-def _settled_feed(det: Detector, fixes: pd.DataFrame) -> pd.DataFrame:
-    """A stream's final verdicts: each fix's verdict at once, replaced by the settled one
+def _settled_rows(det: Detector, fixes: pd.DataFrame, rows: list[Any]) -> list[Any]:
+    """A stream's final verdicts, after ``rows`` (those of the fixes before, from a
+    stream ``det`` continues): each fix's verdict at once, replaced by the settled one
     when the next fix of its segment arrives."""
-    rows = []
     for r in fixes.itertuples():
         rows.append(det.update(r.t, r.lat, r.lon))
         settled = det.settled
         if settled is not None:
             rows[-2] = settled
-    return pd.DataFrame([r.__dict__ for r in rows], index=fixes.index)
+    return rows
+
+
+def _frame(rows: list[Any], index: pd.Index) -> pd.DataFrame:
+    return pd.DataFrame([r.__dict__ for r in rows], index=index)
+
+
+def _first_steps_fixes(steps: list[float], first_lat: float) -> pd.DataFrame:
+    """One track whose time steps are ``steps``, starting at ``first_lat``."""
+    t = T0 + np.cumsum([0.0, *steps])
+    n = t.size
+    rng = np.random.default_rng(len(steps))
+    return pd.DataFrame(
+        {
+            "track": "a",
+            "t": t,
+            "lat": first_lat + rng.normal(0, 1e-5, n),
+            "lon": 11.5 + np.arange(n) * 1e-4,
+        }
+    )
 
 
 @settings(max_examples=40, deadline=None)
@@ -274,29 +293,15 @@ def test_settled_verdicts_equal_batch_whatever_the_first_steps(
     """Verdicts that settle one fix late (a confirm head) through the provisional period's
     rebuilds and segment restarts: a stream's final verdicts are batch's, bit for bit,
     also through a checkpoint at every cut."""
-    t = T0 + np.cumsum([0.0, *steps])
-    n = t.size
-    rng = np.random.default_rng(len(steps))
-    fixes = pd.DataFrame(
-        {
-            "track": "a",
-            "t": t,
-            "lat": first_lat + rng.normal(0, 1e-5, n),
-            "lon": 11.5 + np.arange(n) * 1e-4,
-        }
-    )
+    fixes = _first_steps_fixes(steps, first_lat)
     batch = Detector(confirm_model).detect(fixes)
-    _same(batch, _settled_feed(Detector(confirm_model), fixes))
-    for cut in range(1, n):
+    _same(batch, _frame(_settled_rows(Detector(confirm_model), fixes, []), fixes.index))
+    for cut in range(1, len(fixes)):
         det = Detector(confirm_model)
-        first = _settled_feed(det, fixes.iloc[:cut])
+        rows = _settled_rows(det, fixes.iloc[:cut], [])
         restored = Detector(confirm_model).set_state(json.loads(json.dumps(det.get_state())))
-        rows = [*first.to_dict("records")]
-        for r in fixes.iloc[cut:].itertuples():
-            rows.append(restored.update(r.t, r.lat, r.lon).__dict__)
-            if restored.settled is not None:
-                rows[-2] = restored.settled.__dict__
-        _same(batch, pd.DataFrame(rows, index=fixes.index))
+        rows = _settled_rows(restored, fixes.iloc[cut:], rows)
+        _same(batch, _frame(rows, fixes.index))
 
 
 @settings(max_examples=60, deadline=None)
@@ -305,17 +310,8 @@ def test_batch_equals_streaming_bit_for_bit_whatever_the_first_steps(
     steps: list[float], first_lat: float
 ) -> None:
     """The provisional period and its rebuilds happen alike in batch and in a stream."""
-    t = T0 + np.cumsum([0.0, *steps])
-    n = t.size
-    rng = np.random.default_rng(len(steps))
-    fixes = pd.DataFrame(
-        {
-            "track": "a",
-            "t": t,
-            "lat": first_lat + rng.normal(0, 1e-5, n),
-            "lon": 11.5 + np.arange(n) * 1e-4,
-        }
-    )
+    fixes = _first_steps_fixes(steps, first_lat)
+    n = len(fixes)
     batch = Detector().detect(fixes)
     stream = TrackStreams().update_fixes(fixes)
     _same(batch, stream)
