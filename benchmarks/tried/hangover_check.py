@@ -1,0 +1,77 @@
+"""Where the false positives sit: right after an injected fault's end (hang-over) or not.
+
+For each injected episode (protocol ``grad``, seed 0, positions only), the
+run of *normal* fixes flagged right after the episode's last fix: how many
+such runs, how many fixes they hold against all false positives, and the
+longest in fixes and seconds. On fresh simulated drives (seed 4242, 6 x 15
+minutes, as ``benchmarks/simulated_check.py`` draws them) at 10, 5 and 1 Hz,
+and on the real validation drives at their native rate. The shipped model
+unless ``--model``. Never the test splits. Run:
+
+    python benchmarks/tried/hangover_check.py [--model DIR] [--data-dir DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from gradgps._data.inject import inject_grad
+from gradgps._data.simulator import simulate_fleet
+from gradgps._grad.detector import Detector
+from gradgps._tracks.track import ColumnMap, to_fixes
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+from _validation_drives import validation_positions
+
+POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
+
+
+def hangover(det: Detector, table: pd.DataFrame, cmap: ColumnMap) -> str:
+    """One table row: false positives, hang-over runs, their fixes, the longest."""
+    labelled = inject_grad(table, seed=0, columns=cmap)
+    fixes = to_fixes(labelled, cmap)
+    flag = det.detect(fixes)["anomaly"].to_numpy() == 1
+    truth = labelled["label_anomaly"].to_numpy() == 1
+    track = fixes["track"].to_numpy()
+    t = fixes["t"].to_numpy(np.float64)
+    runs: list[tuple[int, float]] = []
+    for name in pd.unique(track):
+        rows = np.flatnonzero(track == name)
+        f, y, tt = flag[rows], truth[rows], t[rows]
+        for i in range(len(rows)):
+            if y[i] and (i + 1 == len(rows) or not y[i + 1]):  # an episode ends at i
+                j = i + 1
+                while j < len(rows) and f[j] and not y[j]:
+                    j += 1
+                if j > i + 1:
+                    runs.append((j - i - 1, tt[j - 1] - tt[i]))
+    fixes_in = sum(n for n, _ in runs)
+    longest = max(runs, default=(0, 0.0))
+    return (
+        f"{int((flag & ~truth).sum())} | {len(runs)} | {fixes_in} | "
+        f"{longest[0]} fixes, {longest[1]:.1f} s |"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", default=None)
+    parser.add_argument("--data-dir", default=None)
+    args = parser.parse_args()
+    det = Detector(args.model)
+    print("| drives | false positives | hang-over runs | fixes in them | longest |")
+    print("|---|---|---|---|---|")
+    for hz in (10.0, 5.0, 1.0):
+        drives = simulate_fleet(6, 15.0, hz, 4242, imu=False)[["track", "t", "lat", "lon"]]
+        print(f"| simulated {hz:g} Hz | " + hangover(det, drives, POSITIONS))
+    for name, data, _, cmap, _ in validation_positions(None, args.data_dir, keep_native=True):
+        print(f"| {name} validation | " + hangover(det, data, cmap))
+
+
+if __name__ == "__main__":
+    main()
