@@ -240,41 +240,29 @@ def test_a_confirm_head_settles_each_verdict_one_fix_late(tmp_path, model_dir, d
     assert [*head, *tail] == want
 
 
-def test_modes_that_write_each_verdict_at_once_refuse_a_settling_model(tmp_path):
-    """--follow and detect-fleet write each fix's verdict at once (serve-redis too: its
-    refusal is in tests/test_fleet_redis.py); the FleetDetector itself settles."""
+def test_follow_and_batch_give_a_settling_model_the_same_rows(tmp_path):
+    """A model whose verdicts settle one fix late: ``detect --follow`` writes each line
+    once its verdict is final, so its result columns are the batch run's, row for row
+    (detect-fleet and serve-redis: tests/test_fleet_dask.py, tests/test_fleet_redis.py)."""
     from click.testing import CliRunner
 
-    from gradgps import FleetDetector
     from gradgps._cli import main
+    from gradgps._data.simulator import simulate_fleet
+    from gradgps._result import RESULT_COLUMNS
 
     confirm_dir = random_detector_model(tmp_path / "confirm", threshold=0.5, confirm_head=True)
-    assert FleetDetector(confirm_dir).update(1, 0.0, 48.1, 11.5).anomaly in (0, 1)
     fixes = tmp_path / "fixes.csv"
-    pd.DataFrame({"t": [0.0, 1.0], "lat": [48.1, 48.1001], "lon": [11.5, 11.5]}).to_csv(
-        fixes, index=False
-    )
-    follow = CliRunner().invoke(
-        main,
-        [
-            "detect",
-            str(fixes),
-            "--follow",
-            "--model",
-            str(confirm_dir),
-            "-o",
-            str(tmp_path / "o.csv"),
-        ],
-    )
-    assert follow.exit_code != 0
-    assert "--follow does not support yet" in follow.output
-    (tmp_path / "in").mkdir()
-    fleet = CliRunner().invoke(
-        main, ["detect-fleet", str(tmp_path / "in"), "-o", str(tmp_path / "out"),
-               "--model", str(confirm_dir)],
-    )  # fmt: skip
-    assert fleet.exit_code != 0
-    assert "detect-fleet does not support yet" in fleet.output
+    fleet = simulate_fleet(2, 1.0, 1.0, seed=5).sort_values(["t", "track"], kind="stable")
+    fleet[["track", "t", "lat", "lon"]].to_csv(fixes, index=False)
+    outputs = {}
+    for name, extra in (("batch", []), ("follow", ["--follow"])):
+        out = tmp_path / f"{name}.csv"
+        run = CliRunner().invoke(
+            main, ["detect", str(fixes), *extra, "--model", str(confirm_dir), "-o", str(out)]
+        )
+        assert run.exit_code == 0, run.output
+        outputs[name] = pd.read_csv(out, keep_default_na=False)[list(RESULT_COLUMNS)]
+    pd.testing.assert_frame_equal(outputs["follow"], outputs["batch"])
 
 
 def test_a_state_is_refused_under_another_confirm_threshold(tmp_path):

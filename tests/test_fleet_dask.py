@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -198,6 +199,40 @@ def test_a_partition_in_chunks_equals_batch_detection_of_its_files_joined(
     )
     assert summary.rows == len(want) == len(got)
     pd.testing.assert_frame_equal(got[RESULT_COLUMNS], want[RESULT_COLUMNS], check_dtype=False)
+
+
+@pytest.mark.parametrize("chunk_size", [1, 7])
+def test_a_settling_vehicle_is_settled_across_its_files(
+    fleet: pd.DataFrame, tmp_path: Path, chunk_size: int
+) -> None:
+    """A model whose verdicts settle one fix late: a file's last fix is settled by the next
+    file's first, so a vehicle split in many files gets batch detection's rows of the
+    files joined (the split is where a verdict at once and the settled one differ)."""
+    from _gru_support import random_detector_model
+    from gradgps import Detector
+    from gradgps._run.settings import RunSettings
+    from gradgps._tracks.track import to_fixes
+
+    model = random_detector_model(tmp_path / "confirm", confirm_head=True)
+    rows = fleet[fleet["track"] == fleet["track"].iloc[0]].drop(columns="track")
+    fixes = to_fixes(rows.reset_index(drop=True))
+    want = Detector(model).detect(fixes).reset_index(drop=True)
+    stream = Detector(model)
+    at_once = [stream.update(f.t, f.lat, f.lon, f.speed, f.heading) for f in fixes.itertuples()]
+    ends = [k for k in range(len(fixes) - 1) if at_once[k].anomaly != want["anomaly"][k]]
+    assert len(ends) >= 3  # else the test could not tell
+    part = tmp_path / "in" / "vehicle=v"
+    part.mkdir(parents=True)
+    cuts = [0, *(k + 1 for k in ends), len(rows)]  # each part ends on such a fix
+    for j, (a, b) in enumerate(itertools.pairwise(cuts)):
+        rows.iloc[a:b].to_parquet(part / f"part-{j:03d}.parquet", index=False)
+    (tmp_path / "out").mkdir()
+    (split,) = find_partitions(tmp_path / "in")
+    detect_partition(split, str(tmp_path / "out"), RunSettings(model=model), chunk_size)
+    got = pd.concat([pd.read_parquet(tmp_path / "out" / r) for r in split.outputs])
+    pd.testing.assert_frame_equal(
+        got[RESULT_COLUMNS].reset_index(drop=True), want[RESULT_COLUMNS], check_dtype=False
+    )
 
 
 def test_detect_fleet_chunk_size_0_asks_for_the_largest_bounded_chunks(

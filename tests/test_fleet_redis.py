@@ -228,12 +228,55 @@ def test_worker_settings_are_checked(server: Any) -> None:
         RedisStreamWorker(_client(server), IN, OUT, GROUP, "")
 
 
-def test_a_model_whose_verdicts_settle_late_is_refused(server: Any, tmp_path: Any) -> None:
-    """One output per message, at once: a model with a confirm head (its verdicts settle
-    one fix late) is refused with the mode named, not served half right."""
+def test_a_settling_model_revises_outputs_into_the_final_verdicts_exactly_once(
+    server: Any, fleet: pd.DataFrame, tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A model with a confirm head (verdicts settle one fix late): each message gets its
+    verdict at once on the output stream, and the revision stream corrects those a
+    vehicle's next fix settles differently, exactly once, through a crash and a restart:
+    outputs with the revisions applied are each vehicle's final verdicts."""
     from _gru_support import random_detector_model
-    from gradgps import ConfigError
 
     model = random_detector_model(tmp_path / "confirm", confirm_head=True)
-    with pytest.raises(ConfigError, match="serve-redis does not support yet"):
-        RedisStreamWorker(_client(server), "fixes", "results", "workers", "w1", model=model)
+    ids = _push(server, fleet)
+
+    def worker(name: str, batch_size: int) -> RedisStreamWorker:
+        w = RedisStreamWorker(
+            _client(server), IN, OUT, GROUP, name, batch_size=batch_size, model=model
+        )
+        w.ensure_group()
+        return w
+
+    first = worker("w1", 16)
+    assert first.settles
+    assert first.revision_stream == f"{OUT}:revisions"
+    first.step()
+    held = _crash_on_commit(first, monkeypatch)
+    with pytest.raises(Crash):
+        first.step()
+    assert held, "the crash hit no page"
+    _drain(worker("w1", 16), worker("w2", 5))
+    out = _results(server)
+    assert sorted(out["source_id"]) == sorted(ids)
+    revisions = pd.DataFrame(
+        [parse_output(f) for _, f in _client(server).xrange(first.revision_stream)]
+    )
+    assert list(revisions.columns) == list(OUTPUT_FIELDS)
+    assert revisions["source_id"].is_unique
+    assert len(revisions) > 3  # else the test could not tell
+    final = out.set_index("source_id")
+    final.update(revisions.set_index("source_id"))
+    for vehicle, track in fleet.groupby("track"):
+        rows = final[final["vehicle_id"] == vehicle]
+        det = Detector(model)
+        want: list[Any] = []
+        for r in track.itertuples():
+            want.append(det.update(r.t, r.lat, r.lon, r.speed, r.heading))
+            if det.settled is not None:
+                usable = [k for k, w in enumerate(want[:-1]) if w.invalid_reason == ""]
+                want[usable[-1]] = det.settled
+        assert rows["anomaly"].astype(int).tolist() == [w.anomaly for w in want]
+        assert rows["time_type"].tolist() == [w.time_type for w in want]
+        np.testing.assert_array_equal(
+            rows["lat_clean"].to_numpy(float), [w.lat_clean for w in want]
+        )

@@ -302,3 +302,113 @@ def test_banner_on_a_live_pipe_does_not_hold_back_results():
             proc.wait(timeout=60)
     assert proc.returncode == 0
     assert sum(line.startswith("warning: skipped 1 line") for line in err.splitlines()) == 1
+
+
+def _final_verdicts(det: Detector, fixes: list[tuple[float, ...]]) -> list[object]:
+    """The final verdict of each fix a stream reads: its verdict at once, replaced by
+    ``Detector.settled`` when a later fix settles it (a model with a confirm head)."""
+    finals: list[object] = []
+    for fix in fixes:
+        finals.append(det.update(*fix))
+        settled = det.settled
+        if settled is not None:
+            usable = [k for k, r in enumerate(finals[:-1]) if r.invalid_reason == ""]
+            finals[usable[-1]] = settled
+    return finals
+
+
+def _result_of(row: dict[str, str]) -> tuple[object, ...]:
+    return tuple(row[c] for c in RESULT_FIELDS)
+
+
+def _fields_of(result: object) -> tuple[object, ...]:
+    from gradgps._run.follow import _result_fields
+
+    return tuple(_result_fields(result))  # type: ignore[arg-type]
+
+
+@pytest.fixture(scope="module")
+def settling_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from _gru_support import random_detector_model
+
+    return random_detector_model(tmp_path_factory.mktemp("confirm"), confirm_head=True)
+
+
+def _two_tracks() -> list[str]:
+    """Two interleaved tracks with a jump, a gap (a new segment) and a bad line."""
+    lines = ["track,time,lat,lon"]
+    for i in range(60):
+        t = i + (100 if i >= 40 else 0)  # a gap: the last fix before it keeps its verdict at once
+        jump = 3e-3 if 20 <= i < 24 else 0.0
+        lines += [f"a,{t},{48.0 + jump},{11 + i * 2e-4}", f"b,{i},{10.0 + i * 1e-4},20.0"]
+        if i == 30:
+            lines.append("b,not a time,10.0,20.0")
+    return lines
+
+
+def test_a_settling_model_writes_each_fix_once_its_verdict_is_final(settling_model):
+    """With a confirm head each line goes out when its track's next fix has settled it,
+    in input order: the lines equal a stream's final verdicts, fix for fix, and the
+    counts count those."""
+    lines = _two_tracks()
+    out: list[str] = []
+    counts = follow_lines(lines, out.append, model=settling_model)
+    rows = _rows(out)
+    assert [r["time"] for r in rows] == [line.split(",")[1] for line in lines[1:]]
+    for track in ("a", "b"):
+        mine = [r for r in rows if r["track"] == track and r["time"] != "not a time"]
+        fixes = [(float(r["time"]), float(r["lat"]), float(r["lon"])) for r in mine]
+        want = _final_verdicts(Detector(settling_model), fixes)
+        assert [_result_of(r) for r in mine] == [_fields_of(w) for w in want]
+    named: list[str] = []
+    follow_lines(lines, named.append, model=settling_model, fmt="csv")
+    assert named == out
+    assert counts.unsettled == 0
+    assert counts.anomalies == sum(int(r["anomaly"]) for r in rows if not r["invalid_reason"])
+    assert (counts.lines, counts.fixes, counts.invalid) == (len(rows), len(rows) - 1, 1)
+
+
+def test_lines_held_too_long_go_out_with_their_verdict_at_once(settling_model, monkeypatch):
+    """A track that stops sending holds the lines behind its last fix only up to
+    HOLD_LINES lines: past that the oldest line goes out as it stands, counted."""
+    import gradgps._run.follow as follow
+
+    monkeypatch.setattr(follow, "HOLD_LINES", 3)
+    lines = ["track,time,lat,lon", "a,0,48.0,11.0", "a,1,48.0,11.0002"]
+    lines += [f"b,{i},10.0,{20 + i * 1e-4}" for i in range(10)]
+    out: list[str] = []
+    counts = follow_lines(lines, out.append, model=settling_model)
+    rows = _rows(out)
+    assert len(rows) == len(lines) - 1
+    assert counts.unsettled == 1  # a's second fix: a never sent a third
+    det = Detector(settling_model)
+    det.update(0.0, 48.0, 11.0)
+    assert _result_of(rows[1]) == _fields_of(det.update(1.0, 48.0, 11.0002))
+
+
+def test_nmea_with_a_settling_model_repeats_the_settled_verdict_on_the_second_sentence(
+    settling_model,
+):
+    lines = []
+    for k in range(30):
+        tod = f"1235{k:02d}"
+        lat = f"4807.{38 + k * 11 + (300 if 12 <= k < 15 else 0):03d},N"
+        lines += [
+            _sentence(f"GPGGA,{tod},{lat},01131.000,E,1,08,0.9,545.4,M,46.9,M,,"),
+            _sentence(f"GPRMC,{tod},A,{lat},01131.000,E,022.4,084.4,230394,003.1,W"),
+        ]
+        if k == 5:
+            lines.append("$GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00*74")
+    out: list[str] = []
+    counts = follow_lines(lines, out.append, model=settling_model)
+    rows = _rows(out)
+    assert [r["line"] for r in rows] == [str(i + 1) for i in range(len(lines))]
+    scored = [r for r in rows if r["sentence"] == "GGA"]
+    start = 12 * 3600 + 35 * 60
+    fixes = [(start + k, float(r["lat"]), float(r["lon"])) for k, r in enumerate(scored)]
+    want = _final_verdicts(Detector(settling_model), fixes)
+    assert [_result_of(r) for r in scored] == [_fields_of(w) for w in want]
+    repeated = [r for r in rows if r["sentence"] == "RMC"]
+    assert [_result_of(r) for r in repeated] == [_result_of(r) for r in scored]
+    assert counts.fixes == 30
+    assert counts.anomalies == sum(int(r["anomaly"]) for r in scored)

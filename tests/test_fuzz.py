@@ -1055,8 +1055,9 @@ def _process_page(
     messages = [_decode_message(i, [f.hex() for f in fields]) for i, fields in page]
     vehicles = sorted({m.vehicle for m in messages})
     tracks = {v: worker._restore(v, stored.get(v)) for v in vehicles}
-    outputs, changed = worker._run_detectors(messages, tracks)
-    return outputs, changed, dict(tracks)
+    outputs, revisions, changed = worker._run_detectors(messages, tracks)
+    assert not revisions  # the default model decides each verdict at once
+    return outputs, changed, {v: track.last_id for v, track in tracks.items()}
 
 
 def _check_outputs(outputs: list[dict[str, str]], expected_ids: list[str]) -> None:
@@ -1106,7 +1107,7 @@ def test_fuzz_redis_message_fields(
         state = redis_worker._fleet.get_state(vehicle)
         record = json.dumps({"last_id": tracks[vehicle], "detector": state}, allow_nan=False)
         redis_worker._tracks.clear()  # not cached: restored from the record
-        assert redis_worker._restore(vehicle, record.encode()) == tracks[vehicle]
+        assert redis_worker._restore(vehicle, record.encode()).last_id == tracks[vehicle]
         assert redis_worker._dead == []
         assert redis_worker._fleet.get_state(vehicle) == state
 
@@ -1151,6 +1152,7 @@ def test_fuzz_redis_state_keys(
         RedisStreamWorker,
         _decode_message,
         _id_key,
+        _Track,
     )
 
     assert isinstance(redis_worker, RedisStreamWorker)
@@ -1190,7 +1192,7 @@ def test_fuzz_redis_state_keys(
         want_last = "0-0"
     redis_worker._tracks.clear()
     redis_worker._dead = []
-    last_id = redis_worker._restore(b"a", stored)
+    last_id = redis_worker._restore(b"a", stored).last_id
     dead = list(redis_worker._dead)
     assert last_id == want_last
     assert len(dead) <= 1
@@ -1205,7 +1207,7 @@ def test_fuzz_redis_state_keys(
         for k in range(10)
     ]
     messages = [_decode_message(i, [f.hex() for f in fields]) for i, fields in page]
-    outputs, _ = redis_worker._run_detectors(messages, {b"a": last_id})
+    outputs, _, _ = redis_worker._run_detectors(messages, {b"a": _Track(last_id)})
     assert redis_worker._dead == dead  # no message's processing failed
     # resent messages (not after the stored last id) get no second result; the rest one each
     _check_outputs(outputs, [i for i, _ in page if _id_key(i) > _id_key(want_last)])

@@ -359,7 +359,7 @@ def _detect_in_chunks(
 
 def _run_follow(input_path: Path, output: Path | None, settings: RunSettings) -> None:
     """``--follow``: follow INPUT ('-' = standard input) and write one CSV line per input line to OUTPUT/stdout."""
-    from .._run.follow import follow_lines
+    from .._run.follow import HOLD_LINES, follow_lines
 
     def warn(message: str) -> None:
         # At once, before the first result line: a live reader sees why lines were dropped.
@@ -398,4 +398,11 @@ def _run_follow(input_path: Path, output: Path | None, settings: RunSettings) ->
         f"{counts.anomalies:,} anomalies, {counts.invalid:,} unusable lines",
         err=True,
     )
+    if counts.unsettled:
+        click.echo(
+            f"warning: {counts.unsettled:,} fixes went out with their verdict at once: "
+            f"more than {HOLD_LINES:,} lines waited behind them for their track's next fix "
+            "(one stream per track keeps each verdict one fix late)",
+            err=True,
+        )
     sys.stderr.flush()

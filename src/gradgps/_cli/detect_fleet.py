@@ -70,7 +70,7 @@ def detect_fleet(
         TimeRemainingColumn,
     )
 
-    from .._grad.detector import load_grad_model, refuse_settling
+    from .._grad.detector import load_grad_model
     from .._io.read import chunk_rows
     from .._run.chunked import detect_partition
     from .._run.fleet_dask import dask_client
@@ -78,10 +78,7 @@ def detect_fleet(
     from .._run.settings import RunSettings
 
     settings = RunSettings(model_dir, threshold, fmt, column_map(cols), read_options(cols))
-    # A bad model fails here, not in a thousand tasks; so does one whose verdicts settle
-    # one fix late (a vehicle's drive may go on from one of its files to the next, and
-    # each file's output is written before the next is read).
-    refuse_settling(load_grad_model(model_dir), "detect-fleet")
+    load_grad_model(model_dir)  # a bad model fails here, not in a thousand tasks
     with (
         dask_client(scheduler, workers) as client,
         Progress(

@@ -36,6 +36,12 @@ _STATUS_EVERY_S = 10.0
 @option("--input-stream", required=True, metavar="S_IN", help="stream the vehicles write to")
 @option("--output-stream", required=True, metavar="S_OUT", help="stream results go to")
 @option(
+    "--revision-stream",
+    metavar="S_REV",
+    help="where a model whose verdicts settle one fix late revises an earlier result "
+    "(default: S_OUT:revisions)",
+)
+@option(
     "--group",
     required=True,
     metavar="G",
@@ -77,6 +83,7 @@ def serve_redis(
     url: str,
     input_stream: str,
     output_stream: str,
+    revision_stream: str | None,
     group: str,
     consumer: str,
     model_dir: Path | None,
@@ -106,6 +113,7 @@ def serve_redis(
         threshold=threshold,
         batch_size=batch_size,
         lease_ms=lease_ms,
+        revision_stream=revision_stream,
     )
     stop_requested = False
 
@@ -133,6 +141,12 @@ def serve_redis(
     click.echo(
         f"{consumer}: serving {input_stream} -> {output_stream} (group {group}) on {url}", err=True
     )
+    if worker.settles:
+        click.echo(
+            f"{consumer}: this model's verdicts settle one fix late: results are verdicts at "
+            f"once, and {worker.revision_stream} revises those a vehicle's next fix changes",
+            err=True,
+        )
     total = worker.run(
         lambda: stop_requested, block_ms=block_ms, exit_when_idle_s=exit_when_idle_s, on_step=status
     )

@@ -420,18 +420,6 @@ def _state(
     }
 
 
-def refuse_settling(model: GradModel, mode: str) -> None:
-    """Refuse a model whose verdicts settle one fix late (a confirm head,
-    :attr:`PipelineParams.confirm_threshold`) in a mode that writes each fix's verdict
-    at once: it would not give the whole-file verdicts there yet."""
-    if model.params.settles(model.dims):
-        raise ConfigError(
-            f"{model.path}: this model's verdicts settle one fix late (it has a confirm "
-            f"head), which {mode} does not support yet; use gradgps detect without "
-            "--follow, Detector.detect, or Detector.update with Detector.settled"
-        )
-
-
 def track_input(data: Any, **columns: Unpack[ColumnKeywords]) -> TrackInput:
     """``data`` as a :class:`~gradgps._tracks.objects.TrackInput`, its columns named by the
     keywords that :func:`gradgps.detect`, :func:`gradgps.clean` and :class:`Detector`'s

@@ -21,7 +21,7 @@ are flagged, never dropped.
 A model whose verdicts settle one fix late (a confirm head) decides a fix when
 the next fix of its track arrives, possibly in a later chunk: a chunk waits
 until its tracks' last fixes are settled, within :data:`HOLD_ROWS` rows behind
-it (see :func:`detect_csv_in_chunks`).
+it, perhaps in the next file of a vehicle (see :func:`_detect_files`).
 """
 
 from __future__ import annotations
@@ -31,13 +31,14 @@ import contextlib
 import os
 import time
 import uuid
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
+from numpy.typing import NDArray
 
 from .._exceptions import InputError
 from .._grad.detector import MultiTrackDetector, load_grad_model
@@ -96,101 +97,170 @@ def detect_csv_in_chunks(
     ``on_chunk(rows)`` after each chunk (for progress bars), ``on_result(fixes,
     result, frame)`` with each chunk's canonical fixes, result and input rows
     (for events, a report or exports). ``output`` ``None`` writes no table.
-    ``streams``: the per-track detectors to continue (a vehicle whose fixes are split
-    over several files, :func:`detect_partition`); ``None``:
-    fresh ones, from ``settings``.
+    ``streams``: the per-track detectors to continue; ``None``: fresh ones, from
+    ``settings``.
     """
-    started = time.perf_counter()
+    (summary,) = _detect_files(
+        [(input_path, output)],
+        settings=settings,
+        chunk_size=chunk_size,
+        streams=streams,
+        on_start=on_start,
+        on_chunk=on_chunk,
+        on_result=on_result,
+    )
+    return summary
+
+
+@dataclass
+class _FileOutput:
+    """One input file's output while its chunks are detected and written."""
+
+    writer: TableWriter | None
+    header: list[str]
+    checks: InputChecks
+    started: float
+    counts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(4, np.int64))
+    unsettled: int = 0
+    seconds: float = 0.0
+
+
+def _detect_files(
+    files: Sequence[tuple[str | os.PathLike[str], str | os.PathLike[str] | None]],
+    *,
+    settings: RunSettings,
+    chunk_size: int,
+    streams: MultiTrackDetector | None = None,
+    on_start: Callable[[int], None] | None = None,
+    on_chunk: Callable[[int], None] | None = None,
+    on_result: Callable[[pd.DataFrame, pd.DataFrame, pd.DataFrame], None] | None = None,
+) -> list[DetectSummary]:
+    """:func:`detect_csv_in_chunks` for files that continue one another (one vehicle's
+    files, in order): one set of per-track detectors through them all, one
+    :class:`DetectSummary` per file. ``files``: (input, output) pairs.
+
+    Where verdicts settle one fix late, a chunk's rows are final once every track's
+    last fix in it has been settled by that track's next fix, in a later chunk,
+    perhaps of the next file (:meth:`MultiTrackDetector.update_fixes`): chunks wait,
+    in order, until then, or until more than :data:`HOLD_ROWS` rows wait behind
+    them (bounded memory), and then are written with the verdicts at once of the
+    fixes still pending (counted in a warning). So a file's output is complete,
+    and appears, only when the first chunk of the next file has been read.
+    """
     if streams is None:
         streams = MultiTrackDetector(settings.model, threshold=settings.threshold)
-    chunks = table_chunks(
-        Path(input_path), chunk_size, settings.columns, settings.options, settings.fmt
-    )
-    clash = [c for c in RESULT_DTYPES if c in chunks.header]
-    if clash:
-        raise InputError(
-            f"the file already has columns {clash}",
-            source=str(input_path),
-            hint="rename them first: the output adds columns of those names",
-        )
-    if on_start is not None:
-        on_start(chunks.n_rows)
-    counts = np.zeros(3, np.int64)
-    unsettled = [0]
+    validated = validated_rates(load_grad_model(settings.model).config)
     hold_cap = max(chunk_size, HOLD_ROWS)
-    checks = InputChecks(*validated_rates(load_grad_model(settings.model).config))
-    rows = 0
-    with contextlib.ExitStack() as stack:
-        writer = (
-            None
-            if output is None
-            else stack.enter_context(TableWriter(Path(output), RESULT_DTYPES))
-        )
+    outputs: list[_FileOutput] = []
+    held: collections.deque[tuple[int, Any, pd.DataFrame, pd.DataFrame]] = collections.deque()
+    held_rows = 0
+    with contextlib.ExitStack() as all_files:
+        stacks: list[contextlib.ExitStack] = []
 
-        def emit(table: Any, fixes: pd.DataFrame, result: pd.DataFrame) -> None:
-            nonlocal rows
-            counts[:] += (
+        def finish(k: int) -> None:
+            """File ``k`` is written: close its output, under its name now."""
+            out = outputs[k]
+            if out.writer is not None and not out.writer.started:  # no chunk: our columns
+                empty = pd.DataFrame([], columns=out.header, dtype=object)
+                out.writer.write(pd.concat([empty, streams.update_fixes(no_fixes())], axis=1))
+            stacks[k].close()
+            out.seconds = time.perf_counter() - out.started
+
+        def emit(k: int, table: Any, fixes: pd.DataFrame, result: pd.DataFrame) -> None:
+            out = outputs[k]
+            out.counts += (
+                len(result),
                 int(result["anomaly"].sum()),
                 int((result["invalid_reason"] != "").sum()),
                 int(result["alert"].sum()),
             )
-            rows += len(result)
-            if writer is not None:
-                out = pd.concat(
+            if out.writer is not None:
+                joined = pd.concat(
                     [table.frame.reset_index(drop=True), result.reset_index(drop=True)], axis=1
                 )
-                writer.write(out, geometry=table.geometry)
+                out.writer.write(joined, geometry=table.geometry)
             if on_result is not None:
                 on_result(fixes, result, table.frame)
             if on_chunk is not None:
                 on_chunk(len(result))
 
-        # Where verdicts settle one fix late, a chunk's rows are final once every track's
-        # last fix in it has been settled by that track's next fix, in a later chunk
-        # (MultiTrackDetector.update_fixes): chunks wait, in order, until then, or until
-        # more than HOLD_ROWS rows wait behind them (bounded memory), and then are written
-        # with the verdicts at once of the fixes still pending (counted in a warning).
-        held: collections.deque[tuple[Any, pd.DataFrame, pd.DataFrame]] = collections.deque()
-        held_rows = 0
-        for table in chunks:
-            fixes = to_fixes(table)
-            checks.add(fixes)
-            result = streams.update_fixes(fixes)
-            if not streams.settles:
-                emit(table, fixes, result)
-                continue
-            held.append((table, fixes, result))
-            held_rows += len(result)
-            waiting = streams.pending_frames()
-            while held and (
-                id(held[0][2]) not in waiting or held_rows - len(held[0][2]) > hold_cap
-            ):
-                first = held.popleft()
-                held_rows -= len(first[2])
-                unsettled[0] += streams.release(first[2])
-                emit(*first)
+        finished = 0  # files before this one are written and closed
+
+        def finish_before(k: int) -> None:
+            nonlocal finished
+            for done in range(finished, k):
+                finish(done)
+            finished = max(finished, k)
+
+        def release_first() -> None:
+            nonlocal held_rows
+            k, table, fixes, result = held.popleft()
+            held_rows -= len(result)
+            outputs[k].unsettled += streams.release(result)
+            finish_before(k)  # chunks go out in order: the files before k are complete
+            emit(k, table, fixes, result)
+
+        for k, (path, output) in enumerate(files):
+            stack = all_files.enter_context(contextlib.ExitStack())
+            stacks.append(stack)
+            chunks = table_chunks(
+                Path(path), chunk_size, settings.columns, settings.options, settings.fmt
+            )
+            clash = [c for c in RESULT_DTYPES if c in chunks.header]
+            if clash:
+                raise InputError(
+                    f"the file already has columns {clash}",
+                    source=str(path),
+                    hint="rename them first: the output adds columns of those names",
+                )
+            if on_start is not None:
+                on_start(chunks.n_rows)
+            outputs.append(
+                _FileOutput(
+                    None
+                    if output is None
+                    else stack.enter_context(TableWriter(Path(output), RESULT_DTYPES)),
+                    list(chunks.header),
+                    InputChecks(*validated),
+                    time.perf_counter(),
+                )
+            )
+            for table in chunks:
+                fixes = to_fixes(table)
+                outputs[k].checks.add(fixes)
+                result = streams.update_fixes(fixes)
+                held.append((k, table, fixes, result))
+                held_rows += len(result)
+                waiting = streams.pending_frames()
+                while held and (
+                    id(held[0][3]) not in waiting or held_rows - len(held[0][3]) > hold_cap
+                ):
+                    release_first()
         while held:
-            emit(*held.popleft())
-        if writer is not None and not writer.started:  # no chunk: still write our columns
-            empty = pd.DataFrame([], columns=list(chunks.header), dtype=object)
-            writer.write(pd.concat([empty, streams.update_fixes(no_fixes())], axis=1))
+            release_first()
+        finish_before(len(files))
+    return [_summary(out, hold_cap, len(streams.detectors)) for out in outputs]
+
+
+def _summary(out: _FileOutput, hold_cap: int, tracks: int) -> DetectSummary:
+    rows, anomalies, invalid, alerts = (int(n) for n in out.counts)
+    unsettled = (
+        (
+            f"{out.unsettled:,} fixes keep their verdict at once: their track's next fix "
+            f"came more than {hold_cap:,} rows later in the file; a "
+            "larger --chunk-size, or the file sorted by track, gives their settled ones",
+        )
+        if out.unsettled
+        else ()
+    )
     return DetectSummary(
         rows=rows,
-        anomalies=int(counts[0]),
-        invalid=int(counts[1]),
-        alerts=int(counts[2]),
-        tracks=len(streams.detectors),
-        seconds=time.perf_counter() - started,
-        warnings=tuple(checks.warnings())
-        + (
-            (
-                f"{unsettled[0]:,} fixes keep their verdict at once: their track's next fix "
-                f"came more than {hold_cap:,} rows later in the file; a "
-                "larger --chunk-size, or the file sorted by track, gives their settled ones",
-            )
-            if unsettled[0]
-            else ()
-        ),
+        anomalies=anomalies,
+        invalid=invalid,
+        alerts=alerts,
+        tracks=tracks,
+        seconds=out.seconds,
+        warnings=tuple(out.checks.warnings()) + unsettled,
     )
 
 
@@ -206,26 +276,33 @@ def detect_partition(
     (:func:`gradgps._run.chunked.detect_csv_in_chunks`), with one set of per-track
     detectors carried from chunk to chunk and file to file: the results of the files
     joined and detected as one table, in the memory of one chunk (issue 18: a task
-    used to hold its vehicle's every file and batch features at once). Each output
-    file holds its input file's rows. ``settings``: the detector and how the files
-    are read.
+    used to hold its vehicle's every file and batch features at once), settled
+    verdicts included (a file's last fix is settled by the next file's first). Each
+    output file holds its input file's rows; they appear when the vehicle is done.
+    ``settings``: the detector and how the files are read.
     """
-    streams = MultiTrackDetector(settings.model, threshold=settings.threshold)
-    counts = [0, 0, 0, 0]
-    for path, relative in zip(partition.files, partition.outputs, strict=True):
-        target = Path(output_dir) / relative
+    targets = [Path(output_dir) / relative for relative in partition.outputs]
+    partials = [t.parent / f".partial-{uuid.uuid4().hex}-{t.name}" for t in targets]
+    for target in targets:
         target.parent.mkdir(parents=True, exist_ok=True)
-        partial = target.parent / f".partial-{uuid.uuid4().hex}-{target.name}"
-        try:
-            done = detect_csv_in_chunks(
-                path, partial, settings=settings, chunk_size=chunk_size, streams=streams
-            )
+    try:
+        done = _detect_files(
+            list(zip(partition.files, partials, strict=True)),
+            settings=settings,
+            chunk_size=chunk_size,
+        )
+        for partial, target in zip(partials, targets, strict=True):
             partial.replace(target)
-        finally:
+    finally:
+        for partial in partials:
             partial.unlink(missing_ok=True)
-        for k, n in enumerate((done.rows, done.anomalies, done.invalid, done.alerts)):
-            counts[k] += n
-    return PartitionSummary(partition.vehicle, *counts)
+    return PartitionSummary(
+        partition.vehicle,
+        sum(d.rows for d in done),
+        sum(d.anomalies for d in done),
+        sum(d.invalid for d in done),
+        sum(d.alerts for d in done),
+    )
 
 
 def no_fixes() -> pd.DataFrame:

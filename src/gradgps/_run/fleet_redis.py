@@ -44,6 +44,18 @@ pending messages and the vehicles they belong to move to that worker in one
 atomic step, and it is deleted from the group. Consumer names must be
 unique among running workers.
 
+**Verdicts that settle one fix late** (a model with a confirm head, see
+:attr:`gradgps.Detector.settled`). Each message still gets its one output at
+once, its verdict at once. When a vehicle's next usable fix settles the
+verdict of its last one and it differs from what the output said, a
+*revision* goes to the stream :attr:`RedisStreamWorker.revision_stream`: the
+same fields as an output, ``source_id`` naming the earlier message. The
+vehicle's state record keeps the output of its fix still waiting
+(``pending``), and the revision is written in the same transaction as the
+output of the fix that settled it: exactly once too. Outputs with the
+revisions applied (the later one wins) are the verdicts of batch detection;
+a fix whose verdict nothing revised keeps the one of its output.
+
 **Hostile messages and states.** Nothing a producer writes stops a worker.
 Pages are read through :data:`READ_SCRIPT`, which hands every field over as
 hex, so the worker sees the exact bytes whatever the client's decoding: a
@@ -232,6 +244,16 @@ class _Message:
     problem: str = ""  # why the message cannot be used ('' when it can)
 
 
+@dataclass
+class _Track:
+    """What a vehicle's stored state says besides its detector: the id of the last message
+    processed, and the output of its fix whose verdict may still be revised (a model
+    whose verdicts settle one fix late; ``None``: none)."""
+
+    last_id: str
+    pending: dict[str, str] | None = None
+
+
 def _decode_message(message_id: str, hex_fields: list[str]) -> _Message:
     """A message read by :data:`READ_SCRIPT`: its raw fields checked and decoded."""
     raw = [bytes.fromhex(x) for x in hex_fields]
@@ -297,15 +319,49 @@ def _output(message: _Message, verdict: Sequence[Any]) -> dict[str, str]:
     }
 
 
+def _revision(pending: Mapping[str, str], verdict: Sequence[Any]) -> dict[str, str] | None:
+    """The revision of the output ``pending`` to its settled ``verdict`` (fields of a
+    :class:`PointResult` in order); ``None`` where the output already said it."""
+    message = _Message(pending["source_id"], pending["vehicle_id"].encode(), pending)
+    revised = _output(message, verdict)
+    return None if revised == dict(pending) else revised
+
+
+def _pending_output(value: Any) -> dict[str, str] | None:
+    """The ``pending`` entry of a stored state record: an output message's fields."""
+    if value is None:
+        return None
+    if (
+        not isinstance(value, dict)
+        or list(value) != list(OUTPUT_FIELDS)
+        or not all(isinstance(v, str) for v in value.values())
+        or not _MESSAGE_ID.fullmatch(value["source_id"])
+    ):
+        raise ValueError("'pending' is not an output message")
+    return value
+
+
 def _invalid(message: _Message, reason: str) -> dict[str, str]:
     """The output of a message that could not be used."""
     return _output(message, astuple(PointResult.invalid(reason)))
 
 
-def _outputs(messages: list[_Message], result: FleetResult) -> list[dict[str, str]]:
-    """:func:`_output` for a whole :meth:`FleetDetector.update_many` result at once."""
-    columns = (getattr(result, f.name).tolist() for f in fields(PointResult))
-    return [_output(m, v) for m, v in zip(messages, zip(*columns, strict=True), strict=True)]
+def _verdicts(result: FleetResult) -> list[tuple[Any, ...]]:
+    """Each fix's :class:`PointResult` fields, in order, of a :class:`FleetResult`."""
+    return list(zip(*(getattr(result, f.name).tolist() for f in fields(PointResult)), strict=True))
+
+
+def _outputs(
+    messages: list[_Message], result: FleetResult
+) -> list[tuple[dict[str, str], tuple[Any, ...] | None]]:
+    """:func:`_output` for a whole :meth:`FleetDetector.update_many` result at once, each
+    with the verdict the fix settled (of its vehicle's fix before; ``None``: none)."""
+    outputs = [_output(m, v) for m, v in zip(messages, _verdicts(result), strict=True)]
+    if result.settled is None or result.has_settled is None:
+        return [(o, None) for o in outputs]
+    settled = _verdicts(result.settled)
+    has = result.has_settled.tolist()
+    return [(o, v if h else None) for o, v, h in zip(outputs, settled, has, strict=True)]
 
 
 @dataclass(eq=False)
@@ -323,7 +379,9 @@ class RedisStreamWorker:
     each page's fixes are scored in one :meth:`~gradgps.FleetDetector.update_many`.
     Redis keys used: ``<key_prefix>owner``, ``<key_prefix>state:<vehicle>``,
     ``<key_prefix>alive:<consumer>``; the default prefix is
-    ``gradgps:<input_stream>:<group>:``.
+    ``gradgps:<input_stream>:<group>:``. ``revision_stream``: where the revisions of
+    a model whose verdicts settle one fix late go (see the module docstring);
+    default ``<output_stream>:revisions``.
     """
 
     client: redis.Redis
@@ -338,7 +396,9 @@ class RedisStreamWorker:
     lease_ms: int = 10_000
     cache_size: int = 10_000
     key_prefix: str | None = None
+    revision_stream: str | None = None
     _fleet: FleetDetector = field(init=False, repr=False)
+    _settles: bool = field(init=False, repr=False)
     # Vehicles whose state in self._fleet is current, with the id of the last message
     # it has seen (least recently used first).
     _tracks: OrderedDict[bytes, str] = field(init=False, repr=False)
@@ -349,12 +409,13 @@ class RedisStreamWorker:
     def __post_init__(self) -> None:
         if self.key_prefix is None:
             self.key_prefix = f"gradgps:{self.input_stream}:{self.group}:"
+        if self.revision_stream is None:
+            self.revision_stream = f"{self.output_stream}:revisions"
         self._check()
-        from .._grad.detector import FleetDetector, refuse_settling
+        from .._grad.detector import FleetDetector
 
         self._fleet = FleetDetector(self.model, threshold=self.threshold)
-        # One output per message, at once: no place yet for a verdict settled later.
-        refuse_settling(self._fleet.model_, "serve-redis")
+        self._settles = self._fleet.model_.params.settles(self._fleet.model_.dims)
         self._tracks = OrderedDict()
         self._route = self.client.register_script(ROUTE_SCRIPT)
         self._read = self.client.register_script(READ_SCRIPT)
@@ -367,8 +428,9 @@ class RedisStreamWorker:
         for name in ("input_stream", "output_stream", "group", "consumer"):
             if not getattr(self, name):
                 raise ConfigError(f"{name} must not be empty")
-        if self.input_stream == self.output_stream:
-            raise ConfigError("input and output streams must differ")
+        streams = (self.input_stream, self.output_stream, self.revision_stream)
+        if len(set(streams)) < len(streams):
+            raise ConfigError("input, output and revision streams must differ")
         if self.batch_size < 1 or self.lease_ms < 1 or self.cache_size < 1:
             raise ConfigError("batch_size, lease_ms and cache_size must be >= 1")
 
@@ -376,6 +438,11 @@ class RedisStreamWorker:
 
     def _state_key(self, vehicle: bytes) -> bytes:
         return f"{self.key_prefix}state:".encode() + vehicle
+
+    @property
+    def settles(self) -> bool:
+        """Whether the model's verdicts settle one fix late (revisions are written)."""
+        return self._settles
 
     @property
     def dead_letter_stream(self) -> str:
@@ -491,16 +558,17 @@ class RedisStreamWorker:
 
     # -- one page --------------------------------------------------------------
 
-    def _restore(self, vehicle: bytes, stored: bytes | str | None) -> str:
+    def _restore(self, vehicle: bytes, stored: bytes | str | None) -> _Track:
         """Make the vehicle's detector in the fleet the one of its stored state (the cached one
-        when that is current); returns the id of the last message that state has seen.
+        when that is current); returns the id of the last message that state has seen and
+        the output of its fix whose verdict may still be revised.
 
         ``stored``: the state key's raw bytes (``None`` when the key does not exist).
 
         A stored state that cannot be restored gives a fresh detector (and keeps its last
         message id when that is readable), reported on the dead-letter stream.
         """
-        last_id, saved, problem = "0-0", None, ""
+        last_id, saved, problem, pending = "0-0", None, "", None
         if stored is not None:
             try:
                 record = json.loads(stored)
@@ -509,12 +577,13 @@ class RedisStreamWorker:
                 if not _MESSAGE_ID.fullmatch(last_id):
                     last_id = "0-0"
                     raise ValueError("'last_id' is not a stream message id")
-            except (ValueError, KeyError, TypeError, RecursionError) as exc:
+                pending = _pending_output(record.get("pending"))
+            except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as exc:
                 problem = f"stored state is not readable ({type(exc).__name__}: {exc})"
-                saved = None
+                saved = pending = None
         if not problem and self._tracks.get(vehicle) == last_id:
             self._tracks.move_to_end(vehicle)
-            return last_id
+            return _Track(last_id, pending)
         self._forget([vehicle])
         if saved is not None:
             try:
@@ -529,7 +598,7 @@ class RedisStreamWorker:
                     "problem": problem[:2000] + ": the vehicle restarts with a fresh detector",
                 }
             )
-        return last_id
+        return _Track(last_id, pending)
 
     def _forget(self, vehicles: Any) -> None:
         """Drop these vehicles' in-memory states: the stored ones are read again when needed."""
@@ -561,17 +630,21 @@ class RedisStreamWorker:
                         else []
                     )
                     tracks = {v: self._restore(v, s) for v, s in zip(vehicles, stored, strict=True)}
-                    outputs, changed = self._run_detectors(messages, tracks, per_message)
+                    outputs, revisions, changed = self._run_detectors(messages, tracks, per_message)
                     pipe.multi()
                     for fields in outputs:
                         pipe.xadd(self.output_stream, fields)  # type: ignore[arg-type]
+                    for fields in revisions:
+                        pipe.xadd(self.revision_stream, fields)  # type: ignore[arg-type]
                     for entry in self._dead:
                         pipe.xadd(self.dead_letter_stream, entry)  # type: ignore[arg-type]
                     for vehicle in changed:
-                        record = {
-                            "last_id": tracks[vehicle],
+                        record: dict[str, Any] = {
+                            "last_id": tracks[vehicle].last_id,
                             "detector": self._fleet.get_state(vehicle),
                         }
+                        if tracks[vehicle].pending is not None:
+                            record["pending"] = tracks[vehicle].pending
                         pipe.set(self._state_key(vehicle), json.dumps(record))
                     pipe.xack(self.input_stream, self.group, *[m.id for m in messages])
                     pipe.execute()
@@ -591,8 +664,8 @@ class RedisStreamWorker:
                     # ahead of the stored ones, which are what the page is redone from.
                     self._forget(vehicles)
                     raise
-            for vehicle, last_id in tracks.items():
-                self._tracks[vehicle] = last_id
+            for vehicle, track in tracks.items():
+                self._tracks[vehicle] = track.last_id
                 self._tracks.move_to_end(vehicle)
             while len(self._tracks) > self.cache_size:
                 vehicle, _ = self._tracks.popitem(last=False)
@@ -606,21 +679,24 @@ class RedisStreamWorker:
     def _run_detectors(
         self,
         messages: list[_Message],
-        tracks: dict[bytes, str],
+        tracks: dict[bytes, _Track],
         per_message: bool = False,
-    ) -> tuple[list[dict[str, str]], set[bytes]]:
-        """The page's outputs in message order, and the vehicles whose state changed.
+    ) -> tuple[list[dict[str, str]], list[dict[str, str]], set[bytes]]:
+        """The page's outputs in message order, its revisions, and the vehicles whose state
+        changed.
 
-        ``tracks``: each vehicle's last processed message id, moved on here. The page's
-        usable messages are scored in one :meth:`FleetDetector.update_many` (one call per
-        message with ``per_message``, see :meth:`_score`).
+        ``tracks``: each vehicle's last processed message id and output still waiting to
+        be settled, moved on here. The page's usable messages are scored in one
+        :meth:`FleetDetector.update_many` (one call per message with ``per_message``, see
+        :meth:`_score`).
         """
         outputs: list[dict[str, str] | None] = []
         changed: set[bytes] = set()
         fixes: list[_Message] = []
         at: list[int] = []  # where each of ``fixes`` goes in ``outputs``
         for message in messages:
-            if _id_key(message.id) <= _id_key(tracks[message.vehicle]):
+            track = tracks[message.vehicle]
+            if _id_key(message.id) <= _id_key(track.last_id):
                 continue  # already in the output stream: processed before a takeover
             if message.problem:
                 output: dict[str, str] | None = _invalid(message, message.problem)
@@ -635,15 +711,31 @@ class RedisStreamWorker:
                 fixes.append(message)
                 at.append(len(outputs))
             outputs.append(output)
-            tracks[message.vehicle] = message.id
+            track.last_id = message.id
             changed.add(message.vehicle)
+        revisions: list[dict[str, str]] = []
         if fixes:
-            for k, scored in zip(at, self._score(fixes, per_message), strict=True):
-                outputs[k] = scored
-        return [o for o in outputs if o is not None], changed
+            scored = self._score(fixes, per_message)
+            for k, message, (output, settled) in zip(at, fixes, scored, strict=True):
+                outputs[k] = output
+                if not self._settles:
+                    continue
+                # The vehicle's fix still waiting is settled by this one, or final as it is
+                # when this one began a new segment; an unusable fix leaves it waiting.
+                track = tracks[message.vehicle]
+                if settled is not None and track.pending is not None:
+                    revised = _revision(track.pending, settled)
+                    if revised is not None:
+                        revisions.append(revised)
+                if output["invalid_reason"] == "":
+                    track.pending = output
+        return [o for o in outputs if o is not None], revisions, changed
 
-    def _score(self, fixes: list[_Message], per_message: bool) -> list[dict[str, str]]:
-        """The outputs of these messages (in order), scored in one batch; if that raises (a
+    def _score(
+        self, fixes: list[_Message], per_message: bool
+    ) -> list[tuple[dict[str, str], tuple[Any, ...] | None]]:
+        """The outputs of these messages (in order), each with the verdict it settled
+        (:func:`_outputs`), scored in one batch; if that raises (a
         bug must not stop the fleet), :class:`_BatchFailed`, and the page is redone with
         ``per_message``: message by message, a failing one reported and its vehicle
         restarted with a fresh detector."""
@@ -677,7 +769,7 @@ class RedisStreamWorker:
                 text = f"{type(exc).__name__}: {exc}"[:2000]
                 self._fleet.drop(message.vehicle)
                 self._dead.append({"source_id": message.id, "problem": text})
-                outputs.append(_invalid(message, f"could not be processed ({text})"))
+                outputs.append((_invalid(message, f"could not be processed ({text})"), None))
         return outputs
 
 

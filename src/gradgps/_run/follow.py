@@ -1,4 +1,4 @@
-"""Live follow mode: fixes arrive as text lines, a verdict goes out for each line at once.
+"""Live follow mode: fixes arrive as text lines, a verdict goes out for each line as soon as it is final.
 
 ``gradgps detect --follow -`` reads a receiver's output (``cat /dev/ttyACM0``,
 ``tail -f drive.csv``, ``gpspipe -r``) from standard input and writes one CSV
@@ -26,6 +26,17 @@ Input, recognised from the first non-blank line (or named with ``--format``):
   past 86400 at midnight, so a date (or a stale one, the day that just ended
   on the first RMC after midnight) never moves a fix in time.
 
+**A model whose verdicts settle one fix late** (a confirm head, see
+:attr:`gradgps.Detector.settled`): a fix's line goes out when the next fix of
+its track has settled its verdict (or at the end of the input, where the
+verdict at once is final), so the lines are those of batch ``gradgps detect``
+on the same fixes, one fix later. Lines stay in input order: a line waits
+for every line before it. With several tracks in one stream a track that
+stops sending holds the lines behind its last fix, up to
+:data:`HOLD_LINES` lines; past that the oldest goes out with its verdict at
+once (counted in ``FollowCounts.unsettled``). One stream per receiver keeps
+the delay at one fix.
+
 Never a crash on bad input: a line that cannot be parsed (wrong field count,
 a number that is not one, a damaged sentence) gets its output line with
 ``anomaly=1`` and ``invalid_reason`` saying what was wrong, exactly as the
@@ -49,6 +60,7 @@ header's own error: as soon as a second line with as many fields follows it
 
 from __future__ import annotations
 
+import collections
 import csv
 import datetime as dt
 import math
@@ -57,13 +69,14 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from .._exceptions import ConfigError, InputError
-from .._grad.detector import Detector, MultiTrackDetector, load_grad_model, refuse_settling
+from .._grad.detector import Detector, MultiTrackDetector
 from .._io.nmea import STALE_DATE_S, Malformed, parse_gga, parse_rmc, split_sentence
 from .._io.times import iso_utc_one, time_of_day_utc
 from .._result import RESULT_COLUMNS, PointResult
 from .._tracks.track import ColumnMap, resolve_columns, rolled_over
 
 __all__ = [
+    "HOLD_LINES",
     "MAX_BANNER_LINES",
     "NMEA_FIELDS",
     "RESULT_FIELDS",
@@ -77,6 +90,9 @@ NMEA_FIELDS = ("line", "sentence", "time", "lat", "lon", "speed", "heading", "ep
 _DAY = 86400.0
 #: Banner lines skipped before giving up on finding a start (a live stream must not be eaten silently).
 MAX_BANNER_LINES = 100
+#: Lines that may wait behind a line whose verdict has not settled (a model whose verdicts
+#: settle one fix late) before it goes out with its verdict at once.
+HOLD_LINES = 10_000
 
 
 @dataclass
@@ -84,7 +100,9 @@ class FollowCounts:
     """What a follow session saw: result lines written, fixes scored, anomalies, unusable lines.
 
     ``skipped``: banner lines before the first NMEA sentence or CSV header
-    (no output line for them: they precede the output's header).
+    (no output line for them: they precede the output's header). ``unsettled``:
+    fixes written with their verdict at once although a later fix of their track
+    might have settled it (more than :data:`HOLD_LINES` lines waited behind them).
     """
 
     lines: int = 0
@@ -92,6 +110,7 @@ class FollowCounts:
     anomalies: int = 0
     invalid: int = 0
     skipped: int = 0
+    unsettled: int = 0
 
 
 def _text(value: float | int | str | None) -> str:
@@ -101,6 +120,106 @@ def _text(value: float | int | str | None) -> str:
         # Shortest exact form, as the file outputs write floats: the same numbers in every mode.
         return "" if math.isnan(value) else repr(value)
     return str(value)
+
+
+class _Verdict:
+    """A fix's verdict as it stands; the lines that show it (an NMEA instant's GGA and
+    RMC) share one, so settling it changes them all. ``waiting``: a later fix of
+    ``track`` may still settle it."""
+
+    __slots__ = ("result", "track", "waiting")
+
+    def __init__(self, result: PointResult, track: str | None = None) -> None:
+        self.result = result
+        self.track = track
+        self.waiting = False
+
+
+@dataclass
+class _Line:
+    """An output line before its result columns: the input's fields as shown, the verdict
+    they get (``None``: not a fix, ``reason`` says why) and whether the line is the
+    one its fix was scored on (an NMEA instant's second sentence repeats the verdict)."""
+
+    shown: list[str]
+    verdict: _Verdict | None
+    reason: str = ""
+    scored: bool = False
+
+    def fields(self) -> list[str]:
+        if self.verdict is None:
+            return [*self.shown, *_result_fields(None, self.reason)]
+        return [*self.shown, *_result_fields(self.verdict.result)]
+
+
+class _Output:
+    """The result lines, written in input order, each once its verdict is final.
+
+    Where the model decides at once every line goes out as it comes. Where its
+    verdicts settle one fix late (:attr:`Detector.settled`), a usable fix's verdict
+    waits for the next usable fix of its track: that fix's update settles it, or
+    begins a new segment, which leaves it as it was (a segment's last fix keeps its
+    verdict at once, as in batch). A line goes out when it and every line before it
+    are final, or when more than :data:`HOLD_LINES` lines wait behind it.
+    """
+
+    def __init__(self, write: Callable[[str], None], counts: FollowCounts, settles: bool) -> None:
+        self.write = write
+        self.counts = counts
+        self.settles = settles
+        self.lines: collections.deque[_Line] = collections.deque()
+        self.pending: dict[str | None, _Verdict] = {}  # per track, the verdict still waiting
+
+    def verdict(self, track: str | None, det: Detector, result: PointResult) -> _Verdict:
+        """The verdict of a fix ``det`` (its track's detector) has just scored; settles the
+        track's waiting one."""
+        verdict = _Verdict(result, track)
+        if not self.settles:
+            return verdict
+        usable = result.invalid_reason == ""
+        before = self.pending.get(track)
+        settled = det.settled
+        if before is not None and (settled is not None or usable):
+            if settled is not None:
+                before.result = settled
+            before.waiting = False
+            del self.pending[track]
+        if usable:
+            verdict.waiting = True
+            self.pending[track] = verdict
+        return verdict
+
+    def add(self, line: _Line) -> None:
+        self.lines.append(line)
+        lines = self.lines
+        while lines and (
+            lines[0].verdict is None or not lines[0].verdict.waiting or len(lines) > HOLD_LINES
+        ):
+            self._emit(lines.popleft())
+
+    def finish(self) -> None:
+        """The end of the input: the verdicts still waiting are final as they are."""
+        for verdict in self.pending.values():
+            verdict.waiting = False
+        self.pending.clear()
+        while self.lines:
+            self._emit(self.lines.popleft())
+
+    def _emit(self, line: _Line) -> None:
+        verdict, counts = line.verdict, self.counts
+        if verdict is not None and verdict.waiting:  # held too long: final as it is
+            verdict.waiting = False
+            del self.pending[verdict.track]
+            counts.unsettled += 1
+        self.write(_csv_text(line.fields()))
+        counts.lines += 1
+        if verdict is None:
+            counts.invalid += bool(line.reason)
+        elif line.scored and not verdict.result.invalid_reason:
+            counts.fixes += 1
+            counts.anomalies += verdict.result.anomaly
+        else:
+            counts.invalid += bool(verdict.result.invalid_reason)
 
 
 def _result_fields(result: PointResult | None, reason: str = "") -> list[str]:
@@ -151,7 +270,13 @@ def _satellites(text: str | None) -> float | None:
 class _CsvFollower:
     """One CSV stream: the header fixes the columns, then one fix per line."""
 
-    def __init__(self, header: list[str], roles: ColumnMap, streams: MultiTrackDetector) -> None:
+    def __init__(
+        self,
+        header: list[str],
+        roles: ColumnMap,
+        streams: MultiTrackDetector,
+        output: _Output,
+    ) -> None:
         """``roles``: the header's columns as :meth:`_Start.header` resolved them."""
         self.header = header
         self.index = {
@@ -159,6 +284,7 @@ class _CsvFollower:
             for role, name in roles.as_dict().items()
         }
         self.streams = streams
+        self.output = output
 
     def out_header(self) -> list[str]:
         return [*self.header, *RESULT_FIELDS]
@@ -173,11 +299,11 @@ class _CsvFollower:
             return None
         return float(text)  # ValueError reported by the caller, naming the column
 
-    def score(self, fields: list[str]) -> PointResult:
+    def score(self, fields: list[str]) -> _Verdict:
         width = len(self.header)
         if len(fields) != width:
-            return PointResult.invalid(
-                f"expected {width} fields as in the header, got {len(fields)}"
+            return _Verdict(
+                PointResult.invalid(f"expected {width} fields as in the header, got {len(fields)}")
             )
         role = "time"
         try:
@@ -193,12 +319,15 @@ class _CsvFollower:
         except ValueError:
             k = self.index[role] or 0
             what = "a time (seconds or ISO-8601)" if role == "time" else "a number"
-            return PointResult.invalid(
-                f"column {self.header[k]!r} ({role}) is not {what}: {fields[k]!r}"
+            return _Verdict(
+                PointResult.invalid(
+                    f"column {self.header[k]!r} ({role}) is not {what}: {fields[k]!r}"
+                )
             )
         track = self._value(fields, "track") or ""
+        det = self.streams.detector(track)
         # The receiver's own fields are hints: an unreadable one is not reported, as in batch.
-        return self.streams.detector(track).update(
+        result = det.update(
             t,
             lat,
             lon,
@@ -207,12 +336,13 @@ class _CsvFollower:
             fix_quality=self._value(fields, "fix_quality"),
             satellites=_satellites(self._value(fields, "satellites")),
         )
+        return self.output.verdict(track, det, result)
 
-    def line(self, text: str) -> tuple[list[str], PointResult | None]:
+    def line(self, text: str) -> _Line:
         fields = next(csv.reader([text]))
-        result = self.score(fields)
+        verdict = self.score(fields)
         shown = (fields + [""] * len(self.header))[: len(self.header)]
-        return shown + _result_fields(result), result
+        return _Line(shown, verdict, scored=True)
 
 
 @dataclass
@@ -220,10 +350,11 @@ class _NmeaFollower:
     """One NMEA stream: each GGA/RMC sentence scored as it arrives (see the module docstring)."""
 
     detector: Detector
+    output: _Output
     line_number: int = 0
     day_offset: float = 0.0
     last_tod: float = math.nan
-    last_epoch: tuple[float, int, PointResult] | None = None  # (tod, line, verdict)
+    last_epoch: tuple[float, int, _Verdict] | None = None  # (tod, line, verdict)
     #: Unix seconds of the midnight ``day_offset`` counts from, once an RMC gave a date.
     midnight: float = math.nan
 
@@ -250,38 +381,37 @@ class _NmeaFollower:
     def out_header(self) -> list[str]:
         return [*NMEA_FIELDS, *RESULT_FIELDS]
 
-    def line(self, text: str) -> tuple[list[str], PointResult | None]:
+    def line(self, text: str) -> _Line:
         self.line_number += 1
         n = self.line_number
         blank = ["", "", "", "", "", ""]  # time, lat, lon, speed, heading, epoch_line
         pieces = text.split("$")[1:]
         if not pieces:
-            return [str(n), "", *blank, *_result_fields(None, "not a fix sentence")], None
+            return _Line([str(n), "", *blank], None, "not a fix sentence")
         body = pieces[-1]  # a cut-off sentence followed by a whole one: the whole one counts
         try:
             parsed = split_sentence(body)
             if parsed is None:
                 kind = body.split(",", 1)[0][2:5]
-                return [str(n), kind, *blank, *_result_fields(None, "not a fix sentence")], None
+                return _Line([str(n), kind, *blank], None, "not a fix sentence")
             kind, values = parsed
             epoch = (parse_gga if kind == "GGA" else parse_rmc)(values, n)
         except Malformed as exc:
-            result = PointResult.invalid(f"rejected sentence: {exc}")
-            return [str(n), "", *blank, *_result_fields(result)], result
+            rejected = _Verdict(PointResult.invalid(f"rejected sentence: {exc}"))
+            return _Line([str(n), "", *blank], rejected, scored=True)
         tod = epoch.tod
         lat = math.nan if epoch.no_fix else epoch.lat
         lon = math.nan if epoch.no_fix else epoch.lon
-        scored: PointResult | None
         if self.last_epoch is not None and tod == self.last_epoch[0]:
             _, epoch_line, verdict = self.last_epoch
-            scored = None
+            scored = False
         else:
             if rolled_over(self.last_tod, tod):
                 self.day_offset += _DAY  # midnight
             if not math.isnan(tod):
                 self.last_tod = tod
             epoch_line = n
-            verdict = scored = self.detector.update(
+            result = self.detector.update(
                 tod + self.day_offset,
                 lat,
                 lon,
@@ -290,13 +420,15 @@ class _NmeaFollower:
                 fix_quality=0 if epoch.no_fix else epoch.quality,
                 satellites=epoch.satellites,
             )
+            verdict = self.output.verdict(None, self.detector, result)
+            scored = True
             self.last_epoch = (tod, n, verdict)
         self._date(tod, epoch.midnight)
         shown = [
             self._time_text(tod + self.day_offset),
             *(_text(v) for v in (lat, lon, epoch.speed, epoch.course)),
         ]
-        return [str(n), kind, *shown, str(epoch_line), *_result_fields(verdict)], scored
+        return _Line([str(n), kind, *shown, str(epoch_line)], verdict, scored=scored)
 
 
 def _csv_text(fields: list[str]) -> str:
@@ -379,12 +511,14 @@ def follow_lines(
     skipped before the first sentence or header; they are counted in
     ``FollowCounts.skipped`` either way. Raises only for a CSV header without
     time/latitude/longitude columns (or no header at all), or an unsupported
-    ``fmt``.
+    ``fmt``. A model whose verdicts settle one fix late writes each fix's line once
+    the next fix of its track has come (see the module docstring).
     """
     if fmt is not None and fmt not in ("csv", "nmea"):
         raise ConfigError(f"follow mode reads CSV or NMEA lines, not {fmt!r}")
     counts = FollowCounts()
     follower: _CsvFollower | _NmeaFollower | None = None
+    output: _Output | None = None
     start = _Start(fmt, columns)
     for raw in lines:
         text = raw.rstrip("\r\n").lstrip("\ufeff")
@@ -400,25 +534,18 @@ def follow_lines(
                 warn(start.warning("NMEA sentence" if header is None else "CSV header"))
             if header is not None:
                 streams = MultiTrackDetector(model, threshold=threshold)
-                refuse_settling(load_grad_model(model), "--follow")
-                follower = _CsvFollower(*header, streams)
+                output = _Output(write, counts, streams.settles)
+                follower = _CsvFollower(*header, streams, output)
                 write(_csv_text(follower.out_header()))
                 continue
             single = Detector(model, threshold=threshold)
-            refuse_settling(single.model_, "--follow")
-            follower = _NmeaFollower(single)
+            output = _Output(write, counts, single.model_.params.settles(single.model_.dims))
+            follower = _NmeaFollower(single, output)
             write(_csv_text(follower.out_header()))
-        fields, result = follower.line(text)
-        write(_csv_text(fields))
-        counts.lines += 1
-        if result is not None:
-            if result.invalid_reason:
-                counts.invalid += 1
-            else:
-                counts.fixes += 1
-                counts.anomalies += result.anomaly
-        elif fields[-1]:
-            counts.invalid += 1
+        assert output is not None
+        output.add(follower.line(text))
+    if output is not None:
+        output.finish()
     if follower is None and start.skipped:
         start.give_up()
     return counts
