@@ -33,10 +33,13 @@ $(VENV)/.stamp-test: pyproject.toml | $(PY)
 demo: $(VENV)/.stamp-demo
 	$(VENV)/bin/gradgps demo
 
+# The suite runs on TEST_WORKERS processes (pytest-xdist), a test module's tests in one of
+# them (--dist loadscope: a module's fixtures are built once); 2 fits CI's 2 cores.
 test: $(VENV)/.stamp-test
 	$(PY) -m ruff check src tests benchmarks
 	$(PY) -m mypy
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadscope
+TEST_WORKERS ?= 2
 
 # The long fuzz run (tests/test_fuzz.py): 2,500 cases for each of its 14 tests,
 # 35,000 in all; make test runs the same tests with 30 cases each. The compiled
