@@ -265,6 +265,16 @@ def test_follow_and_batch_give_a_settling_model_the_same_rows(tmp_path):
     pd.testing.assert_frame_equal(outputs["follow"], outputs["batch"])
 
 
+def test_a_threshold_given_moves_the_confirm_threshold_too(tmp_path):
+    """``threshold`` is the threshold of the verdicts: where they settle one fix late it
+    is the confirm head's too (else ``--threshold`` would move only the verdicts at once)."""
+    confirm_dir = random_detector_model(tmp_path / "confirm", threshold=0.5, confirm_head=True)
+    params = Detector(confirm_dir, threshold=0.3).model_.params
+    assert (params.threshold, params.confirm_threshold) == (0.3, 0.3)
+    plain = random_detector_model(tmp_path / "plain", threshold=0.5)
+    assert Detector(plain, threshold=0.3).model_.params.confirm_threshold is None
+
+
 def test_a_state_is_refused_under_another_confirm_threshold(tmp_path):
     """The confirm threshold decides the pending fix a settling state holds: a state saved
     under one is refused under another, as for any setting."""

@@ -119,8 +119,8 @@ def test_cli_exports_the_shipped_model_and_it_runs_on_real_features(tmp_path):
     ).features
     weights, config = load_model(loaded.path)
     ours = gru_model(weights, config).predict_stream(features)[0]
-    arch = config["architecture"]  # the shipped network's own sizes (two members: 64, 32)
-    anomaly, bias, _, _ = _run(
+    arch = config["architecture"]  # the shipped network's own sizes (four members: 128, 64)
+    anomaly, bias, _, _, *confirm = _run(
         _session(proto),
         features[:, None, :],
         np.zeros((1, 1, arch["hidden1"]), np.float32),
@@ -128,3 +128,6 @@ def test_cli_exports_the_shipped_model_and_it_runs_on_real_features(tmp_path):
     )
     np.testing.assert_allclose(anomaly[:, 0], ours.anomaly, atol=1e-5)
     np.testing.assert_allclose(bias[:, 0, :], ours.bias, atol=1e-5)
+    assert len(confirm) == (ours.confirm is not None)  # the confirm head, where it has one
+    if ours.confirm is not None:
+        np.testing.assert_allclose(confirm[0][:, 0], ours.confirm, atol=1e-5)

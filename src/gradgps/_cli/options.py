@@ -139,8 +139,9 @@ def model_options(func: F) -> F:
         "--threshold",
         type=float,
         default=None,
-        help="anomaly threshold on the score, in (0, 1)  [default: the model's own; "
-        "the shipped model's is in its config.json]",
+        help="anomaly threshold on the score, in (0, 1), and on the confirm head's read "
+        "where the model has one  [default: the model's own; the shipped model's are in "
+        "its config.json]",
     )(func)
     func = click.option(
         "--model",

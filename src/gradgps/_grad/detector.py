@@ -440,7 +440,8 @@ class Detector:
     the default model shipped with gradgps (trained on simulated drives).
     ``threshold`` overrides the model's anomaly threshold (P(anomaly) at or
     above it is an anomaly; lower finds more faults and raises more false
-    alarms).
+    alarms); where the model's verdicts settle one fix late (a confirm head),
+    its confirm threshold too, so the final verdicts move with it.
     """
 
     def __init__(
@@ -452,12 +453,13 @@ class Detector:
         if threshold is not None:
             if not (0.0 < threshold < 1.0):
                 raise ConfigError(f"threshold must be in (0, 1), got {threshold}")
+            given = {"threshold": float(threshold)}
+            if loaded.params.confirm_threshold is not None:
+                given["confirm_threshold"] = float(threshold)
             loaded = GradModel(
                 **{
                     **loaded.__dict__,
-                    "params": PipelineParams(
-                        **{**loaded.params.__dict__, "threshold": float(threshold)}
-                    ),
+                    "params": PipelineParams(**{**loaded.params.__dict__, **given}),
                 }
             )
         self.model_ = loaded

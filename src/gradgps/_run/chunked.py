@@ -192,11 +192,15 @@ def _detect_files(
                 finish(done)
             finished = max(finished, k)
 
-        def release_first() -> None:
+        def release_first(final: bool = False) -> None:
+            """Write the first held chunk; ``final``: the input has ended, so its fixes
+            still pending are final as they are (each its track's last)."""
             nonlocal held_rows
             k, table, fixes, result = held.popleft()
             held_rows -= len(result)
-            outputs[k].unsettled += streams.release(result)
+            unsettled = streams.release(result)
+            if not final:
+                outputs[k].unsettled += unsettled
             finish_before(k)  # chunks go out in order: the files before k are complete
             emit(k, table, fixes, result)
 
@@ -237,7 +241,7 @@ def _detect_files(
                 ):
                     release_first()
         while held:
-            release_first()
+            release_first(final=True)
         finish_before(len(files))
     return [_summary(out, hold_cap, len(streams.detectors)) for out in outputs]
 
