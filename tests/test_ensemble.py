@@ -8,7 +8,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from gradgps._exceptions import ConfigError  # noqa: E402
-from gradgps._grad.gru import GRUModel  # noqa: E402
+from gradgps._grad.gru import GRUModel, diagonal_blocks  # noqa: E402
 from gradgps._grad.model_io import export_torch  # noqa: E402
 from gradgps._train.torch_gru import (  # noqa: E402
     GRADNet,
@@ -28,6 +28,39 @@ def _nets(k: int, n_features: int = 7, n_bias: int = 4, confirm: bool = False) -
         net.scaler_std.copy_(torch.linspace(0.5, 2, n_features))
         nets.append(net)
     return nets
+
+
+@pytest.mark.parametrize("k", [2, 3, 4])
+def test_the_kernel_multiplies_only_the_members_blocks_and_gives_the_same_bits(k: int) -> None:
+    """A merged network's recurrent and second-layer input weights are block-diagonal:
+    the kernel finds the k members and multiplies only their blocks, and every output
+    equals, bit for bit, the same kernel's dense products (told there is one block)."""
+    merged = merge_networks(_nets(k, confirm=True))
+    weights = export_torch(merged)
+    assert diagonal_blocks(weights) == k
+    mean = merged.scaler_mean.numpy().astype(np.float64)
+    std = merged.scaler_std.numpy().astype(np.float64)
+    model = GRUModel(weights, mean, std, mode="stream")
+    assert model.dims[5] == k
+    feats = np.random.default_rng(k).normal(0, 2, (60, 7))
+    blocks = model.predict(feats)
+    model.dims[5] = 1
+    dense = model.predict(feats)
+    np.testing.assert_array_equal(blocks.anomaly, dense.anomaly)
+    np.testing.assert_array_equal(blocks.bias, dense.bias)
+    assert blocks.confirm is not None
+    assert dense.confirm is not None
+    np.testing.assert_array_equal(blocks.confirm, dense.confirm)
+
+
+def test_one_nonzero_off_the_blocks_makes_the_weights_dense() -> None:
+    """Only exact zeros are skipped: one off-block weight, and the blocks are not used."""
+    weights = export_torch(merge_networks(_nets(2)))
+    assert diagonal_blocks(weights) == 2
+    w = np.array(weights["gru2.weight_hh"])
+    w[0, -1] = 1e-30  # unit 0 of member 0 reading member 1's last unit
+    assert diagonal_blocks({**weights, "gru2.weight_hh": w}) == 1
+    assert diagonal_blocks(export_torch(_nets(1)[0])) == 1
 
 
 @pytest.mark.parametrize("k", [1, 2, 3])

@@ -155,6 +155,8 @@ def test_cli_follow_with_stdin(drive_csv):
     out = [line for line in result.stdout.splitlines() if line]
     assert len(out) == len(drive_csv.splitlines())  # header + one line per fix
     assert f"followed {len(out) - 1} lines" in result.stderr
+    # a live reader is told why a line's answer waits for the next fix
+    assert ("note: this model settles each verdict" in result.stderr) == bool(_lag())
 
 
 def _follow_stdin(stderr: int) -> subprocess.Popen[str]:

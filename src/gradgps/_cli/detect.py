@@ -359,11 +359,20 @@ def _detect_in_chunks(
 
 def _run_follow(input_path: Path, output: Path | None, settings: RunSettings) -> None:
     """``--follow``: follow INPUT ('-' = standard input) and write one CSV line per input line to OUTPUT/stdout."""
+    from .._grad.detector import load_grad_model
     from .._run.follow import HOLD_LINES, follow_lines
 
     def warn(message: str) -> None:
         # At once, before the first result line: a live reader sees why lines were dropped.
         click.echo(f"warning: {message}", err=True)
+
+    model = load_grad_model(settings.model)
+    if model.params.settles(model.dims):  # else a live reader may think the first line lost
+        click.echo(
+            "note: this model settles each verdict with the next fix of its track: "
+            "a fix's line is written when that fix arrives (or at the end of the input)",
+            err=True,
+        )
 
     with contextlib.ExitStack() as stack:
         source = stack.enter_context(

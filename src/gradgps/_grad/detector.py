@@ -100,6 +100,7 @@ from .pipeline import (
     _N_OFF_OUT,
     _N_TAIL_STATE,
     LANES,
+    N_NETWORK_DIMS,
     N_POINT_OUT,
     O_ALERT,
     O_BIAS,
@@ -232,7 +233,7 @@ def _check_buffers(params: PipelineParams) -> None:
             f"a {params.features.long_window_s} s window needs {long_n:,} slots "
             f"at 1 kHz, more than {_MAX_WINDOW_POINTS:,}"
         )
-    P = params.array(MIN_STEP_S, LocalFrame(0.0, 0.0), np.ones(5, np.int64))
+    P = params.array(MIN_STEP_S, LocalFrame(0.0, 0.0), np.ones(N_NETWORK_DIMS, np.int64))
     if P.dtype != np.float64 or not np.isfinite(P).all():
         raise ValueError("a setting is not a finite number")
     new_state(P)

@@ -257,7 +257,7 @@ def reference_windows(
 # and b (C). Matrices are stored transposed so the kernels' inner loop runs
 # over contiguous outputs ("axpy" order): it vectorises without reassociating
 # sums, so results do not depend on compiler flags.
-# ``dims`` = [F, H1, H2, K, 1 with a confirm head else 0].
+# ``dims`` = [F, H1, H2, K, 1 with a confirm head else 0, M networks side by side].
 # ----------------------------------------------------------------------------
 
 
@@ -266,8 +266,9 @@ def pack_parameters(
     mean: np.ndarray,
     std: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(params float32 (P,), dims int64 [F, H1, H2, K, C])`` for the numba kernels
-    (``C`` = 1 when ``weights`` hold the confirm head, else 0)."""
+    """``(params float32 (P,), dims int64 [F, H1, H2, K, C, M])`` for the numba kernels
+    (``C`` = 1 when ``weights`` hold the confirm head, else 0; ``M``: the networks side
+    by side, :func:`diagonal_blocks`)."""
     n_features = int(weights["gru1.weight_ih"].shape[1])
     hidden1 = int(weights["gru1.weight_hh"].shape[1])
     hidden2 = int(weights["gru2.weight_hh"].shape[1])
@@ -284,7 +285,42 @@ def pack_parameters(
     for head in ("anomaly_head", "bias_head") + (("confirm_head",) if confirm else ()):
         parts += [weights[f"{head}.weight"].T, weights[f"{head}.bias"]]
     params = np.concatenate([np.asarray(p, np.float32).ravel() for p in parts])
-    return params, np.array([n_features, hidden1, hidden2, n_bias, int(confirm)], np.int64)
+    members = diagonal_blocks(weights)
+    return params, np.array([n_features, hidden1, hidden2, n_bias, int(confirm), members], np.int64)
+
+
+def diagonal_blocks(weights: Mapping[str, np.ndarray]) -> int:
+    """The number of networks side by side in these weights: the most blocks M for which
+    every weight matrix that reads a hidden state (``gru1.weight_hh``, ``gru2.weight_ih``,
+    ``gru2.weight_hh``) is, gate by gate, block-diagonal, its off-diagonal blocks all
+    exact zeros (:func:`gradgps._train.torch_gru.merge_networks` builds them so); 1 for
+    one network.
+
+    Why: the kernels then skip the zero blocks (:func:`_accumulate_blocks`), which with
+    four members are 3/4 of those matrices' products; skipping adds of exact zeros
+    leaves every sum as it was.
+    """
+    hidden1 = int(weights["gru1.weight_hh"].shape[1])
+    hidden2 = int(weights["gru2.weight_hh"].shape[1])
+    matrices = [
+        (np.asarray(weights["gru1.weight_hh"]), hidden1, hidden1),
+        (np.asarray(weights["gru2.weight_ih"]), hidden2, hidden1),
+        (np.asarray(weights["gru2.weight_hh"]), hidden2, hidden2),
+    ]
+    for members in range(min(hidden1, hidden2), 1, -1):
+        if hidden1 % members or hidden2 % members:
+            continue
+        if all(_block_diagonal(w, rows, cols, members) for w, rows, cols in matrices):
+            return members
+    return 1
+
+
+def _block_diagonal(w: np.ndarray, rows: int, cols: int, members: int) -> bool:
+    """Whether ``w`` (3 gates x ``rows``, ``cols``) has, in every gate, nothing but exact
+    zeros outside its ``members`` diagonal blocks."""
+    r, c = rows // members, cols // members
+    mask = np.kron(np.eye(members, dtype=bool), np.ones((r, c), dtype=bool))
+    return all(not np.any(w[g * rows : (g + 1) * rows][~mask]) for g in range(3))
 
 
 @numba.njit(cache=True)
@@ -329,16 +365,74 @@ def _accumulate(params: Any, o_w: int, n_in: int, g: int, x: Any, acc: Any) -> N
 
 
 @numba.njit(cache=True)
-def _cell(params: Any, o_wih: int, n_in: int, size: int, x: Any, h: Any, gi: Any, gh: Any) -> None:
-    """One GRU step in place on ``h``; weights at ``params[o_wih:]`` in packed order."""
+def _accumulate_blocks(
+    params: Any, o_w: int, n_in: int, size: int, members: int, x: Any, acc: Any
+) -> None:
+    """:func:`_accumulate` for a block-diagonal ``W`` (``members`` networks side by side,
+    :func:`diagonal_blocks`): input ``j`` of member ``m`` reaches only member ``m``'s
+    rows of each of the three gates, so only those products are made. Every sum gets
+    the same nonzero terms in the same order as in :func:`_accumulate` (the skipped
+    ones are exact zeros times a finite hidden state), so the result is the same, bit
+    for bit (tests/test_gru.py)."""
+    g = 3 * size
+    n_own = n_in // members  # inputs per member
+    width = size // members  # each member's rows per gate
+    for m in range(members):
+        j = m * n_own
+        end = j + n_own
+        while j + 4 <= end:
+            x0, x1, x2, x3 = x[j], x[j + 1], x[j + 2], x[j + 3]
+            for q in range(3):
+                o = o_w + q * size + m * width
+                r0 = params[o + j * g : o + j * g + width]
+                r1 = params[o + (j + 1) * g : o + (j + 1) * g + width]
+                r2 = params[o + (j + 2) * g : o + (j + 2) * g + width]
+                r3 = params[o + (j + 3) * g : o + (j + 3) * g + width]
+                a = acc[q * size + m * width : q * size + (m + 1) * width]
+                for i in range(width):
+                    a[i] = (((a[i] + r0[i] * x0) + r1[i] * x1) + r2[i] * x2) + r3[i] * x3
+            j += 4
+        while j < end:
+            xj = x[j]
+            for q in range(3):
+                o = o_w + q * size + m * width
+                row = params[o + j * g : o + j * g + width]
+                a = acc[q * size + m * width : q * size + (m + 1) * width]
+                for i in range(width):
+                    a[i] += row[i] * xj
+            j += 1
+
+
+@numba.njit(cache=True)
+def _cell(
+    params: Any,
+    o_wih: int,
+    n_in: int,
+    size: int,
+    members: int,
+    x: Any,
+    h: Any,
+    gi: Any,
+    gh: Any,
+    input_blocks: bool,
+) -> None:
+    """One GRU step in place on ``h``; weights at ``params[o_wih:]`` in packed order.
+    ``members`` > 1: the recurrent weights are block-diagonal (and the input weights too
+    where ``input_blocks``, the second layer reading the first's members one by one)."""
     g = 3 * size
     o_whh = o_wih + n_in * g
     o_bih = o_whh + size * g
     o_bhh = o_bih + g
     gi[:g] = params[o_bih : o_bih + g]
     gh[:g] = params[o_bhh : o_bhh + g]
-    _accumulate(params, o_wih, n_in, g, x, gi)
-    _accumulate(params, o_whh, size, g, h, gh)
+    if members > 1 and input_blocks:
+        _accumulate_blocks(params, o_wih, n_in, size, members, x, gi)
+    else:
+        _accumulate(params, o_wih, n_in, g, x, gi)
+    if members > 1:
+        _accumulate_blocks(params, o_whh, size, size, members, h, gh)
+    else:
+        _accumulate(params, o_whh, size, g, h, gh)
     for i in range(size):
         r = _sigmoid_scalar(gi[i] + gh[i])
         z = _sigmoid_scalar(gi[size + i] + gh[size + i])
@@ -362,11 +456,13 @@ def _recurrent_step(params: Any, dims: Any, x: Any, state: Any, scratch: Any) ->
     widest = max(hidden1, hidden2)  # gate buffers shared by both layers
     gi = scratch[n_features : n_features + 3 * widest]
     gh = scratch[n_features + 3 * widest : n_features + 6 * widest]
+    members = dims[5]
     o1 = 2 * n_features
     h1 = state[:hidden1]
-    _cell(params, o1, n_features, hidden1, scaled, h1, gi, gh)
+    _cell(params, o1, n_features, hidden1, members, scaled, h1, gi, gh, False)
     o2 = o1 + _layer_size(n_features, hidden1)
-    _cell(params, o2, hidden1, hidden2, h1, state[hidden1 : hidden1 + hidden2], gi, gh)
+    h2 = state[hidden1 : hidden1 + hidden2]
+    _cell(params, o2, hidden1, hidden2, members, h1, h2, gi, gh, True)
 
 
 @numba.njit(cache=True)

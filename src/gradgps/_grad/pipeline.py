@@ -43,7 +43,7 @@ Features are compressed with a signed ``log1p`` before the network's scaler
 (see :func:`_compress`).
 
 Layout of ``P``: core parameters (``N_CORE_PARAMS``), then the rest block
-(offset N_OFFSET_PARAMS, time 3, recovery 2, threshold, period, GRU dims 4, frame 12,
+(offset N_OFFSET_PARAMS, time 3, recovery 2, threshold, period, GRU dims 6, frame 12,
 motion on/off + N_MOTION_PARAMS, drift witness on/off + N_DRIFT_PARAMS).
 Layout of ``S``: core state, offset state, time state, recovery state, drift witness
 state, motion state.
@@ -116,6 +116,7 @@ from .vehicle import CAR_MAX_SPEED
 
 __all__ = [
     "LANES",
+    "N_NETWORK_DIMS",
     "N_POINT_OUT",
     "PERIOD_STEPS",
     "PipelineParams",
@@ -139,8 +140,8 @@ _TIME = _OFF + N_OFFSET_PARAMS
 _REC = _TIME + 3
 _THR = _REC + 2
 _PERIOD, _DIMS = _THR + 1, _THR + 2
-# The network's dims ([F, H1, H2, K, C], gradgps._grad.gru.pack_parameters).
-_N_DIMS = 5
+# The network's dims ([F, H1, H2, K, C, M], gradgps._grad.gru.pack_parameters).
+_N_DIMS = N_NETWORK_DIMS = 6
 _FRAME = _DIMS + _N_DIMS
 # The motion model: an on/off flag, then its parameters (zeros when off).
 _MOTION_ON = _FRAME + N_FRAME_CONSTANTS
@@ -264,6 +265,8 @@ class PipelineParams:
 
     def array(self, period: float, frame: LocalFrame, dims: NDArray[np.int64]) -> FloatArray:
         """``P`` for one segment sampled every ``period`` s in ``frame``, GRU of ``dims``."""
+        if len(dims) != _N_DIMS:  # every slot after them would be read one off
+            raise ConfigError(f"a network's dims have {_N_DIMS} entries, got {len(dims)}")
         core = self.core(period).to_array()
         rest = np.concatenate(
             [
@@ -1107,7 +1110,7 @@ def grad_features(
 ) -> SegmentFeatures:
     """The GRU's input features and REMA's bounds for one segment, from a fresh state."""
     names = pipeline_feature_names(params)
-    dims = np.array([len(names), 0, 0, 0, 0], np.int64)
+    dims = np.array([len(names), 0, 0, 0, 0, 1], np.int64)  # no network: features only
     P = params.array(segment_period(t), frame, dims)
     features, bounds = _features_kernel(
         P, new_state(P), _segment_dt(t), lat, lon, speed, heading, len(names)
