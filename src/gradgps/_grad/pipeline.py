@@ -141,8 +141,8 @@ _REC = _TIME + 3
 _THR = _REC + 2
 _PERIOD, _DIMS = _THR + 1, _THR + 2
 # The network's dims ([F, H1, H2, K, C, M], gradgps._grad.gru.pack_parameters).
-_N_DIMS = N_NETWORK_DIMS = 6
-_FRAME = _DIMS + _N_DIMS
+N_NETWORK_DIMS = 6
+_FRAME = _DIMS + N_NETWORK_DIMS
 # The motion model: an on/off flag, then its parameters (zeros when off).
 _MOTION_ON = _FRAME + N_FRAME_CONSTANTS
 _MOTION = _MOTION_ON + 1
@@ -265,8 +265,8 @@ class PipelineParams:
 
     def array(self, period: float, frame: LocalFrame, dims: NDArray[np.int64]) -> FloatArray:
         """``P`` for one segment sampled every ``period`` s in ``frame``, GRU of ``dims``."""
-        if len(dims) != _N_DIMS:  # every slot after them would be read one off
-            raise ConfigError(f"a network's dims have {_N_DIMS} entries, got {len(dims)}")
+        if len(dims) != N_NETWORK_DIMS:  # every slot after them would be read one off
+            raise ConfigError(f"a network's dims have {N_NETWORK_DIMS} entries, got {len(dims)}")
         core = self.core(period).to_array()
         rest = np.concatenate(
             [
@@ -748,8 +748,8 @@ def _settle(
 @numba.njit(cache=True)
 def _dims(P: FloatArray) -> NDArray[np.int64]:
     rest = P[N_CORE_PARAMS:]
-    dims = np.empty(_N_DIMS, np.int64)
-    for k in range(_N_DIMS):
+    dims = np.empty(N_NETWORK_DIMS, np.int64)
+    for k in range(N_NETWORK_DIMS):
         dims[k] = int(rest[_DIMS + k])
     return dims
 

@@ -116,6 +116,8 @@ def detect_csv_in_chunks(
 class _FileOutput:
     """One input file's output while its chunks are detected and written."""
 
+    #: Holds ``writer`` open; closed when the file is complete (under its name then).
+    stack: contextlib.ExitStack
     writer: TableWriter | None
     header: list[str]
     checks: InputChecks
@@ -155,7 +157,6 @@ def _detect_files(
     held: collections.deque[tuple[int, Any, pd.DataFrame, pd.DataFrame]] = collections.deque()
     held_rows = 0
     with contextlib.ExitStack() as all_files:
-        stacks: list[contextlib.ExitStack] = []
 
         def finish(k: int) -> None:
             """File ``k`` is written: close its output, under its name now."""
@@ -163,7 +164,7 @@ def _detect_files(
             if out.writer is not None and not out.writer.started:  # no chunk: our columns
                 empty = pd.DataFrame([], columns=out.header, dtype=object)
                 out.writer.write(pd.concat([empty, streams.update_fixes(no_fixes())], axis=1))
-            stacks[k].close()
+            out.stack.close()
             out.seconds = time.perf_counter() - out.started
 
         def emit(k: int, table: Any, fixes: pd.DataFrame, result: pd.DataFrame) -> None:
@@ -188,9 +189,9 @@ def _detect_files(
 
         def finish_before(k: int) -> None:
             nonlocal finished
-            for done in range(finished, k):
-                finish(done)
-            finished = max(finished, k)
+            while finished < k:
+                finish(finished)
+                finished += 1
 
         def release_first(final: bool = False) -> None:
             """Write the first held chunk; ``final``: the input has ended, so its fixes
@@ -206,7 +207,6 @@ def _detect_files(
 
         for k, (path, output) in enumerate(files):
             stack = all_files.enter_context(contextlib.ExitStack())
-            stacks.append(stack)
             chunks = table_chunks(
                 Path(path), chunk_size, settings.columns, settings.options, settings.fmt
             )
@@ -221,6 +221,7 @@ def _detect_files(
                 on_start(chunks.n_rows)
             outputs.append(
                 _FileOutput(
+                    stack,
                     None
                     if output is None
                     else stack.enter_context(TableWriter(Path(output), RESULT_DTYPES)),
