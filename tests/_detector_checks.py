@@ -208,3 +208,25 @@ def check_detector(make: Make, fixes: pd.DataFrame) -> None:
     """Every check of the contract that applies to the detectors ``make`` builds."""
     for check in detector_checks(make()):
         check(make, fixes)
+
+
+def final_verdicts(
+    det: Any, fixes: Any, finals: list[PointResult] | None = None
+) -> list[PointResult]:
+    """A stream's final verdicts: each fix's verdict at once (``det.update(*fix)`` for
+    each tuple of ``fixes``), replaced by ``det.settled`` when a later fix settles it
+    (a model whose verdicts settle one fix late). ``finals``: those of the fixes before,
+    read by a stream ``det`` continues (a restored state); extended in place."""
+    finals = [] if finals is None else finals
+    usable = [k for k, r in enumerate(finals) if r.invalid_reason == ""]
+    last = usable[-1] if usable else None  # the fix a settled verdict belongs to
+    for fix in fixes:
+        result = det.update(*fix)
+        settled = det.settled
+        if settled is not None:
+            assert last is not None
+            finals[last] = settled
+        finals.append(result)
+        if result.invalid_reason == "":
+            last = len(finals) - 1
+    return finals

@@ -235,6 +235,7 @@ def test_a_settling_model_revises_outputs_into_the_final_verdicts_exactly_once(
     verdict at once on the output stream, and the revision stream corrects those a
     vehicle's next fix settles differently, exactly once, through a crash and a restart:
     outputs with the revisions applied are each vehicle's final verdicts."""
+    from _detector_checks import final_verdicts
     from _gru_support import random_detector_model
 
     model = random_detector_model(tmp_path / "confirm", confirm_head=True)
@@ -268,13 +269,8 @@ def test_a_settling_model_revises_outputs_into_the_final_verdicts_exactly_once(
     final.update(revisions.set_index("source_id"))
     for vehicle, track in fleet.groupby("track"):
         rows = final[final["vehicle_id"] == vehicle]
-        det = Detector(model)
-        want: list[Any] = []
-        for r in track.itertuples():
-            want.append(det.update(r.t, r.lat, r.lon, r.speed, r.heading))
-            if det.settled is not None:
-                usable = [k for k, w in enumerate(want[:-1]) if w.invalid_reason == ""]
-                want[usable[-1]] = det.settled
+        columns = track[["t", "lat", "lon", "speed", "heading"]]
+        want = final_verdicts(Detector(model), columns.itertuples(index=False))
         assert rows["anomaly"].astype(int).tolist() == [w.anomaly for w in want]
         assert rows["time_type"].tolist() == [w.time_type for w in want]
         np.testing.assert_array_equal(

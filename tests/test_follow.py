@@ -7,12 +7,14 @@ import io
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from _detector_checks import final_verdicts
 from gradgps._cli import main
 from gradgps._data.simulator import simulate_drive
 from gradgps._exceptions import InputError
@@ -85,16 +87,9 @@ def test_one_detector_per_track():
 
 
 def test_nmea_stream_scores_each_epoch_once():
-    lines = []
-    for k in range(5):
-        tod = f"1235{10 + k:02d}"
-        lat = f"4807.{38 + k:03d},N"
-        lines += [
-            _sentence(f"GPGGA,{tod},{lat},01131.000,E,1,08,0.9,545.4,M,46.9,M,,"),
-            _sentence(f"GPRMC,{tod},A,{lat},01131.000,E,022.4,084.4,230394,003.1,W"),
-        ]
+    lines = _nmea_lines()
     lines += [
-        "$GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00*74",
+        GSV,
         "$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*00",
         "garbage",
     ]
@@ -213,11 +208,19 @@ def test_each_result_is_written_before_the_next_line_arrives(drive_csv):
     ]
 
 
-def _nmea_lines(epochs: int = 5) -> list[str]:
+#: A satellites-in-view sentence: not a fix.
+GSV = "$GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00*74"
+
+
+def _nmea_lines(
+    epochs: int = 5, first_second: int = 10, lat_milli: Callable[[int], int] = lambda k: 38 + k
+) -> list[str]:
+    """A GGA and an RMC sentence per instant, one instant a second from 12:35:``first_second``,
+    at latitude 48°07.``lat_milli(k)``' N for instant ``k``."""
     lines = []
     for k in range(epochs):
-        tod = f"1235{10 + k:02d}"
-        lat = f"4807.{38 + k:03d},N"
+        tod = f"1235{first_second + k:02d}"
+        lat = f"4807.{lat_milli(k):03d},N"
         lines += [
             _sentence(f"GPGGA,{tod},{lat},01131.000,E,1,08,0.9,545.4,M,46.9,M,,"),
             _sentence(f"GPRMC,{tod},A,{lat},01131.000,E,022.4,084.4,230394,003.1,W"),
@@ -329,19 +332,6 @@ def test_banner_on_a_live_pipe_does_not_hold_back_results():
     assert sum(line.startswith("warning: skipped 1 line") for line in err.splitlines()) == 1
 
 
-def _final_verdicts(det: Detector, fixes: list[tuple[float, ...]]) -> list[object]:
-    """The final verdict of each fix a stream reads: its verdict at once, replaced by
-    ``Detector.settled`` when a later fix settles it (a model with a confirm head)."""
-    finals: list[object] = []
-    for fix in fixes:
-        finals.append(det.update(*fix))
-        settled = det.settled
-        if settled is not None:
-            usable = [k for k, r in enumerate(finals[:-1]) if r.invalid_reason == ""]
-            finals[usable[-1]] = settled
-    return finals
-
-
 def _result_of(row: dict[str, str]) -> tuple[object, ...]:
     return tuple(row[c] for c in RESULT_FIELDS)
 
@@ -383,7 +373,7 @@ def test_a_settling_model_writes_each_fix_once_its_verdict_is_final(settling_mod
     for track in ("a", "b"):
         mine = [r for r in rows if r["track"] == track and r["time"] != "not a time"]
         fixes = [(float(r["time"]), float(r["lat"]), float(r["lon"])) for r in mine]
-        want = _final_verdicts(Detector(settling_model), fixes)
+        want = final_verdicts(Detector(settling_model), fixes)
         assert [_result_of(r) for r in mine] == [_fields_of(w) for w in want]
     named: list[str] = []
     follow_lines(lines, named.append, model=settling_model, fmt="csv")
@@ -414,16 +404,8 @@ def test_lines_held_too_long_go_out_with_their_verdict_at_once(settling_model, m
 def test_nmea_with_a_settling_model_repeats_the_settled_verdict_on_the_second_sentence(
     settling_model,
 ):
-    lines = []
-    for k in range(30):
-        tod = f"1235{k:02d}"
-        lat = f"4807.{38 + k * 11 + (300 if 12 <= k < 15 else 0):03d},N"
-        lines += [
-            _sentence(f"GPGGA,{tod},{lat},01131.000,E,1,08,0.9,545.4,M,46.9,M,,"),
-            _sentence(f"GPRMC,{tod},A,{lat},01131.000,E,022.4,084.4,230394,003.1,W"),
-        ]
-        if k == 5:
-            lines.append("$GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00*74")
+    lines = _nmea_lines(30, 0, lambda k: 38 + k * 11 + (300 if 12 <= k < 15 else 0))
+    lines.insert(12, GSV)  # after the sixth instant
     out: list[str] = []
     counts = follow_lines(lines, out.append, model=settling_model)
     rows = _rows(out)
@@ -431,7 +413,7 @@ def test_nmea_with_a_settling_model_repeats_the_settled_verdict_on_the_second_se
     scored = [r for r in rows if r["sentence"] == "GGA"]
     start = 12 * 3600 + 35 * 60
     fixes = [(start + k, float(r["lat"]), float(r["lon"])) for k, r in enumerate(scored)]
-    want = _final_verdicts(Detector(settling_model), fixes)
+    want = final_verdicts(Detector(settling_model), fixes)
     assert [_result_of(r) for r in scored] == [_fields_of(w) for w in want]
     repeated = [r for r in rows if r["sentence"] == "RMC"]
     assert [_result_of(r) for r in repeated] == [_result_of(r) for r in scored]

@@ -255,15 +255,11 @@ def confirm_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _settled_rows(det: Detector, fixes: pd.DataFrame, rows: list[Any]) -> list[Any]:
-    """A stream's final verdicts, after ``rows`` (those of the fixes before, from a
-    stream ``det`` continues): each fix's verdict at once, replaced by the settled one
-    when the next fix of its segment arrives."""
-    for r in fixes.itertuples():
-        rows.append(det.update(r.t, r.lat, r.lon))
-        settled = det.settled
-        if settled is not None:
-            rows[-2] = settled
-    return rows
+    """A stream's final verdicts (:func:`_detector_checks.final_verdicts`), after ``rows``
+    (those of the fixes before, from a stream ``det`` continues)."""
+    from _detector_checks import final_verdicts
+
+    return final_verdicts(det, fixes[["t", "lat", "lon"]].itertuples(index=False), rows)
 
 
 def _frame(rows: list[Any], index: pd.Index) -> pd.DataFrame:
