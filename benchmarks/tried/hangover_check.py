@@ -9,6 +9,7 @@ and on the real validation drives at their native rate. The shipped model
 unless ``--model``. Never the test splits. Run:
 
     python benchmarks/tried/hangover_check.py [--model DIR] [--data-dir DIR]
+    python benchmarks/tried/hangover_check.py --longest 10   # the longest run, described
 """
 
 from __future__ import annotations
@@ -58,12 +59,51 @@ def hangover(det: Detector, table: pd.DataFrame, cmap: ColumnMap) -> str:
     )
 
 
+def longest_run(det: Detector, hz: float) -> str:
+    """The simulated drives' longest hang-over run at ``hz``: the episode before it (its
+    fixes, how many of them flagged, the last flagged one) and the run's length."""
+    drives = simulate_fleet(6, 15.0, hz, 4242, imu=False)[["track", "t", "lat", "lon"]]
+    labelled = inject_grad(drives, seed=0, columns=POSITIONS)
+    fixes = to_fixes(labelled, POSITIONS)
+    flag = det.detect(fixes)["anomaly"].to_numpy() == 1
+    truth = labelled["label_anomaly"].to_numpy() == 1
+    track = fixes["track"].to_numpy()
+    best = (0, 0, 0)  # run length, episode start, episode end (rows of fixes)
+    for name in pd.unique(track):
+        rows = np.flatnonzero(track == name)
+        f, y = flag[rows], truth[rows]
+        for i in range(len(rows)):
+            if y[i] and (i + 1 == len(rows) or not y[i + 1]):
+                j = i + 1
+                while j < len(rows) and f[j] and not y[j]:
+                    j += 1
+                start = i
+                while start > 0 and y[start - 1]:
+                    start -= 1
+                best = max(best, (j - i - 1, int(rows[start]), int(rows[i])))
+    n, start, end = best
+    inside = flag[start : end + 1]
+    last = int(np.flatnonzero(inside)[-1]) + 1 if inside.any() else 0
+    return (
+        f"simulated {hz:g} Hz, longest run after a fault: {n} fixes, after an episode of "
+        f"{end - start + 1} fixes ({labelled['label_bias'].iloc[end]}, "
+        f"{labelled['label_time'].iloc[end]}) of which {int(inside.sum())} flagged, the "
+        f"last flagged its fix {last}"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default=None)
     parser.add_argument("--data-dir", default=None)
+    parser.add_argument(
+        "--longest", type=float, metavar="HZ", help="describe the longest run at this rate"
+    )
     args = parser.parse_args()
     det = Detector(args.model)
+    if args.longest is not None:
+        print(longest_run(det, args.longest))
+        return
     print("| drives | false positives | hang-over runs | fixes in them | longest |")
     print("|---|---|---|---|---|")
     for hz in (10.0, 5.0, 1.0):
