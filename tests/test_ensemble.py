@@ -178,6 +178,22 @@ def test_an_ensemble_is_its_members_as_trained_alone_merged() -> None:
         train_ensemble(train, val, config, 0)
 
 
+def test_members_trained_in_parallel_are_the_members_trained_one_by_one() -> None:
+    """``jobs=2`` trains the members in two spawned processes: the same weights bit for
+    bit, the same thresholds, in order (make default-model relies on it)."""
+    config = _tiny_config(confirm_head=True)
+    train, val = _sequences(8, 0), _sequences(3, 1)
+    serial = train_ensemble(train, val, config, 3)
+    parallel = train_ensemble(train, val, config, 3, jobs=2)
+    for name, value in export_torch(serial.network).items():
+        np.testing.assert_array_equal(export_torch(parallel.network)[name], value)
+    assert parallel.anomaly_threshold == serial.anomaly_threshold
+    assert parallel.confirm_threshold == serial.confirm_threshold
+    assert [m.config.seed for m in parallel.members] == [5, 6, 7]
+    with pytest.raises(ConfigError, match="jobs"):
+        train_ensemble(train, val, config, 2, jobs=0)
+
+
 def test_an_ensemble_with_confirm_heads_keeps_the_members_mean_confirm_threshold() -> None:
     config = _tiny_config(confirm_head=True)
     ensemble = train_ensemble(_sequences(8, 0), _sequences(3, 1), config, 2)

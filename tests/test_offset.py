@@ -63,6 +63,36 @@ def test_fault_held_too_long_is_released() -> None:
     assert (out[112:, 2] < 6.0).all()
 
 
+@pytest.mark.parametrize("with_velocity", [True, False])
+def test_a_released_faults_end_leaves_the_other_channels_fault_held(with_velocity: bool) -> None:
+    """A north fault outlives ``max_fault_s`` and is released (remembered); an east jump
+    starts; then the north fault ends with a step back. That step ends the released
+    north fault only: the east offset is still held, and its own end (the step back
+    to the track) leaves no offset behind. The tracker once zeroed both channels at
+    the north return and re-anchored the clean track on the east-shifted fix, so
+    the east jump's end read as a new 50 m jump, held on clean fixes."""
+    dt, east, north, speed, heading = _drive()
+    east, north = east.copy(), north.copy()
+    north[50:100] += 100.0  # released at 80 s (max_fault_s = 30 s), returns at 100
+    east[90:115] -= 50.0
+    sp, hd = (speed, heading) if with_velocity else (None, None)
+    prm = OffsetParams(max_fault_s=30.0)
+    for out in (
+        offset_features(dt, east, north, sp, hd, prm),
+        offset_features_reference(
+            dt, east, north, *((sp, hd) if sp is not None else _nans(len(dt))), prm
+        ),
+    ):
+        assert (out[90:100, 0] < -40.0).all()  # the east jump, held before the return
+        assert (out[100:115, 0] < -40.0).all()  # ... and after it
+        assert (np.abs(out[100:, 1]) < 6.0).all()  # the north fault has ended
+        assert (out[115:, 2] < 6.0).all()  # nothing left once the east jump ends
+
+
+def _nans(n: int) -> tuple[np.ndarray, np.ndarray]:
+    return np.full(n, np.nan), np.full(n, np.nan)
+
+
 def test_clean_drive_keeps_offset_small() -> None:
     dt, east, north, speed, heading = _drive(seed=3)
     for sp, hd in ((speed, heading), (None, None)):

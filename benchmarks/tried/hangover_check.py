@@ -6,9 +6,12 @@ such runs, how many fixes they hold against all false positives, and the
 longest in fixes and seconds. On fresh simulated drives (seed 4242, 6 x 15
 minutes, as ``benchmarks/simulated_check.py`` draws them) at 10, 5 and 1 Hz,
 and on the real validation drives at their native rate. The shipped model
-unless ``--model``. Never the test splits. Run:
+unless ``--model``. Never the test splits. ``--sim-seed`` and ``--inject-seed``
+draw other simulated drives and other faults (training's simulated drives use
+seeds from 30,000 up). Run:
 
     python benchmarks/tried/hangover_check.py [--model DIR] [--data-dir DIR]
+        [--rates 10,5,1,0.5] [--sim-seed N] [--inject-seed K]
     python benchmarks/tried/hangover_check.py --longest 10   # the longest run, described
 """
 
@@ -32,9 +35,9 @@ from _validation_drives import validation_positions
 POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
 
 
-def hangover(det: Detector, table: pd.DataFrame, cmap: ColumnMap) -> str:
+def hangover(det: Detector, table: pd.DataFrame, cmap: ColumnMap, inject_seed: int = 0) -> str:
     """One table row: false positives, hang-over runs, their fixes, the longest."""
-    labelled = inject_grad(table, seed=0, columns=cmap)
+    labelled = inject_grad(table, seed=inject_seed, columns=cmap)
     fixes = to_fixes(labelled, cmap)
     flag = det.detect(fixes)["anomaly"].to_numpy() == 1
     truth = labelled["label_anomaly"].to_numpy() == 1
@@ -59,11 +62,11 @@ def hangover(det: Detector, table: pd.DataFrame, cmap: ColumnMap) -> str:
     )
 
 
-def longest_run(det: Detector, hz: float) -> str:
+def longest_run(det: Detector, hz: float, sim_seed: int = 4242, inject_seed: int = 0) -> str:
     """The simulated drives' longest hang-over run at ``hz``: the episode before it (its
     fixes, how many of them flagged, the last flagged one) and the run's length."""
-    drives = simulate_fleet(6, 15.0, hz, 4242, imu=False)[["track", "t", "lat", "lon"]]
-    labelled = inject_grad(drives, seed=0, columns=POSITIONS)
+    drives = simulate_fleet(6, 15.0, hz, sim_seed, imu=False)[["track", "t", "lat", "lon"]]
+    labelled = inject_grad(drives, seed=inject_seed, columns=POSITIONS)
     fixes = to_fixes(labelled, POSITIONS)
     flag = det.detect(fixes)["anomaly"].to_numpy() == 1
     truth = labelled["label_anomaly"].to_numpy() == 1
@@ -99,18 +102,23 @@ def main() -> None:
     parser.add_argument(
         "--longest", type=float, metavar="HZ", help="describe the longest run at this rate"
     )
+    parser.add_argument("--rates", default="10,5,1", help="simulated rates, Hz, comma-separated")
+    parser.add_argument("--sim-seed", type=int, default=4242)
+    parser.add_argument("--inject-seed", type=int, default=0)
     args = parser.parse_args()
     det = Detector(args.model)
     if args.longest is not None:
-        print(longest_run(det, args.longest))
+        print(longest_run(det, args.longest, args.sim_seed, args.inject_seed))
         return
     print("| drives | false positives | hang-over runs | fixes in them | longest |")
     print("|---|---|---|---|---|")
-    for hz in (10.0, 5.0, 1.0):
-        drives = simulate_fleet(6, 15.0, hz, 4242, imu=False)[["track", "t", "lat", "lon"]]
-        print(f"| simulated {hz:g} Hz | " + hangover(det, drives, POSITIONS))
+    for hz in (float(r) for r in args.rates.split(",")):
+        drives = simulate_fleet(6, 15.0, hz, args.sim_seed, imu=False)
+        drives = drives[["track", "t", "lat", "lon"]]
+        row = hangover(det, drives, POSITIONS, args.inject_seed)
+        print(f"| simulated {hz:g} Hz | " + row)
     for name, data, _, cmap, _ in validation_positions(None, args.data_dir, keep_native=True):
-        print(f"| {name} validation | " + hangover(det, data, cmap))
+        print(f"| {name} validation | " + hangover(det, data, cmap, args.inject_seed))
 
 
 if __name__ == "__main__":

@@ -356,8 +356,13 @@ def offset_features_reference(
             release_age += d[i]
             undone = math.hypot(residual[0] + released[0], residual[1] + released[1])
             tolerance = prm.threshold_m + _RETURN_SLACK * math.hypot(*released)
-            if undone <= tolerance:  # the released fault ends: back on the track
-                offset, clean, age = [0.0, 0.0], [fix[i, 0], fix[i, 1]], 0.0
+            if undone <= tolerance:  # the released fault ends: back on the track in
+                # the channels it held; a fault still held in the other goes on
+                for c in range(2):
+                    if abs(released[c]) > prm.threshold_m or abs(offset[c]) <= prm.threshold_m:
+                        offset[c], clean[c] = 0.0, fix[i, c]
+                if max(abs(offset[0]), abs(offset[1])) <= prm.threshold_m:
+                    age = 0.0
                 released = [0.0, 0.0]
             elif release_age > prm.max_fault_s:
                 released = [0.0, 0.0]
@@ -459,6 +464,15 @@ def _channel(
 
 
 @numba.njit(cache=True)
+def _return(p: FloatArray, state: FloatArray, c: int, fix: float) -> None:
+    """A released fault's end in channel ``c``: where the release held an offset, or no
+    fault is held now, the offset is zero and the clean track re-anchors on the fix."""
+    if abs(state[S_RE + c]) > p[P_THRESHOLD] or abs(state[S_OE + c]) <= p[P_THRESHOLD]:
+        state[S_OE + c] = 0.0
+        state[S_CE + c] = fix
+
+
+@numba.njit(cache=True)
 def offset_step(
     p: FloatArray,
     state: FloatArray,
@@ -524,11 +538,14 @@ def offset_step(
                 state[S_RAGE] += dt
                 undone = np.hypot(out[4] + state[S_RE], out[5] + state[S_RN])
                 if undone <= p[P_THRESHOLD] + _RETURN_SLACK * np.hypot(state[S_RE], state[S_RN]):
-                    state[S_OE] = 0.0
-                    state[S_ON] = 0.0
-                    state[S_AGE] = 0.0
-                    state[S_CE] = east
-                    state[S_CN] = north
+                    # The released fault ends: back on the track in the channels it
+                    # held. A fault still held in the other channel goes on (an
+                    # east offset held through a north burst's return was zeroed
+                    # with it, and the clean track re-anchored on the faulty fix).
+                    _return(p, state, 0, east)
+                    _return(p, state, 1, north)
+                    if max(abs(state[S_OE]), abs(state[S_ON])) <= p[P_THRESHOLD]:
+                        state[S_AGE] = 0.0
                     state[S_RE] = 0.0
                     state[S_RN] = 0.0
                 elif state[S_RAGE] > p[P_MAX_FAULT]:

@@ -179,6 +179,7 @@ def train_grad(
     grad_clip: float = 0.0,
     normal_recall_floor: float = 0.0,
     members: int = 1,
+    jobs: int = 1,
     confirm_head: bool = False,
 ) -> TrainReport:
     """Train on clean tables with injected ``grad`` faults and write a model directory.
@@ -201,7 +202,8 @@ def train_grad(
     ``members`` > 1 trains that many networks (seeds ``seed``, ``seed + 1``, ...)
     on the same features and ships their merged mean
     (:func:`gradgps._train.torch_gru.train_ensemble`); the time budget is each
-    member's. ``confirm_head``: also train the head that judges each point
+    member's; ``jobs`` trains that many members at a time, each in its own process
+    (the same networks, sooner). ``confirm_head``: also train the head that judges each point
     once the next is read (:class:`gradgps._train.torch_gru.GRADNet`).
     """
     import torch
@@ -233,7 +235,7 @@ def train_grad(
         confirm_head=confirm_head,
     )
     with torch.random.fork_rng():
-        trained = train_ensemble(train, val, config, members)
+        trained = train_ensemble(train, val, config, members, jobs=jobs)
     threshold = float(trained.anomaly_threshold)
     tuned = PipelineParams(**{**prm.__dict__, "threshold": threshold})
     cfg = trained.model_config(
