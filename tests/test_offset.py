@@ -89,6 +89,30 @@ def test_a_released_faults_end_leaves_the_other_channels_fault_held(with_velocit
         assert (out[115:, 2] < 6.0).all()  # nothing left once the east jump ends
 
 
+@pytest.mark.parametrize("with_velocity", [True, False])
+def test_a_noise_run_is_not_remembered_as_a_released_fault(with_velocity: bool) -> None:
+    """Three noise fixes 48, 15 and 37 m north, then the track: the tracker's last
+    offset (the third fix's step, 22 m) is ended by the clean-track gate, not by a
+    step that undoes it. An offset the last step set is one noise fix's, not a held
+    fault: remembered as released, a jump starting 30 s later with a step of -34 m
+    (which "undoes" 22 m within its slack) read as that old fault's end, and the
+    whole jump went unseen (its true end then read as a new jump)."""
+    dt, east, north, speed, heading = _drive()
+    north = north.copy()
+    north[100:103] += [48.0, 15.0, 37.0]
+    north[130:190] -= 34.0
+    sp, hd = (speed, heading) if with_velocity else (None, None)
+    for out in (
+        offset_features(dt, east, north, sp, hd),
+        offset_features_reference(
+            dt, east, north, *((sp, hd) if sp is not None else _nans(len(dt)))
+        ),
+    ):
+        assert (out[103:130, 2] < 6.0).all()  # the noise run has ended
+        assert (out[130:190, 2] > 25.0).all()  # the jump is held
+        assert (out[192:, 2] < 6.0).all()  # and ends where it ends
+
+
 def _nans(n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.full(n, np.nan), np.full(n, np.nan)
 

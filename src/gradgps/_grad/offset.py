@@ -66,7 +66,10 @@ other) and per point:
   again: a later unexplained step that undoes the released offset (within
   ``threshold_m`` plus a quarter of it: a held offset leaks a little) is that fault's *end*, a return to the track, not the
   start of a new one. The same holds for a fault whose end was read from the
-  drift gate rather than from a step back. Without that memory a long fault at a low rate (200 s
+  drift gate rather than from a step back, if its offset had been held
+  through the step before (an offset the last step set is one noise fix's,
+  and a later jump's first step that happened to undo it would read as that
+  old fault's end). A released fault's end clears only the channels it held. Without that memory a long fault at a low rate (200 s
   at 0.5 Hz) would be followed by as long a phantom fault once it ended.
 
 So ``offset`` is approximately the current fault offset: it jumps to ``d``
@@ -291,6 +294,10 @@ def offset_features_reference(
             continue
         norm_before = math.hypot(*offset)
         offset_before = [offset[0], offset[1]]
+        # The offset was held through the step into the last fix (that step explained
+        # in both channels), not set by it: only such an offset is worth remembering.
+        allowed = prm.threshold_m + 0.5 * prm.accel_allowance * d[i] ** 2
+        held = all(abs(last_residual[c]) <= allowed for c in range(2))
         for c in range(2):
             before = offset[c]
             in_fault = abs(before) > prm.threshold_m
@@ -347,6 +354,7 @@ def offset_features_reference(
         slack = prm.threshold_m + _RETURN_SLACK * math.hypot(*offset_before)
         if (
             norm_before > prm.threshold_m
+            and held
             and offset == [0.0, 0.0]
             and math.hypot(residual[0] + offset_before[0], residual[1] + offset_before[1]) > slack
         ):
@@ -516,6 +524,8 @@ def offset_step(
             norm_before = np.hypot(state[S_OE], state[S_ON])
             before_e = state[S_OE]
             before_n = state[S_ON]
+            allowed = p[P_THRESHOLD] + 0.5 * p[P_ACCEL] * dt * dt
+            held = abs(state[S_QRE]) <= allowed and abs(state[S_QRN]) <= allowed
             drivable = np.hypot(step_e, step_n) <= CAR_MAX_SPEED * dt
             _channel(p, state, 0, east, pred_e, out[4], step_e, dt, reported, drivable)
             _channel(p, state, 1, north, pred_n, out[5], step_n, dt, reported, drivable)
@@ -526,11 +536,16 @@ def offset_step(
             slack = p[P_THRESHOLD] + _RETURN_SLACK * norm_before
             if (
                 norm_before > p[P_THRESHOLD]
+                and held
                 and state[S_OE] == 0.0
                 and state[S_ON] == 0.0
                 and np.hypot(out[4] + before_e, out[5] + before_n) > slack
             ):
-                # Ended by the drift gate, not by a step back: remember it as released.
+                # Ended by the drift gate, not by a step back: remember it as released,
+                # if the offset had been held through the step before (a jump's
+                # points move like the track). An offset the last step set is one
+                # noise fix's: remembered, a later jump's start that happened to undo
+                # it read as that old fault's end, and the jump went unseen.
                 state[S_RE] = before_e
                 state[S_RN] = before_n
                 state[S_RAGE] = 0.0
