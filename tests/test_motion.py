@@ -262,3 +262,37 @@ def test_the_velocity_is_never_faster_than_a_car() -> None:
     for feats in (motion_batch(t, east, north, 1.0), motion_reference(t, east, north, 1.0)):
         assert feats[:, speed].max() <= CAR_MAX_SPEED + 1e-9
         assert (feats[130:, RUN_S] == 0).all()  # and the track is followed again
+
+
+@pytest.mark.parametrize("noisy", [0, 1])
+def test_a_first_step_no_car_drives_starts_the_segment_afresh(noisy: int) -> None:
+    """At 10 Hz the first or the second fix of a segment 36 m off: the step between them
+    (360 m/s) is no car's, so the model starts afresh at the second fix and follows
+    the track from the next steps. It started its velocity at 364 m/s and rejected
+    the clean fixes after it (kernel and reference alike)."""
+    n = 200
+    t = np.arange(n) * 0.1
+    rng = np.random.default_rng(5)
+    east = 12.0 * t + rng.normal(0, 0.3, n)
+    north = rng.normal(0, 0.3, n)
+    north[noisy] += 36.0
+    for feats in (motion_batch(t, east, north, 0.1), motion_reference(t, east, north, 0.1)):
+        speed = feats[:, MOTION_FEATURES.index("motion_speed")]
+        assert (speed <= 70.0).all()
+        assert (feats[8:, NIS] < 3.0).all()  # the clean fixes fit
+        assert abs(speed[-1] - 12.0) < 1.0
+
+
+def test_after_a_restart_the_model_starts_still() -> None:
+    """A parked car at 1 Hz whose segment opens on two noise fixes (77 m east, then 48 m
+    west): the model starts afresh twice, then still, not at the 48 m/s of the step
+    back from the second noise fix."""
+    n = 60
+    t = np.arange(n, dtype=np.float64)
+    rng = np.random.default_rng(6)
+    east, north = rng.normal(0, 0.3, n), rng.normal(0, 0.3, n)
+    east[1] += 77.0
+    east[2] -= 48.0
+    for feats in (motion_batch(t, east, north, 1.0), motion_reference(t, east, north, 1.0)):
+        assert (feats[4:, MOTION_FEATURES.index("motion_speed")] < 2.0).all()
+        assert (feats[4:, NIS] < 3.0).all()

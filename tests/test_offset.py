@@ -113,6 +113,30 @@ def test_a_noise_run_is_not_remembered_as_a_released_fault(with_velocity: bool) 
         assert (out[192:, 2] < 6.0).all()  # and ends where it ends
 
 
+@pytest.mark.parametrize("with_velocity", [True, False])
+def test_a_first_step_no_car_drives_starts_the_segment_afresh(with_velocity: bool) -> None:
+    """At 10 Hz the second fix of a segment 36 m off: its step (360 m/s) is no car's, so
+    the tracker starts afresh there and again at the next such step, and follows the
+    clean fixes from the third on. It took the step as the velocity (which at a car's
+    acceleration took a minute to come down) and the noisy fix as its clean-track
+    anchor, and held a 36 m offset on the clean fixes after it."""
+    n = 600
+    dt = np.r_[0.0, np.full(n - 1, 0.1)]
+    rng = np.random.default_rng(4)
+    east = 12.0 * np.cumsum(dt) + rng.normal(0, 0.3, n)
+    north = rng.normal(0, 0.3, n)
+    north[1] += 36.0
+    speed, heading = np.full(n, 12.0), np.full(n, 90.0)
+    sp, hd = (speed, heading) if with_velocity else (None, None)
+    for out in (
+        offset_features(dt, east, north, sp, hd),
+        offset_features_reference(
+            dt, east, north, *((sp, hd) if sp is not None else _nans(len(dt)))
+        ),
+    ):
+        assert (out[10:, 2] < 6.0).all()
+
+
 def _nans(n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.full(n, np.nan), np.full(n, np.nan)
 
@@ -237,3 +261,22 @@ def test_the_velocity_estimate_changes_no_faster_than_a_car() -> None:
         offset_features_reference(dt, east, north, nan, nan),
     ):
         assert (out[46:, 2] < 8.0).all()
+
+
+def test_after_a_restart_the_first_drivable_step_teaches_no_velocity() -> None:
+    """A parked car at 1 Hz whose segment opens on two noise fixes (77 m east, then 48 m
+    west): both first steps are faster than a car drives, so the tracker starts afresh
+    twice, and the step back from the second noise fix to the truth (48 m, drivable) must
+    not become the velocity (a first version took it, and the network flagged the
+    parked fixes after it)."""
+    n = 120
+    dt = np.r_[0.0, np.ones(n - 1)]
+    rng = np.random.default_rng(6)
+    east, north = rng.normal(0, 0.3, n), rng.normal(0, 0.3, n)
+    east[1] += 77.0
+    east[2] -= 48.0
+    for out in (
+        offset_features(dt, east, north),
+        offset_features_reference(dt, east, north, *_nans(n)),
+    ):
+        assert (out[4:, 2] < 6.0).all()

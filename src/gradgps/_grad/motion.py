@@ -294,6 +294,14 @@ def motion_step(
     out[7] = step_dt / period
     state[S_PVE] = np.nan
     state[S_PVN] = np.nan
+    if count == 1.0 and (
+        math.hypot(east - state[S_PE], north - state[S_PN]) > CAR_MAX_SPEED * step_dt
+    ):
+        # No car drives the segment's first step: one of its two fixes is off, and
+        # which one the next steps tell. The segment starts afresh here (a noise fix
+        # second in a 10 Hz segment started the velocity at 364 m/s).
+        count = 0.0
+        state[S_OVE] = np.nan  # marks the restart for the next first step
     if count == 0.0:
         state[S_PE] = east
         state[S_PN] = north
@@ -307,10 +315,13 @@ def motion_step(
         state[S_COUNT] = 1.0
         return
     if count == 1.0:
-        state[S_VE] = (east - state[S_PE]) / step_dt
-        state[S_VN] = (north - state[S_PN]) / step_dt
-        state[S_OVE] = state[S_VE]
-        state[S_OVN] = state[S_VN]
+        restarted = np.isnan(state[S_OVE])
+        state[S_OVE] = (east - state[S_PE]) / step_dt
+        state[S_OVN] = (north - state[S_PN]) / step_dt
+        # After a restart the first drivable step may end on the odd fix as well as
+        # start from it: the model starts still and re-acquires from the steps after.
+        state[S_VE] = 0.0 if restarted else state[S_OVE]
+        state[S_VN] = 0.0 if restarted else state[S_OVN]
         state[S_PE] = east
         state[S_PN] = north
         state[S_ZE] = east
@@ -508,13 +519,17 @@ def motion_reference(
     run = 0.0
     still = stop_decel = 0.0
     agreed = False  # the previous observed step agreed with the one before it
+    first = 0  # the segment's first fix, as far as the model knows
+    restarted = False
     for i in range(len(t)):
         z = np.array([east[i], north[i]], dtype=np.float64)
         dt = t[i] - t[i - 1] if i > 0 else math.nan
         dt = dt if (math.isfinite(dt) and dt > 0) else period
         row = np.zeros(N_MOTION_FEATURES)
         row[7] = dt / period
-        if i == 0:
+        if i == 0 or (i == first + 1 and math.hypot(*(z - pos)) > CAR_MAX_SPEED * dt):
+            restarted = i > 0
+            first = i  # a first step no car drives: start afresh here
             pos, vel, last_obs, turn, m2, run = (
                 z.copy(),
                 np.zeros(2),
@@ -525,9 +540,10 @@ def motion_reference(
             )
             rows.append(row)
             continue
-        if i == 1:
-            vel, pos, last_obs = (z - pos) / dt, z.copy(), z.copy()
-            last_step_vel = vel.copy()
+        if i == first + 1:
+            last_step_vel = (z - pos) / dt
+            vel = np.zeros(2) if restarted else last_step_vel.copy()
+            pos, last_obs = z.copy(), z.copy()
             rows.append(row)
             continue
         turn_before = turn

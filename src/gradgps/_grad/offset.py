@@ -81,6 +81,13 @@ big unexplained steps), the residual east/north (m), the distance from the
 fix to the clean-track estimate (m) and the
 age of the suspected fault (s, 0 while none is).
 
+A segment's first step starts the constant-velocity estimate (it explains
+itself), unless no car drives it (faster than ``CAR_MAX_SPEED``): then one of
+its two fixes is off, and the segment starts afresh at the second (again if
+the next step is no car's either); after such a restart the first drivable
+step starts the estimate still, since it may end on the odd fix as well as
+start from it. The motion model does the same.
+
 Everything is causal and translation-invariant (only differences enter).
 :func:`offset_features_reference` is the readable version; the numba kernel
 :func:`offset_step` (state in a small array) is what pipelines use, and a test
@@ -272,6 +279,8 @@ def offset_features_reference(
     last_residual = [0.0, 0.0]
     run = [0, 0]
     before_run = [0.0, 0.0]
+    first = 0  # the segment's first fix, as far as the tracker knows
+    restarted = False
     for i in range(len(fix)):
         if i == 0:
             clean = [fix[0, 0], fix[0, 1]]
@@ -282,14 +291,19 @@ def offset_features_reference(
         reported = all(math.isfinite(v) for v in (*v_prev, *v_now))
         if reported:
             predicted = [(0.5 * (v_prev[c] + v_now[c]) + bias[c]) * d[i] for c in range(2)]
-        elif i == 1:
+        elif i == first + 1:
             predicted = [step[0], step[1]]  # no history yet: the first step explains itself
         else:
             predicted = [cv[c] * d[i] for c in range(2)]
         residual = [step[c] - predicted[c] for c in range(2)]
-        if i == 1:
-            cv = [step[0] / d[i], step[1] / d[i]]  # the velocity estimate starts from it too
-            clean = [fix[1, 0], fix[1, 1]]
+        if i == first + 1:
+            if math.hypot(step[0], step[1]) > CAR_MAX_SPEED * d[i]:
+                first, restarted = i, True  # no car drives it: a fix is off, start afresh
+            elif restarted:
+                cv = [0.0, 0.0]  # after a restart its fix may be the odd one: no velocity
+            else:
+                cv = [step[0] / d[i], step[1] / d[i]]  # the velocity estimate starts from it too
+            clean = [fix[i, 0], fix[i, 1]]
             out[i, 4:6] = residual
             continue
         norm_before = math.hypot(*offset)
@@ -493,6 +507,7 @@ def offset_step(
 ) -> None:
     """One point of the tracker: advance ``state`` and write the features into ``out``."""
     count = state[S_COUNT]
+    restart = False
     if np.isfinite(speed) and np.isfinite(heading):
         h = np.radians(heading)
         ve = speed * np.sin(h)
@@ -518,8 +533,19 @@ def offset_step(
         out[4] = step_e - pred_e
         out[5] = step_n - pred_n
         if count == 1.0:
-            state[S_CVE] = step_e / dt
-            state[S_CVN] = step_n / dt
+            if np.hypot(step_e, step_n) <= CAR_MAX_SPEED * dt:
+                # A restarted segment (NaN velocity) starts still: its first drivable
+                # step may end on the odd fix as well as start from it.
+                restarted = np.isnan(state[S_CVE])
+                state[S_CVE] = 0.0 if restarted else step_e / dt
+                state[S_CVN] = 0.0 if restarted else step_n / dt
+            else:
+                state[S_CVE] = np.nan  # marks the restart for the next first step
+                # No car drives the first step: one of its two fixes is off, and
+                # which one the next steps tell. Start afresh here: anchored on the
+                # first fix, a noise fix second in a 10 Hz segment held a 36 m offset
+                # on the clean fixes after it, and its 364 m/s taught the velocity.
+                restart = True
         else:
             norm_before = np.hypot(state[S_OE], state[S_ON])
             before_e = state[S_OE]
@@ -584,7 +610,7 @@ def offset_step(
     if count <= 1.0:
         state[S_CE] = east
         state[S_CN] = north
-    state[S_COUNT] = count + 1.0
+    state[S_COUNT] = count if restart else count + 1.0
     state[S_E] = east
     state[S_N] = north
     state[S_VE] = ve
