@@ -316,7 +316,7 @@ def offset_features_reference(
             before = offset[c]
             in_fault = abs(before) > prm.threshold_m
             clean[c] += predicted[c]
-            explained = abs(residual[c]) <= prm.threshold_m + 0.5 * prm.accel_allowance * d[i] ** 2
+            explained = abs(residual[c]) <= allowed
             undone = (
                 not explained
                 and in_fault
@@ -406,6 +406,13 @@ def offset_features_reference(
 
 
 @numba.njit(cache=True)
+def _explained_limit(p: FloatArray, dt: float) -> float:
+    """The largest residual a step of ``dt`` seconds explains: ``threshold_m`` plus what a
+    car's braking or speeding up moves it off the predicted step."""
+    return float(p[P_THRESHOLD] + 0.5 * p[P_ACCEL] * dt * dt)
+
+
+@numba.njit(cache=True)
 def _channel(
     p: FloatArray,
     state: FloatArray,
@@ -425,7 +432,7 @@ def _channel(
     before = state[o]
     in_fault = abs(before) > p[P_THRESHOLD]
     state[ce] += predicted
-    explained = abs(residual) <= p[P_THRESHOLD] + 0.5 * p[P_ACCEL] * dt * dt
+    explained = abs(residual) <= _explained_limit(p, dt)
     summed = before + residual
     undone = (
         not explained and in_fault and abs(summed) <= p[P_THRESHOLD] + _RETURN_SLACK * abs(before)
@@ -532,8 +539,9 @@ def offset_step(
             pred_n = state[S_CVN] * dt
         out[4] = step_e - pred_e
         out[5] = step_n - pred_n
+        drivable = np.hypot(step_e, step_n) <= CAR_MAX_SPEED * dt
         if count == 1.0:
-            if np.hypot(step_e, step_n) <= CAR_MAX_SPEED * dt:
+            if drivable:
                 # A restarted segment (NaN velocity) starts still: its first drivable
                 # step may end on the odd fix as well as start from it.
                 restarted = np.isnan(state[S_CVE])
@@ -550,9 +558,8 @@ def offset_step(
             norm_before = np.hypot(state[S_OE], state[S_ON])
             before_e = state[S_OE]
             before_n = state[S_ON]
-            allowed = p[P_THRESHOLD] + 0.5 * p[P_ACCEL] * dt * dt
+            allowed = _explained_limit(p, dt)
             held = abs(state[S_QRE]) <= allowed and abs(state[S_QRN]) <= allowed
-            drivable = np.hypot(step_e, step_n) <= CAR_MAX_SPEED * dt
             _channel(p, state, 0, east, pred_e, out[4], step_e, dt, reported, drivable)
             _channel(p, state, 1, north, pred_n, out[5], step_n, dt, reported, drivable)
             if max(abs(state[S_OE]), abs(state[S_ON])) > p[P_THRESHOLD]:

@@ -829,15 +829,6 @@ def _pick_threshold(truth: np.ndarray, logits: torch.Tensor, config: TrainConfig
     return best_f1_threshold(truth == 1, probability)
 
 
-def _train_member(
-    sequences: Sequence[LabelledSequence],
-    val_sequences: Sequence[LabelledSequence],
-    config: TrainConfig,
-) -> TrainedModel:
-    """One member in a worker process (:func:`train_ensemble` with ``jobs`` > 1)."""
-    return train_model(sequences, val_sequences, config)
-
-
 def _train_members(
     sequences: Sequence[LabelledSequence],
     val_sequences: Sequence[LabelledSequence],
@@ -857,7 +848,7 @@ def _train_members(
     quiet = [replace(c, progress=False) for c in configs]
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
-        futures = [pool.submit(_train_member, sequences, val_sequences, c) for c in quiet]
+        futures = [pool.submit(train_model, sequences, val_sequences, c) for c in quiet]
         with Progress(
             TextColumn("members"),
             BarColumn(),
