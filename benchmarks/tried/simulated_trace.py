@@ -1,0 +1,93 @@
+"""The offset tracker's and motion model's features around one fix of a simulated drive.
+
+For reading a hang-over run that ``hangover_check.py`` found on simulated drives
+(issue 13), never the test splits. Draws the drives and faults as
+``hangover_check.py`` does (6 x 15 min at ``--hz``, simulator seed
+``--sim-seed``, protocol ``grad`` seed ``--inject-seed``, positions only), runs
+the shipped model (or ``--model``), and prints for the fixes ``--before``
+fixes before to ``--after`` after row ``--row`` (a row of the whole table, as
+``hangover_check.py``'s runs are counted) within its segment: the label, the
+verdicts at once and settled, the injected bias and time type, the step (m,
+east and north) and the features (decompressed: metres, seconds). Run:
+
+    python benchmarks/tried/simulated_trace.py --hz 10 --sim-seed 555 --inject-seed 0 \\
+        --row 27428 [--before 60] [--after 45] [--model DIR] [--features a,b,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from gradgps._data.inject import inject_grad
+from gradgps._data.simulator import simulate_fleet
+from gradgps._grad.detector import Detector
+from gradgps._grad.pipeline import grad_features, pipeline_feature_names
+from gradgps._tracks.track import ColumnMap, to_fixes
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # for lagged_verdict_check
+from lagged_verdict_check import at_once as at_once_detector
+
+POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
+DEFAULT_FEATURES = (
+    "offset_east,offset_north,residual_east,residual_north,clean_distance,fault_age_s,"
+    "motion_nis,motion_speed"
+)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--hz", type=float, required=True)
+    parser.add_argument("--sim-seed", type=int, default=4242)
+    parser.add_argument("--inject-seed", type=int, default=0)
+    parser.add_argument("--row", type=int, required=True)
+    parser.add_argument("--before", type=int, default=30)
+    parser.add_argument("--after", type=int, default=30)
+    parser.add_argument("--model", default=None)
+    parser.add_argument("--features", default=DEFAULT_FEATURES)
+    args = parser.parse_args()
+    det = Detector(args.model)
+    drives = simulate_fleet(6, 15.0, args.hz, args.sim_seed, imu=False)
+    labelled = inject_grad(
+        drives[["track", "t", "lat", "lon"]], seed=args.inject_seed, columns=POSITIONS
+    )
+    fixes = to_fixes(labelled, POSITIONS)
+    settled = det.detect(fixes)["anomaly"].to_numpy() == 1
+    once = at_once_detector(det).detect(fixes)["anomaly"].to_numpy() == 1
+    truth = labelled["label_anomaly"].to_numpy() == 1
+    track = fixes["track"].to_numpy()
+    rows = np.flatnonzero(track == track[args.row])
+    _, _, prepared, _ = det._point_outputs(fixes[track == track[args.row]].reset_index(drop=True))
+    names = pipeline_feature_names(det.model_.params)
+    wanted = args.features.split(",")
+    local = args.row - rows[0]
+    for k, sl in prepared.segment_slices():
+        if not sl.start <= local < sl.stop:
+            continue
+        pts = prepared.points.iloc[sl]
+        t, lat, lon = (pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon"))
+        nan = np.full(len(t), np.nan)
+        raw = grad_features(det.model_.params, prepared.segment_frames[k], t, lat, lon, nan, nan)
+        values = np.sign(raw.features) * np.expm1(np.abs(raw.features))
+        east, north = pts["east"].to_numpy(), pts["north"].to_numpy()
+        head = ["fix", "faulty", "at once", "settled", "bias", "time", "step E", "step N", *wanted]
+        print(
+            f"track {track[args.row]}, segment {k} (rows {rows[0] + sl.start}..{rows[0] + sl.stop - 1})"
+        )
+        print("| " + " | ".join(head) + " |")
+        print("|" + "---|" * len(head))
+        first = max(local - sl.start - args.before, 1)
+        for i in range(first, min(local - sl.start + args.after, len(t))):
+            g = rows[0] + sl.start + i
+            cells = [str(g), str(int(truth[g])), str(int(once[g])), str(int(settled[g]))]
+            cells += [str(labelled["label_bias"].iloc[g]), str(labelled["label_time"].iloc[g])]
+            cells += [f"{east[i] - east[i - 1]:.1f}", f"{north[i] - north[i - 1]:.1f}"]
+            cells += [f"{values[i, names.index(f)]:.1f}" for f in wanted]
+            print("| " + " | ".join(cells) + " |")
+
+
+if __name__ == "__main__":
+    main()
