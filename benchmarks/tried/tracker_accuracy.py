@@ -1,0 +1,123 @@
+"""How right the offset tracker is, against the injected truth, without the network.
+
+A change to the offset tracker changes the network's inputs, so judging it by the
+detector's F1 needs a retrain, and one retrain moves the validation numbers by as
+much as the changes tried so far (docs/deviations.md, "both of the rows above, with
+a retrained network"). This judges the tracker's own output instead, against what
+protocol ``grad`` (seed 0) wrote, positions only:
+
+* **phantom**: the share of *normal* fixes (no injected fault in either channel)
+  where the tracker holds an offset above ``threshold_m`` (8 m) in a channel: a
+  clean fix read as displaced, what the network then flags or learns to distrust;
+* **jump held**: the share of fixes inside injected *jump* faults, per faulty
+  channel, where the tracker's offset is within 8 m or a quarter of the true
+  offset (whichever is larger) of the true offset in that channel: the fault the
+  tracker exists to remember.
+
+On the real validation drives (``--period 0``: native rate; ``--period 2``: 0.5
+Hz), never the test splits, and on fresh simulated drives at 10, 1 and 0.5 Hz
+(seed 4242, 6 x 15 minutes, as ``hangover_check.py`` draws them). The tracker's
+parameters are the shipped model's (or ``--model``'s). Run with the sources to
+judge on ``PYTHONPATH``:
+
+    python benchmarks/tried/tracker_accuracy.py [--model DIR] [--period 0|2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from gradgps._data.inject import inject_grad
+from gradgps._data.simulator import simulate_fleet
+from gradgps._grad.detector import Detector
+from gradgps._grad.pipeline import grad_features, pipeline_feature_names
+from gradgps._tracks.track import ColumnMap, to_fixes
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+from _validation_drives import validation_positions
+
+POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
+THRESHOLD_M = 8.0
+_M_PER_DEG = 111_320.0
+
+
+def drives(period: float | None) -> Iterator[tuple[str, pd.DataFrame, ColumnMap]]:
+    """(name, table, column map): simulated drives, then the validation drives."""
+    for hz in (10.0, 1.0, 0.5):
+        sim = simulate_fleet(6, 15.0, hz, 4242, imu=False)[["track", "t", "lat", "lon"]]
+        yield f"simulated {hz:g} Hz", sim, POSITIONS
+    for name, data, _, cmap, _ in validation_positions(period, keep_native=True):
+        yield name, data, cmap
+
+
+def tracker_offsets(det: Detector, fixes: pd.DataFrame) -> np.ndarray:
+    """Per fix of ``fixes``: the tracker's offset east and north (m)."""
+    names = pipeline_feature_names(det.model_.params)
+    cols = [names.index("offset_east"), names.index("offset_north")]
+    out = np.zeros((len(fixes), 2))
+    track = fixes["track"].to_numpy()
+    for name in pd.unique(track):
+        idx = np.flatnonzero(track == name)
+        _, _, prepared, _ = det._point_outputs(fixes.iloc[idx].reset_index(drop=True))
+        for k, sl in prepared.segment_slices():
+            pts = prepared.points.iloc[sl]
+            t, lat, lon = (pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon"))
+            nan = np.full(len(t), np.nan)
+            raw = grad_features(
+                det.model_.params, prepared.segment_frames[k], t, lat, lon, nan, nan
+            )
+            values = np.sign(raw.features) * np.expm1(np.abs(raw.features))
+            out[idx[sl]] = values[:, cols]
+    return out
+
+
+def accuracy(det: Detector, table: pd.DataFrame, cmap: ColumnMap) -> tuple[float, float, int]:
+    """(phantom share of normal fixes, jump-held share of jump-faulty channel fixes,
+    jump-faulty channel fixes)."""
+    labelled = inject_grad(table, seed=0, columns=cmap)
+    fixes = to_fixes(labelled, cmap)
+    offset = tracker_offsets(det, fixes)
+    lat_true = table[cmap.lat].to_numpy(np.float64)
+    cos = np.cos(np.radians(lat_true))
+    true = (
+        np.stack(
+            [
+                (labelled[cmap.lon].to_numpy(np.float64) - table[cmap.lon].to_numpy()) * cos,
+                labelled[cmap.lat].to_numpy(np.float64) - lat_true,
+            ],
+            1,
+        )
+        * _M_PER_DEG
+    )
+    normal = labelled["label_anomaly"].to_numpy() == 0
+    phantom = float(np.mean((np.abs(offset[normal]) > THRESHOLD_M).any(axis=1)))
+    held, count = 0, 0
+    for c, channel in enumerate(("lon", "lat")):  # east is longitude, north latitude
+        jump = labelled[f"label_bias_{channel}"].to_numpy() == "jump"
+        error = np.abs(offset[jump, c] - true[jump, c])
+        held += int(np.sum(error <= np.maximum(THRESHOLD_M, 0.25 * np.abs(true[jump, c]))))
+        count += int(jump.sum())
+    return phantom, held / max(count, 1), count
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", default=None)
+    parser.add_argument("--period", type=float, default=0.0, help="seconds; 0 = native")
+    args = parser.parse_args()
+    det = Detector(args.model)
+    print("| drives | normal fixes with a phantom offset | jump fixes held (channel fixes) |")
+    print("|---|---|---|")
+    for name, table, cmap in drives(None if args.period == 0 else args.period):
+        phantom, held, count = accuracy(det, table, cmap)
+        print(f"| {name} | {100 * phantom:.2f} % | {100 * held:.1f} % ({count:,}) |")
+
+
+if __name__ == "__main__":
+    main()
