@@ -17,10 +17,12 @@ protocol ``grad`` (seed 0) wrote, positions only:
 On the real validation drives (``--period 0``: native rate; ``--period 2``: 0.5
 Hz), never the test splits, and on fresh simulated drives at 10, 1 and 0.5 Hz
 (seed 4242, 6 x 15 minutes, as ``hangover_check.py`` draws them). The tracker's
-parameters are the shipped model's (or ``--model``'s). Run with the sources to
-judge on ``PYTHONPATH``:
+parameters are the shipped model's (or ``--model``'s). ``--where`` adds, per set
+of drives, the phantom share on the same drives untouched and where the phantoms
+of the injected drives sit: how many fixes after an episode's end (1, 2-3, 4-10,
+11-30, 31-100, more). Run with the sources to judge on ``PYTHONPATH``:
 
-    python benchmarks/tried/tracker_accuracy.py [--model DIR] [--period 0|2]
+    python benchmarks/tried/tracker_accuracy.py [--model DIR] [--period 0|2] [--where]
 """
 
 from __future__ import annotations
@@ -77,6 +79,30 @@ def tracker_offsets(det: Detector, fixes: pd.DataFrame) -> np.ndarray:
     return out
 
 
+AFTER_BINS = (1, 2, 4, 11, 31, 101)  # fixes after an episode's end: 1, 2-3, ..., 101+
+
+
+def phantom_places(det: Detector, table: pd.DataFrame, cmap: ColumnMap) -> tuple[float, list[int]]:
+    """(phantom share on the untouched drives, the injected drives' phantoms counted by
+    how many fixes after an episode's end they sit, in :data:`AFTER_BINS`)."""
+    untouched = tracker_offsets(det, to_fixes(table, cmap))
+    clean_share = float(np.mean((np.abs(untouched) > THRESHOLD_M).any(axis=1)))
+    labelled = inject_grad(table, seed=0, columns=cmap)
+    fixes = to_fixes(labelled, cmap)
+    offset = tracker_offsets(det, fixes)
+    faulty = labelled["label_anomaly"].to_numpy() == 1
+    phantom = (np.abs(offset) > THRESHOLD_M).any(axis=1) & ~faulty
+    track = fixes["track"].to_numpy()
+    after = np.full(len(faulty), np.iinfo(np.int64).max // 2)
+    for name in pd.unique(track):
+        since = np.iinfo(np.int64).max // 2
+        for i in np.flatnonzero(track == name):
+            since = 0 if faulty[i] else since + 1
+            after[i] = since
+    counts = np.histogram(after[phantom], bins=[*AFTER_BINS, np.iinfo(np.int64).max])[0]
+    return clean_share, counts.tolist()
+
+
 def accuracy(det: Detector, table: pd.DataFrame, cmap: ColumnMap) -> tuple[float, float, int]:
     """(phantom share of normal fixes, jump-held share of jump-faulty channel fixes,
     jump-faulty channel fixes)."""
@@ -110,13 +136,23 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default=None)
     parser.add_argument("--period", type=float, default=0.0, help="seconds; 0 = native")
+    parser.add_argument("--where", action="store_true", help="untouched drives, and where")
     args = parser.parse_args()
     det = Detector(args.model)
-    print("| drives | normal fixes with a phantom offset | jump fixes held (channel fixes) |")
-    print("|---|---|---|")
+    head = "| drives | normal fixes with a phantom offset | jump fixes held (channel fixes) |"
+    rule = "|---|---|---|"
+    if args.where:
+        head += " untouched drives: phantoms | phantoms 1 / 2-3 / 4-10 / 11-30 / 31-100 / more fixes after an episode |"
+        rule += "---|---|"
+    print(head)
+    print(rule)
     for name, table, cmap in drives(None if args.period == 0 else args.period):
         phantom, held, count = accuracy(det, table, cmap)
-        print(f"| {name} | {100 * phantom:.2f} % | {100 * held:.1f} % ({count:,}) |")
+        row = f"| {name} | {100 * phantom:.2f} % | {100 * held:.1f} % ({count:,}) |"
+        if args.where:
+            clean_share, counts = phantom_places(det, table, cmap)
+            row += f" {100 * clean_share:.2f} % | {' / '.join(str(n) for n in counts)} |"
+        print(row)
 
 
 if __name__ == "__main__":
