@@ -32,11 +32,12 @@ import pandas as pd
 
 from gradgps._data.inject import inject_grad
 from gradgps._grad.detector import Detector
-from gradgps._grad.pipeline import grad_features, pipeline_feature_names
+from gradgps._grad.pipeline import pipeline_feature_names
 from gradgps._tracks.track import to_fixes
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helpers
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for lagged_verdict_check
+from _segment_features import segment_features
 from _validation_drives import validation_positions
 from lagged_verdict_check import at_once as at_once_detector
 
@@ -44,7 +45,7 @@ FEATURES = ("offset_norm", "clean_distance", "fault_age_s", "motion_nis")
 _M_PER_DEG = 111_320.0
 
 
-def _episode_distances(truth: np.ndarray, track: np.ndarray) -> tuple[np.ndarray, ...]:
+def episode_distances(truth: np.ndarray, track: np.ndarray) -> tuple[np.ndarray, ...]:
     """Per fix: its index inside its episode (-1 outside), and for normal fixes how
     many fixes after an episode's end and before the next one's start (a large number
     where there is none)."""
@@ -74,19 +75,8 @@ def _after_features(det: Detector, fixes: pd.DataFrame, rows: np.ndarray) -> np.
     names = pipeline_feature_names(det.model_.params)
     want = [names.index(f) for f in FEATURES]
     out = np.full((len(fixes), len(FEATURES)), np.nan)
-    track = fixes["track"].to_numpy()
-    for name in pd.unique(track[rows]):
-        idx = np.flatnonzero(track == name)
-        _, _, prepared, _ = det._point_outputs(fixes.iloc[idx].reset_index(drop=True))
-        for k, sl in prepared.segment_slices():
-            pts = prepared.points.iloc[sl]
-            t, lat, lon = (pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon"))
-            nan = np.full(len(t), np.nan)
-            raw = grad_features(
-                det.model_.params, prepared.segment_frames[k], t, lat, lon, nan, nan
-            )
-            values = np.sign(raw.features) * np.expm1(np.abs(raw.features))
-            out[idx[sl]] = values[:, want]
+    for seg_rows, _, values in segment_features(det, fixes):
+        out[seg_rows] = values[:, want]
     return out[rows]
 
 
@@ -107,7 +97,7 @@ def main() -> None:
         once = once_det.detect(fixes)["anomaly"].to_numpy() == 1
         truth = labelled["label_anomaly"].to_numpy() == 1
         track = fixes["track"].to_numpy()
-        inside, after, before = _episode_distances(truth, track)
+        inside, after, before = episode_distances(truth, track)
         cos = np.cos(np.radians(data["lat"].to_numpy()))
         off = np.hypot(
             (labelled["lat"] - data["lat"]).to_numpy() * _M_PER_DEG,

@@ -34,11 +34,12 @@ import pandas as pd
 from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import simulate_fleet
 from gradgps._grad.detector import Detector
-from gradgps._grad.pipeline import grad_features, pipeline_feature_names
+from gradgps._grad.pipeline import pipeline_feature_names
 from gradgps._tracks.track import ColumnMap, to_fixes
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helpers
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for lagged_verdict_check
+from _segment_features import segment_features
 from _validation_drives import validation_positions
 from lagged_verdict_check import at_once as at_once_detector
 
@@ -118,28 +119,20 @@ def main() -> None:
     if args.row is None:
         raise SystemExit("give --row (or --errors)")
     rows = np.flatnonzero(track == track[args.row])
-    _, _, prepared, _ = det._point_outputs(fixes[track == track[args.row]].reset_index(drop=True))
     names = pipeline_feature_names(det.model_.params)
     wanted = args.features.split(",")
     local = args.row - rows[0]
-    for k, sl in prepared.segment_slices():
-        if not sl.start <= local < sl.stop:
+    for k, (seg, pts, values) in enumerate(segment_features(det, fixes.iloc[rows])):
+        if not seg[0] <= local <= seg[-1]:
             continue
-        pts = prepared.points.iloc[sl]
-        t, lat, lon = (pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon"))
-        nan = np.full(len(t), np.nan)
-        raw = grad_features(det.model_.params, prepared.segment_frames[k], t, lat, lon, nan, nan)
-        values = np.sign(raw.features) * np.expm1(np.abs(raw.features))
         east, north = pts["east"].to_numpy(), pts["north"].to_numpy()
         head = ["fix", "faulty", "at once", "settled", "bias", "time", "step E", "step N", *wanted]
-        print(
-            f"track {track[args.row]}, segment {k} (rows {rows[0] + sl.start}..{rows[0] + sl.stop - 1})"
-        )
+        print(f"track {track[args.row]}, segment {k} (rows {rows[seg[0]]}..{rows[seg[-1]]})")
         print("| " + " | ".join(head) + " |")
         print("|" + "---|" * len(head))
-        first = max(local - sl.start - args.before, 1)
-        for i in range(first, min(local - sl.start + args.after, len(t))):
-            g = rows[0] + sl.start + i
+        at = local - seg[0]
+        for i in range(max(at - args.before, 1), min(at + args.after, len(seg))):
+            g = rows[seg[i]]
             cells = [str(g), str(int(truth[g])), str(int(once[g])), str(int(settled[g]))]
             cells += [str(labelled["label_bias"].iloc[g]), str(labelled["label_time"].iloc[g])]
             cells += [f"{east[i] - east[i - 1]:.1f}", f"{north[i] - north[i - 1]:.1f}"]

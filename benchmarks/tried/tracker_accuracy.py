@@ -38,11 +38,14 @@ import pandas as pd
 from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import simulate_fleet
 from gradgps._grad.detector import Detector
-from gradgps._grad.pipeline import grad_features, pipeline_feature_names
+from gradgps._grad.pipeline import pipeline_feature_names
 from gradgps._tracks.track import ColumnMap, to_fixes
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helpers
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # for error_places
+from _segment_features import segment_features
 from _validation_drives import validation_positions
+from error_places import episode_distances
 
 POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
 THRESHOLD_M = 8.0
@@ -63,52 +66,20 @@ def tracker_offsets(det: Detector, fixes: pd.DataFrame) -> np.ndarray:
     names = pipeline_feature_names(det.model_.params)
     cols = [names.index("offset_east"), names.index("offset_north")]
     out = np.zeros((len(fixes), 2))
-    track = fixes["track"].to_numpy()
-    for name in pd.unique(track):
-        idx = np.flatnonzero(track == name)
-        _, _, prepared, _ = det._point_outputs(fixes.iloc[idx].reset_index(drop=True))
-        for k, sl in prepared.segment_slices():
-            pts = prepared.points.iloc[sl]
-            t, lat, lon = (pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon"))
-            nan = np.full(len(t), np.nan)
-            raw = grad_features(
-                det.model_.params, prepared.segment_frames[k], t, lat, lon, nan, nan
-            )
-            values = np.sign(raw.features) * np.expm1(np.abs(raw.features))
-            out[idx[sl]] = values[:, cols]
+    for rows, _, values in segment_features(det, fixes):
+        out[rows] = values[:, cols]
     return out
 
 
 AFTER_BINS = (1, 2, 4, 11, 31, 101)  # fixes after an episode's end: 1, 2-3, ..., 101+
 
 
-def phantom_places(det: Detector, table: pd.DataFrame, cmap: ColumnMap) -> tuple[float, list[int]]:
-    """(phantom share on the untouched drives, the injected drives' phantoms counted by
-    how many fixes after an episode's end they sit, in :data:`AFTER_BINS`)."""
-    untouched = tracker_offsets(det, to_fixes(table, cmap))
-    clean_share = float(np.mean((np.abs(untouched) > THRESHOLD_M).any(axis=1)))
-    labelled = inject_grad(table, seed=0, columns=cmap)
-    fixes = to_fixes(labelled, cmap)
-    offset = tracker_offsets(det, fixes)
-    faulty = labelled["label_anomaly"].to_numpy() == 1
-    phantom = (np.abs(offset) > THRESHOLD_M).any(axis=1) & ~faulty
-    track = fixes["track"].to_numpy()
-    after = np.full(len(faulty), np.iinfo(np.int64).max // 2)
-    for name in pd.unique(track):
-        since = np.iinfo(np.int64).max // 2
-        for i in np.flatnonzero(track == name):
-            since = 0 if faulty[i] else since + 1
-            after[i] = since
-    counts = np.histogram(after[phantom], bins=[*AFTER_BINS, np.iinfo(np.int64).max])[0]
-    return clean_share, counts.tolist()
-
-
-def accuracy(det: Detector, table: pd.DataFrame, cmap: ColumnMap) -> tuple[float, float, int]:
+def accuracy(
+    labelled: pd.DataFrame, table: pd.DataFrame, cmap: ColumnMap, offset: np.ndarray
+) -> tuple[float, float, int]:
     """(phantom share of normal fixes, jump-held share of jump-faulty channel fixes,
-    jump-faulty channel fixes)."""
-    labelled = inject_grad(table, seed=0, columns=cmap)
-    fixes = to_fixes(labelled, cmap)
-    offset = tracker_offsets(det, fixes)
+    jump-faulty channel fixes) of the tracker's ``offset`` on ``labelled``, the
+    injected ``table``."""
     lat_true = table[cmap.lat].to_numpy(np.float64)
     cos = np.cos(np.radians(lat_true))
     true = (
@@ -132,6 +103,16 @@ def accuracy(det: Detector, table: pd.DataFrame, cmap: ColumnMap) -> tuple[float
     return phantom, held / max(count, 1), count
 
 
+def phantom_places(labelled: pd.DataFrame, fixes: pd.DataFrame, offset: np.ndarray) -> list[int]:
+    """The phantoms of the tracker's ``offset`` on the injected drives, counted by how
+    many fixes after an episode's end they sit, in :data:`AFTER_BINS`."""
+    faulty = labelled["label_anomaly"].to_numpy() == 1
+    phantom = (np.abs(offset) > THRESHOLD_M).any(axis=1) & ~faulty
+    _, after, _ = episode_distances(faulty, fixes["track"].to_numpy())
+    counts = np.histogram(after[phantom], bins=[*AFTER_BINS, np.iinfo(np.int64).max])[0]
+    return [int(n) for n in counts]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default=None)
@@ -147,10 +128,15 @@ def main() -> None:
     print(head)
     print(rule)
     for name, table, cmap in drives(None if args.period == 0 else args.period):
-        phantom, held, count = accuracy(det, table, cmap)
+        labelled = inject_grad(table, seed=0, columns=cmap)
+        fixes = to_fixes(labelled, cmap)
+        offset = tracker_offsets(det, fixes)
+        phantom, held, count = accuracy(labelled, table, cmap, offset)
         row = f"| {name} | {100 * phantom:.2f} % | {100 * held:.1f} % ({count:,}) |"
         if args.where:
-            clean_share, counts = phantom_places(det, table, cmap)
+            untouched = tracker_offsets(det, to_fixes(table, cmap))
+            clean_share = float(np.mean((np.abs(untouched) > THRESHOLD_M).any(axis=1)))
+            counts = phantom_places(labelled, fixes, offset)
             row += f" {100 * clean_share:.2f} % | {' / '.join(str(n) for n in counts)} |"
         print(row)
 
