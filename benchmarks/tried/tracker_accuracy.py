@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -37,13 +38,15 @@ import pandas as pd
 
 from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import simulate_fleet
+from gradgps._grad.defaults import MIN_STEP_S, grad_points
 from gradgps._grad.detector import Detector
-from gradgps._grad.pipeline import pipeline_feature_names
+from gradgps._grad.offset import OffsetParams, offset_features
+from gradgps._grad.pipeline import PipelineParams
+from gradgps._tracks.preprocess import stream_reasons
 from gradgps._tracks.track import ColumnMap, to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helpers
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for error_places
-from _segment_features import segment_features
 from _validation_drives import validation_positions
 from error_places import episode_distances
 
@@ -61,13 +64,24 @@ def drives(period: float | None) -> Iterator[tuple[str, pd.DataFrame, ColumnMap]
         yield name, data, cmap
 
 
-def tracker_offsets(det: Detector, fixes: pd.DataFrame) -> np.ndarray:
-    """Per fix of ``fixes``: the tracker's offset east and north (m)."""
-    names = pipeline_feature_names(det.model_.params)
-    cols = [names.index("offset_east"), names.index("offset_north")]
+def tracker_offsets(params: OffsetParams, max_gap_s: float, fixes: pd.DataFrame) -> np.ndarray:
+    """Per fix of ``fixes`` (positions only): the tracker's offset east and north (m), the
+    tracker run alone on the detector's segments (positions only, it takes no other
+    velocity than a reported one, so this is what the pipeline computes)."""
     out = np.zeros((len(fixes), 2))
-    for rows, _, values in segment_features(det, fixes):
-        out[rows] = values[:, cols]
+    track = fixes["track"].to_numpy()
+    for name in pd.unique(track):
+        rows = np.flatnonzero(track == name)
+        part = fixes.iloc[rows].reset_index(drop=True)
+        usable = np.flatnonzero(stream_reasons(part, min_step_s=MIN_STEP_S) == "")
+        prepared = grad_points(part.iloc[usable], max_gap_s)
+        values = np.zeros((len(prepared.points), 2))
+        for _, sl in prepared.segment_slices():
+            pts = prepared.points.iloc[sl]
+            t = pts["t"].to_numpy(np.float64)
+            east, north = (pts[c].to_numpy(np.float64) for c in ("east", "north"))
+            values[sl] = offset_features(np.diff(t, prepend=t[0]), east, north, params=params)[:, :2]
+        out[rows[usable]] = prepared.to_rows(values, fill=0.0)
     return out
 
 
@@ -118,8 +132,13 @@ def main() -> None:
     parser.add_argument("--model", default=None)
     parser.add_argument("--period", type=float, default=0.0, help="seconds; 0 = native")
     parser.add_argument("--where", action="store_true", help="untouched drives, and where")
+    parser.add_argument("--set", default="", help="tracker settings k=v,... over the model's")
+    parser.add_argument("--skip", default="", help="leave out drive sets whose name holds this")
     args = parser.parse_args()
-    det = Detector(args.model)
+    params = Detector(args.model).model_.params if args.model else PipelineParams()
+    overrides = {k: float(v) for k, v in (kv.split("=") for kv in args.set.split(",") if kv)}
+    tracker = replace(params.offset, **overrides)
+    print(tracker)
     head = "| drives | normal fixes with a phantom offset | jump fixes held (channel fixes) |"
     rule = "|---|---|---|"
     if args.where:
@@ -128,13 +147,15 @@ def main() -> None:
     print(head)
     print(rule)
     for name, table, cmap in drives(None if args.period == 0 else args.period):
+        if args.skip and args.skip in name:
+            continue
         labelled = inject_grad(table, seed=0, columns=cmap)
         fixes = to_fixes(labelled, cmap)
-        offset = tracker_offsets(det, fixes)
+        offset = tracker_offsets(tracker, params.max_gap_s, fixes)
         phantom, held, count = accuracy(labelled, table, cmap, offset)
         row = f"| {name} | {100 * phantom:.2f} % | {100 * held:.1f} % ({count:,}) |"
         if args.where:
-            untouched = tracker_offsets(det, to_fixes(table, cmap))
+            untouched = tracker_offsets(tracker, params.max_gap_s, to_fixes(table, cmap))
             clean_share = float(np.mean((np.abs(untouched) > THRESHOLD_M).any(axis=1)))
             counts = phantom_places(labelled, fixes, offset)
             row += f" {100 * clean_share:.2f} % | {' / '.join(str(n) for n in counts)} |"

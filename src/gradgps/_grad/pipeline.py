@@ -86,7 +86,6 @@ from .motion import (
     N_MOTION_FEATURES,
     N_MOTION_PARAMS,
     N_MOTION_STATE,
-    P_GATE,
     MotionParams,
     motion_step,
     motion_velocity,
@@ -112,7 +111,6 @@ from .time_classifier import (
     TimeSpans,
     time_step,
 )
-from .vehicle import CAR_MAX_SPEED
 
 __all__ = [
     "LANES",
@@ -180,8 +178,6 @@ _SH = N_OFFSET_FEATURES + N_MOTION_FEATURES
 # Then the drift witness's outputs (flag, offset m).
 _DRIFT_OUT = _SH + 2
 _N_OFF_OUT = _DRIFT_OUT + N_DRIFT_OUT
-# Where the motion model's normalised innovation sits in its outputs.
-_NIS = MOTION_FEATURES.index("motion_nis")
 # State blocks after the core's: offset, time, recovery, drift witness, motion.
 _N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_DRIFT_STATE + N_MOTION_STATE
 # Per-point outputs. O_CONFIRM, with a confirm head: where verdicts settle one fix late,
@@ -376,13 +372,9 @@ def _features_point(
     expected step, the offset tracker and the recovery: without it those fall
     back to per-channel constant-velocity guesses that lag in every curve and
     never re-acquire after a long jump on a positions-only file (issue 13).
-    The offset tracker takes it only for a fix the model predicted (within its
-    gate), at a speed a car drives: a fix it rejected, or re-acquired after
-    rejecting, says its velocity is unconfirmed (after a noise run it may be
-    10-30 m/s wrong for seconds; a first step from a fix 30 m off starts it
-    at 300 m/s at 10 Hz), and dead reckoning with it made the tracker add the
-    same miss to the offset every step; the tracker then predicts with its
-    own estimate from the steps it explained.
+    The offset tracker never takes it: it estimates its own velocity from the
+    fixes (its Kalman filter), and a velocity drawn from the same fixes is no
+    second measurement; only a reported speed *and* heading measure it.
     The speed and heading used are left in ``off_out[_SH : _SH + 2]`` for the
     recovery in :func:`_verdict`.
     """
@@ -391,7 +383,7 @@ def _features_point(
     end = _tail_end(P, S)
     core_size = end - _N_TAIL_STATE
     east, north = to_local_scalar(rest[_FRAME : _FRAME + N_FRAME_CONSTANTS], lat, lon)
-    off_speed = speed
+    off_speed = speed  # the reported velocity only, never the motion model's
     off_heading = heading
     if rest[_MOTION_ON] != 0.0:
         ms = end - N_MOTION_STATE
@@ -403,9 +395,6 @@ def _features_point(
                 speed = m_speed
             if not np.isfinite(heading):
                 heading = m_heading
-            if m_out[_NIS] <= rest[_MOTION + P_GATE] and speed <= CAR_MAX_SPEED:
-                off_speed = speed
-                off_heading = heading
     off_out[_SH] = speed
     off_out[_SH + 1] = heading
     core_step(Pc, S[:core_size], east, north, speed, heading, core_out)
