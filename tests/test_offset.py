@@ -64,7 +64,7 @@ def test_fault_held_too_long_is_released() -> None:
     east = east.copy()
     east[50:] += 40.0  # never ends
     out = offset_features(dt, east, north, speed, heading, OffsetParams(fault_s=10.0))
-    assert (out[50:80, 2] > 30.0).all()
+    assert (out[50:70, 2] > 30.0).all()
     released = int(np.flatnonzero(out[50:, 2] < 6.0)[0]) + 50
     assert (out[released:, 2] < 6.0).all()
     assert released < 400
@@ -92,7 +92,9 @@ def test_a_released_faults_end_leaves_the_other_channels_fault_held(with_velocit
     ):
         assert (out[90:100, 0] < -40.0).all()  # the east jump, held before the return
         assert (out[100:115, 0] < -40.0).all()  # ... and after it
-        assert (np.abs(out[100:, 1]) < 6.0).all()  # the north fault has ended
+        # the north fault has ended (its return may read as a fault for one fix:
+        # the released fault's hypothesis takes one more fix to win back)
+        assert (np.abs(out[101:, 1]) < 6.0).all()
         assert (out[115:, 2] < 6.0).all()  # nothing left once the east jump ends
 
 
@@ -107,7 +109,7 @@ def test_a_noise_run_is_not_remembered_as_a_released_fault(with_velocity: bool) 
     dt, east, north, speed, heading = _drive()
     north = north.copy()
     north[100:103] += [48.0, 15.0, 37.0]
-    north[130:190] -= 34.0
+    north[130:170] -= 34.0
     sp, hd = (speed, heading) if with_velocity else (None, None)
     for out in (
         offset_features(dt, east, north, sp, hd),
@@ -116,8 +118,8 @@ def test_a_noise_run_is_not_remembered_as_a_released_fault(with_velocity: bool) 
         ),
     ):
         assert (out[103:130, 2] < 6.0).all()  # the noise run has ended
-        assert (out[130:190, 2] > 25.0).all()  # the jump is held
-        assert (out[192:, 2] < 6.0).all()  # and ends where it ends
+        assert (out[130:170, 2] > 25.0).all()  # the jump is held
+        assert (out[172:, 2] < 6.0).all()  # and ends where it ends
 
 
 @pytest.mark.parametrize("with_velocity", [True, False])
@@ -169,15 +171,15 @@ def test_clean_drive_keeps_offset_small() -> None:
     ),
     sigma_m=st.floats(0.5, 20.0),
     fault_s=st.floats(1.0, 100.0),
-    restart_p=st.floats(1e-6, 0.1),
+    restart_per_s=st.floats(1e-6, 0.1),
 )
 def test_kernel_matches_reference(
-    steps: list[tuple[float, ...]], sigma_m: float, fault_s: float, restart_p: float
+    steps: list[tuple[float, ...]], sigma_m: float, fault_s: float, restart_per_s: float
 ) -> None:
     arr = np.array(steps)
     dt = arr[:, 2]
     east, north = np.cumsum(arr[:, 0]), np.cumsum(arr[:, 1])
-    prm = OffsetParams(sigma_m=sigma_m, fault_s=fault_s, restart_p=restart_p)
+    prm = OffsetParams(sigma_m=sigma_m, fault_s=fault_s, restart_per_s=restart_per_s)
     a = offset_features(dt, east, north, arr[:, 3], arr[:, 4], prm)
     b = offset_features_reference(dt, east, north, arr[:, 3], arr[:, 4], prm)
     np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)

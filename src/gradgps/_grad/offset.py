@@ -26,7 +26,8 @@ hazard ``dt / fault_s``: faults are expected to last about ``fault_s``),
 changes kind (``switch_per_s``), and a noise fix is followed by another with
 probability ``noise_stay``. Any mode may also *restart*: the clean track
 itself was wrong (a cold start on a bad fix, a long fault taken for the
-track) and starts again on the fix (``restart_p`` per fix). Reported speed
+track) and starts again on the fix (``restart_per_s``, more often where a
+segment starts: a track built on a few fixes is the least certain). Reported speed
 and heading, where the file has both, measure the velocity (``sigma_v``
 m/s): a Doppler velocity is not moved by a position fault.
 
@@ -93,7 +94,7 @@ OFFSET_FEATURES = (
     "fault_evidence",
 )
 N_OFFSET_FEATURES = len(OFFSET_FEATURES)
-N_OFFSET_PARAMS = 11
+N_OFFSET_PARAMS = 13
 (
     P_SIGMA_A,
     P_SIGMA_M,
@@ -105,6 +106,8 @@ N_OFFSET_PARAMS = 11
     P_SPAN,
     P_FAULT_S,
     P_RESTART,
+    P_START_RESTART,
+    P_START_S,
     P_V0,
 ) = range(N_OFFSET_PARAMS)
 
@@ -123,14 +126,25 @@ CLEAN, JUMP, NOISE = 0.0, 1.0, 2.0
 # Two children closer than this (m, m/s) in track, velocity and offset, of one
 # mode, are one hypothesis (the better weight kept).
 _SAME = 0.05
+#: The chance that a fix repeating the previous one exactly (both coordinates, to the
+#: last digit) was *held*: written again by a receiver that has no new solution (a
+#: freeze, a tunnel, a jammed antenna), so unrelated to where the car is now. A live
+#: fix repeats only where the receiver pins a standing car (static hold), and from the
+#: fix alone the two are even odds: the held reading is an outlier child (its offset
+#: uniform over the span, as any outlier's) at this prior instead of a fault's start,
+#: the others keep their usual priors times the rest. At a stop the clean track still
+#: explains a repeat better (it predicts the fix where it is); while the car moves, a
+#: held fix falls behind it at once. Receiver noise never repeats a fix to the last
+#: digit, so no other fix is read this way.
+_HELD = 0.5
 # Floor of a transition probability that long steps would take to zero or below.
 _TINY = 1e-9
 # The evidence feature's value when no clean hypothesis survives (nats).
 _NO_CLEAN = 50.0
-# State: count, last east, north, last norm of the offset, then per channel the
-# number of hypotheses and BEAM of them.
-S_COUNT, S_E, S_N, S_NORM = range(4)
-_S_BEAM = 4
+# State: count, last east, north, last norm of the offset, seconds since the segment
+# started, then per channel the number of hypotheses and BEAM of them.
+S_COUNT, S_E, S_N, S_NORM, S_T = range(5)
+_S_BEAM = 5
 _CHANNEL_STATE = 1 + BEAM * N_H
 N_OFFSET_STATE = _S_BEAM + 2 * _CHANNEL_STATE
 
@@ -145,8 +159,13 @@ class OffsetParams:
     ``switch_per_s``: how often a fault changes kind or a jump its offset;
     ``noise_stay``: the chance an outlier is followed by another; ``span_m``: the
     half-width of the uniform density of a fault's offset; ``fault_s``: a fault's
-    expected length; ``restart_p``: the chance, per fix, that the clean track was
-    wrong; ``v0_sigma``: m/s, the velocity's spread where a track starts.
+    expected length; ``restart_per_s``: how often the clean track turns out
+    wrong, which is ``start_restart_per_s`` where a segment starts and falls to
+    ``restart_per_s`` with a time constant of ``start_s`` seconds (a track built on a
+    few fixes is the least certain: a receiver's first fixes after a cold start
+    or an outage are its worst, and a track anchored on one of them reads every
+    good fix after it as a jump); ``v0_sigma``: m/s, the velocity's spread where
+    a track starts.
     """
 
     sigma_a: float = 1.5
@@ -154,11 +173,13 @@ class OffsetParams:
     sigma_v: float = 2.0
     jump_per_s: float = 0.005
     noise_per_s: float = 0.02
-    switch_per_s: float = 0.05
+    switch_per_s: float = 0.03
     noise_stay: float = 0.7
     span_m: float = 100.0
-    fault_s: float = 30.0
-    restart_p: float = 1e-4
+    fault_s: float = 60.0
+    restart_per_s: float = 1e-4
+    start_restart_per_s: float = 0.01
+    start_s: float = 10.0
     v0_sigma: float = 15.0
 
     def to_array(self) -> FloatArray:
@@ -172,7 +193,9 @@ class OffsetParams:
             self.noise_stay,
             self.span_m,
             self.fault_s,
-            self.restart_p,
+            self.restart_per_s,
+            self.start_restart_per_s,
+            self.start_s,
             self.v0_sigma,
         ]
         if not (
@@ -186,13 +209,16 @@ class OffsetParams:
             and 0 < self.noise_stay < 1
             and self.span_m > 0
             and self.fault_s > 0
-            and 0 < self.restart_p < 1
+            and self.restart_per_s > 0
+            and self.start_restart_per_s > 0
+            and self.start_s > 0
             and self.v0_sigma > 0
         ):
             raise ConfigError(
                 "offset tracker needs finite sigma_a, sigma_m, sigma_v, jump_per_s, "
-                "noise_per_s, switch_per_s, span_m, fault_s, v0_sigma > 0 and noise_stay, "
-                f"restart_p in (0, 1); got {self}"
+                "noise_per_s, switch_per_s, span_m, fault_s, restart_per_s, "
+                "start_restart_per_s, start_s, v0_sigma > 0 and noise_stay in (0, 1); "
+                f"got {self}"
             )
         return np.array(values, dtype=np.float64)
 
@@ -215,6 +241,16 @@ def _transitions(p: FloatArray, mode: float, dt: float) -> tuple[float, float, f
         return math.log(end), math.log(1.0 - end - 2.0 * switch), math.log(switch), math.log(switch)
     stay = p[P_NOISE_STAY]
     return math.log(max(1.0 - stay - switch, _TINY)), -math.inf, math.log(switch), math.log(stay)
+
+
+@numba.njit(cache=True)
+def _log_restart(p: FloatArray, age_s: float, dt: float) -> float:
+    """log P(the clean track was wrong) over a step of ``dt`` ending ``age_s`` seconds
+    after its segment's first fix: the rate ``start_restart_per_s`` falling to
+    ``restart_per_s`` with time constant ``start_s``."""
+    decay = math.exp(-age_s / p[P_START_S])
+    rate = p[P_RESTART] + (p[P_START_RESTART] - p[P_RESTART]) * decay
+    return math.log(1.0 - math.exp(-rate * dt))
 
 
 @numba.njit(cache=True)
@@ -286,13 +322,25 @@ def _channel_start(p: FloatArray, beam: FloatArray, z: float) -> None:
 
 
 @numba.njit(cache=True)
-def _channel_step(p: FloatArray, beam: FloatArray, z: float, dt: float, v: float) -> FloatArray:
-    """Advance one channel's beam to the fix ``z`` (``v``: reported velocity or NaN);
+def _channel_step(
+    p: FloatArray,
+    beam: FloatArray,
+    z: float,
+    dt: float,
+    v: float,
+    log_restart: float,
+    repeated: bool,
+) -> FloatArray:
+    """Advance one channel's beam to the fix ``z`` (``v``: reported velocity or NaN;
+    ``log_restart``: log of the chance the clean track was wrong, :func:`_log_restart`;
+    ``repeated``: the fix repeats the previous one exactly, see :data:`_HELD`);
     returns [offset, innovation over its spread, |z - predicted track|, age, evidence]."""
     q = p[P_SIGMA_A] ** 2
     r = p[P_SIGMA_M] ** 2
     rv = p[P_SIGMA_V] ** 2
     log_u = -math.log(2.0 * p[P_SPAN])
+    held = math.log(_HELD) if repeated else 0.0  # the fix is a held one, or ...
+    live = math.log(1.0 - _HELD) if repeated else 0.0  # ... what it would be anyway
     n = int(beam[0])
     kids = np.empty((4 * n + 1, N_H))
     k = 0
@@ -306,7 +354,10 @@ def _channel_step(p: FloatArray, beam: FloatArray, z: float, dt: float, v: float
             o = hp[H_O] if mode == JUMP else 0.0
             nu_out = (z - o - hp[H_P]) / math.sqrt(hp[H_PP] + r)
             dist_out = abs(z - hp[H_P])
-            kids[4 * n, :] = hp  # restart: the clean track starts again on the fix
+            # restart: the clean track starts again on the fix, its velocity as
+            # uncertain as at a segment's start (a track that was wrong may have
+            # been wrong in its velocity too)
+            kids[4 * n, :] = hp
             kids[4 * n, H_P] = z
             kids[4 * n, H_PP] = r
             kids[4 * n, H_PV] = 0.0
@@ -314,12 +365,12 @@ def _channel_step(p: FloatArray, beam: FloatArray, z: float, dt: float, v: float
             kids[4 * n, H_O] = 0.0
             kids[4 * n, H_AGE] = 0.0
             kids[4 * n, H_MODE] = CLEAN
-            kids[4 * n, H_W] = hp[H_W] + math.log(p[P_RESTART]) + log_u
+            kids[4 * n, H_W] = hp[H_W] + live + log_restart + log_u
         to_clean, to_keep, to_jump, to_noise = _transitions(p, mode, dt)
         age = hp[H_AGE] + dt if mode != CLEAN else dt
         c = kids[k]
         c[:] = hp
-        c[H_W] += to_clean + _measure_position(c, z, r)
+        c[H_W] += live + to_clean + _measure_position(c, z, r)
         c[H_O] = 0.0
         c[H_AGE] = 0.0
         c[H_MODE] = CLEAN
@@ -327,20 +378,20 @@ def _channel_step(p: FloatArray, beam: FloatArray, z: float, dt: float, v: float
         if to_keep > -math.inf:
             c = kids[k]
             c[:] = hp
-            c[H_W] += to_keep + _measure_position(c, z - hp[H_O], r)
+            c[H_W] += live + to_keep + _measure_position(c, z - hp[H_O], r)
             c[H_AGE] = age
             k += 1
         c = kids[k]
         c[:] = hp
         c[H_O] = z - hp[H_P]
-        c[H_W] += to_jump + log_u
+        c[H_W] += live + to_jump + log_u
         c[H_AGE] = age
         c[H_MODE] = JUMP
         k += 1
         c = kids[k]
         c[:] = hp
         c[H_O] = z - hp[H_P]
-        c[H_W] += to_noise + log_u
+        c[H_W] += (held if repeated else to_noise) + log_u
         c[H_AGE] = age
         c[H_MODE] = NOISE
         k += 1
@@ -412,6 +463,7 @@ def offset_step(
         _channel_start(p, beam_e, east)
         _channel_start(p, beam_n, north)
         state[S_NORM] = 0.0
+        state[S_T] = 0.0
     else:
         ve = np.nan
         vn = np.nan
@@ -419,8 +471,11 @@ def offset_step(
             h = np.radians(heading)
             ve = speed * np.sin(h)
             vn = speed * np.cos(h)
-        e = _channel_step(p, beam_e, east, dt, ve)
-        n = _channel_step(p, beam_n, north, dt, vn)
+        state[S_T] += dt
+        log_restart = _log_restart(p, state[S_T], dt)
+        repeated = east == state[S_E] and north == state[S_N]
+        e = _channel_step(p, beam_e, east, dt, ve, log_restart, repeated)
+        n = _channel_step(p, beam_n, north, dt, vn, log_restart, repeated)
         out[0] = e[0]
         out[1] = n[0]
         out[2] = np.hypot(e[0], n[0])
@@ -519,18 +574,27 @@ class _Hypothesis:
 
 
 def _reference_channel(
-    prm: OffsetParams, dt: FloatArray, z: FloatArray, v: FloatArray
+    prm: OffsetParams, dt: FloatArray, z: FloatArray, v: FloatArray, repeated: NDArray[np.bool_]
 ) -> FloatArray:
     p = prm.to_array()
     q, r, rv = prm.sigma_a**2, prm.sigma_m**2, prm.sigma_v**2
     log_u = -math.log(2 * prm.span_m)
     out = np.zeros((len(z), 5))
     beam: list[_Hypothesis] = []
+    since_start = 0.0
     for i in range(len(z)):
         if i == 0 or not dt[i] > 0:
             beam = [_Hypothesis(float(z[i]), 0.0, [r, 0.0, prm.v0_sigma**2], 0.0, 0.0, 0.0, CLEAN)]
+            since_start = 0.0
             continue
         d = float(dt[i])
+        since_start += d
+        # a fix repeated exactly: held (an outlier) or live, at even odds (_HELD)
+        live = math.log(1 - _HELD) if repeated[i] else 0.0
+        # the track is least certain where it starts (see OffsetParams)
+        decay = math.exp(-since_start / prm.start_s)
+        rate = prm.restart_per_s + (prm.start_restart_per_s - prm.restart_per_s) * decay
+        log_restart = math.log(1 - math.exp(-rate * d))
         kids: list[_Hypothesis] = []
         restart = None
         for j, parent in enumerate(beam):
@@ -548,22 +612,23 @@ def _reference_channel(
                     CLEAN,
                 )
                 restart.cov = [r, 0.0, max(h.cov[2], prm.v0_sigma**2)]
-                restart.weight += math.log(prm.restart_p) + log_u
+                restart.weight += live + log_restart + log_u
             to_clean, to_keep, to_jump, to_noise = _transitions(p, h.mode, d)
             age = h.age + d if h.mode != CLEAN else d
             clean = h.copy()  # the fix measures the track
-            clean.weight += to_clean + clean.measure(float(z[i]), r)
+            clean.weight += live + to_clean + clean.measure(float(z[i]), r)
             clean.offset, clean.age, clean.mode = 0.0, 0.0, CLEAN
             kids.append(clean)
             if to_keep > -math.inf:  # the jump goes on: z - o measures the track
                 keep = h.copy()
-                keep.weight += to_keep + keep.measure(float(z[i]) - h.offset, r)
+                keep.weight += live + to_keep + keep.measure(float(z[i]) - h.offset, r)
                 keep.age = age
                 kids.append(keep)
             for mode, log_p in ((JUMP, to_jump), (NOISE, to_noise)):  # the fix sets o
                 fault = h.copy()
                 fault.offset, fault.age, fault.mode = float(z[i]) - h.track, age, mode
-                fault.weight += log_p + log_u
+                held = mode == NOISE and repeated[i]
+                fault.weight += (math.log(_HELD) if held else live + log_p) + log_u
                 kids.append(fault)
         assert restart is not None
         kids.append(restart)
@@ -615,8 +680,11 @@ def offset_features_reference(
     hd = np.asarray(heading, dtype=np.float64)
     rad = np.radians(hd)
     ve, vn = sp * np.sin(rad), sp * np.cos(rad)
-    e = _reference_channel(prm, d, np.asarray(east, dtype=np.float64), ve)
-    n = _reference_channel(prm, d, np.asarray(north, dtype=np.float64), vn)
+    e_arr = np.asarray(east, dtype=np.float64)
+    n_arr = np.asarray(north, dtype=np.float64)
+    repeated = np.r_[False, (np.diff(e_arr) == 0) & (np.diff(n_arr) == 0)]
+    e = _reference_channel(prm, d, e_arr, ve, repeated)
+    n = _reference_channel(prm, d, n_arr, vn, repeated)
     out = np.zeros((len(d), N_OFFSET_FEATURES))
     norm_before = 0.0
     for i in range(1, len(d)):
