@@ -43,7 +43,7 @@ def main() -> None:
     params = det.model_.params
     names = pipeline_feature_names(params)
     offset_k, nis_k = names.index("offset_norm"), names.index("motion_nis")
-    hold_m = params.offset.threshold_m
+    hold_m = 8.0  # an offset held above this counts as held (m)
     gate = (params.motion or MotionParams()).gate
     flagged: Counter[str] = Counter()
     total: Counter[str] = Counter()

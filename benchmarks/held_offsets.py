@@ -4,11 +4,11 @@ For tuning the offset tracker, never the test splits. Protocol ``grad``
 (seed 0) on each real data set's validation split, positions only (t, lat,
 lon), at the native rate and decimated to 0.5 Hz (Nevada, natively 0.5 Hz,
 counts in both). Over all of them, the share
-of points whose offset norm exceeds ``threshold_m``: on normal points (a
+of points whose offset norm exceeds 8 m (``PHANTOM_M``): on normal points (a
 *phantom*: the hang-over issue 13 asks to remove), on jump-fault points (what
 the tracker is for: should stay high) and on noise-fault points. Each
 ``--set`` runs the tracker with those ``OffsetParams`` fields changed (for
-example ``--set cv_alpha=0.5 --set cv_alpha=0.3``); without one, the
+example ``--set sigma_m=3 --set sigma_m=5``); without one, the
 defaults. Run:
 
     python benchmarks/held_offsets.py [--set FIELD=VALUE[,FIELD=VALUE...]] ... [--data-dir DIR]
@@ -29,6 +29,8 @@ from gradgps._tracks.preprocess import stream_reasons
 from gradgps._tracks.track import to_fixes
 
 KINDS = ("none", "jump", "noise")
+#: m: an offset held above this on a normal point is a phantom.
+PHANTOM_M = 8.0
 
 
 def _labelled(period: float | None, data_dir: str | None) -> list[tuple]:
@@ -43,7 +45,7 @@ def _labelled(period: float | None, data_dir: str | None) -> list[tuple]:
 
 
 def held_shares(params: PipelineParams, cases: list[tuple]) -> dict[str, float]:
-    """Percent of normal / jump / noise points with an offset above ``threshold_m``."""
+    """Percent of normal / jump / noise points with an offset above ``PHANTOM_M``."""
     offset_k = pipeline_feature_names(params).index("offset_norm")
     held = dict.fromkeys(KINDS, 0)
     total = dict.fromkeys(KINDS, 0)
@@ -62,7 +64,7 @@ def held_shares(params: PipelineParams, cases: list[tuple]) -> dict[str, float]:
             frame = prepared.segment_frames[k]
             f = grad_features(params, frame, t[sl], lat[sl], lon[sl], nan[sl], nan[sl]).features
             # Features are compressed with a signed log1p; the norm is >= 0.
-            over = np.expm1(f[:, offset_k]) > params.offset.threshold_m
+            over = np.expm1(f[:, offset_k]) > PHANTOM_M
             for name in KINDS:
                 mask = kind[sl] == name
                 held[name] += int(over[mask].sum())

@@ -165,6 +165,7 @@ def test_clean_drive_keeps_offset_small() -> None:
             st.floats(0.1, 2.0),
             st.one_of(st.just(float("nan")), st.floats(0, 40)),
             st.floats(0, 360),
+            st.booleans(),  # the fix repeats the previous one exactly (held)
         ),
         min_size=1,
         max_size=60,
@@ -178,7 +179,9 @@ def test_kernel_matches_reference(
 ) -> None:
     arr = np.array(steps)
     dt = arr[:, 2]
-    east, north = np.cumsum(arr[:, 0]), np.cumsum(arr[:, 1])
+    held = arr[:, 5] == 1.0
+    east = np.cumsum(np.where(held, 0.0, arr[:, 0]))
+    north = np.cumsum(np.where(held, 0.0, arr[:, 1]))
     prm = OffsetParams(sigma_m=sigma_m, fault_s=fault_s, restart_per_s=restart_per_s)
     a = offset_features(dt, east, north, arr[:, 3], arr[:, 4], prm)
     b = offset_features_reference(dt, east, north, arr[:, 3], arr[:, 4], prm)
@@ -291,3 +294,50 @@ def test_after_a_restart_the_first_drivable_step_teaches_no_velocity() -> None:
         offset_features_reference(dt, east, north, *_nans(n)),
     ):
         assert (out[4:, 2] < 6.0).all()
+
+
+@pytest.mark.parametrize("with_velocity", [True, False])
+def test_a_receiver_holding_its_fix_while_the_car_drives_leaves_no_offset_behind(
+    with_velocity: bool,
+) -> None:
+    """Found on the Austin 2006 logger's validation drive (1 Hz, positions only): the
+    receiver wrote the same fix three times while the car drove on at 11 m/s, then
+    caught up. A held fix 11-22 m behind reads, to a filter, much like a braking car,
+    and a filter that took it so lagged the car when it sped away and read the good
+    fixes after it as a jump (16 fixes of phantom). A fix repeated to the last digit is
+    as likely held as live (``_HELD``): the held reading is an outlier branch, and it
+    is the one the next fixes bear out."""
+    dt, east, north, speed, heading = _drive(seed=5)
+    east, north = east.copy(), north.copy()
+    east[101:104], north[101:104] = east[100], north[100]
+    sp, hd = (speed, heading) if with_velocity else (None, None)
+    for out in (
+        offset_features(dt, east, north, sp, hd),
+        offset_features_reference(
+            dt, east, north, *((sp, hd) if sp is not None else _nans(len(dt)))
+        ),
+    ):
+        if with_velocity:  # the reported velocity says the car never braked
+            assert (out[102:104, 2] > 15.0).all()  # so the held fixes fall behind it
+        # the catch-up may read as one outlier; the fixes after it are clean
+        assert (out[105:, 2] < 6.0).all()
+
+
+def test_a_standing_car_whose_receiver_pins_its_fix_holds_no_offset() -> None:
+    """Static hold: a parked car whose receiver repeats its fix exactly for a minute,
+    then drives off. The clean track explains the repeats (it predicts the fix where
+    it is), so nothing is held, before or after."""
+    n = 200
+    dt = np.r_[0.0, np.ones(n - 1)]
+    rng = np.random.default_rng(7)
+    t = np.arange(n, dtype=float)
+    speed = np.clip(t - 120.0, 0.0, 12.0)  # still until 120 s, then 1 m/s² to 12 m/s
+    east = np.cumsum(speed * dt) + rng.normal(0, 0.4, n)
+    north = rng.normal(0, 0.4, n)
+    east[40:120], north[40:120] = east[40], north[40]  # pinned while standing
+    nan = np.full(n, np.nan)
+    for out in (
+        offset_features(dt, east, north),
+        offset_features_reference(dt, east, north, nan, nan),
+    ):
+        assert (out[:, 2] < 6.0).all()

@@ -19,9 +19,11 @@ NAMES = pipeline_feature_names(PARAMS)
 FRAME = LocalFrame(48.1, 11.5)
 #: m: an offset the tracker holds above this on a clean fix is a phantom.
 THRESHOLD_M = 8.0
-#: s: the longest the tracker holds a shift that never ends before its restart explains
-#: the fixes better (38-66 s at 0.5-10 Hz with the default priors, tests/test_offset.py).
-HOLD_BOUND_S = 70.0
+#: s: a bound on how long the tracker holds a shift that never ends before a restart
+#: explains the fixes better: about 75 s from the default priors (the restart's and a
+#: jump's start odds, 3.9 nats, over what holding a jump costs a second beyond a clean
+#: track, 0.05 nats), less where the clean track fits the fixes worse.
+HOLD_BOUND_S = 100.0
 
 
 def _uncompress(v: np.ndarray) -> np.ndarray:
@@ -77,8 +79,17 @@ def test_a_100_fix_jump_then_clean_driving(period: float, speed: float, radius: 
     # REMA: no run of flags after the end outlasts max_run (+ the end's own flag).
     assert _last_true(rema[after][: rema_max_run + 5]) <= rema_max_run + 1
     assert rema[320:].mean() < 0.05
-    # The offset tracker lets go of the offset at the end, and holds none later.
-    assert _last_true(f["offset_norm"][after] > THRESHOLD_M) <= 3
+    # The offset tracker lets go of the offset at the end, and holds none later: at
+    # once where it held the jump to its end (1 Hz, a straight road or a motorway
+    # curve); where it let the jump go before (200 s at 0.5 Hz is beyond its hold;
+    # its constant-velocity clean track lags in a roundabout or a 10 Hz bend, and
+    # a restart there soon explains the fixes as well), the jump's end reads as a
+    # new jump, released within the hold.
+    held_to_end = (f["offset_norm"][200:300] > THRESHOLD_M).mean() > 0.8
+    bound = 3 if held_to_end else int(np.ceil(HOLD_BOUND_S / period)) + 3
+    assert _last_true(f["offset_norm"][after] > THRESHOLD_M) <= bound
+    if period == 1.0 and radius >= 600.0:
+        assert held_to_end
     # The motion model follows the fixes again within max_run_s.
     settle = int(np.ceil(MotionParams().max_run_s / period)) + 2
     assert np.all(f["motion_run_s"][300 + settle :] == 0.0)
@@ -133,12 +144,9 @@ def test_a_noise_burst_leaves_no_offset_behind() -> None:
 def test_a_wrong_velocity_from_the_start_is_unlearnt(period: float) -> None:
     """A segment whose first fix is 30 m off: the first step sets both velocity
     estimates 30 m/s wrong at 1 Hz (300 m/s at 10 Hz), and every clean step after
-    it misses by the same amount. Before, the tracker added that to the offset
-    each step and held 100-170 m on clean fixes for max_fault_s; now the
-    consistent miss is read as a wrong velocity and unlearnt within a few fixes.
-    What stays (until max_fault_s) is the step that carried the glitch's return
-    with its own miss: from the fixes alone, the first fix being the fault and all
-    the later ones being shifted read the same."""
+    it misses by the same amount. The rule-based tracker this model replaced
+    added that to the offset each step and held 100-170 m on clean fixes for
+    100 s; the switching model restarts the young track on the good fixes."""
     n = int(60 / period)
     t, east, north = _drive(n, period, 24.0, np.inf, 3)
     north = north.copy()

@@ -7,7 +7,7 @@ a retrained network"). This judges the tracker's own output instead, against wha
 protocol ``grad`` (seed 0) wrote, positions only:
 
 * **phantom**: the share of *normal* fixes (no injected fault in either channel)
-  where the tracker holds an offset above ``threshold_m`` (8 m) in a channel: a
+  where the tracker holds an offset above 8 m in a channel: a
   clean fix read as displaced, what the network then flags or learns to distrust;
 * **jump held**: the share of fixes inside injected *jump* faults, per faulty
   channel, where the tracker's offset is within 8 m or a quarter of the true
@@ -16,21 +16,25 @@ protocol ``grad`` (seed 0) wrote, positions only:
 
 On the real validation drives (``--period 0``: native rate; ``--period 2``: 0.5
 Hz), never the test splits, and on fresh simulated drives at 10, 1 and 0.5 Hz
-(seed 4242, 6 x 15 minutes, as ``hangover_check.py`` draws them). The tracker's
-parameters are the shipped model's (or ``--model``'s). ``--where`` adds, per set
-of drives, the phantom share on the same drives untouched and where the phantoms
-of the injected drives sit: how many fixes after an episode's end (1, 2-3, 4-10,
-11-30, 31-100, more). Run with the sources to judge on ``PYTHONPATH``:
+(seed 4242, 6 x 15 minutes, as ``hangover_check.py`` draws them). The tracker
+runs alone on the detector's segments (positions only, it takes no velocity but a
+reported one, so this is what the pipeline computes) with the default settings,
+``--model``'s, and ``--set`` overrides (``--set sigma_m=3,fault_s=45``).
+``--where`` adds, per set of drives, the phantom share on the same drives
+untouched and where the phantoms of the injected drives sit: how many fixes after
+an episode's end (1, 2-3, 4-10, 11-30, 31-100, more). Run with the sources to judge
+on ``PYTHONPATH``:
 
     python benchmarks/tried/tracker_accuracy.py [--model DIR] [--period 0|2] [--where]
+        [--set K=V,...] [--skip NAME]
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -80,7 +84,9 @@ def tracker_offsets(params: OffsetParams, max_gap_s: float, fixes: pd.DataFrame)
             pts = prepared.points.iloc[sl]
             t = pts["t"].to_numpy(np.float64)
             east, north = (pts[c].to_numpy(np.float64) for c in ("east", "north"))
-            values[sl] = offset_features(np.diff(t, prepend=t[0]), east, north, params=params)[:, :2]
+            values[sl] = offset_features(np.diff(t, prepend=t[0]), east, north, params=params)[
+                :, :2
+            ]
         out[rows[usable]] = prepared.to_rows(values, fill=0.0)
     return out
 

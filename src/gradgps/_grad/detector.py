@@ -95,7 +95,7 @@ from .drift import DRIFT_BIAS
 from .events import fault_events
 from .model_io import CONFIG_FILE, WEIGHTS_FILE, gru_model, load_model
 from .motion import N_MOTION_STATE
-from .offset import N_OFFSET_STATE
+from .offset import N_OFFSET_STATE, check_state
 from .pipeline import (
     _N_OFF_OUT,
     _N_TAIL_STATE,
@@ -312,6 +312,7 @@ def _check_counters(P: NDArray[np.float64], S: NDArray[np.float64], seg_count: i
     end = _tail_end(P, S)
     tail = end - _N_TAIL_STATE
     count("offset points", S[tail], 0, seg_count)
+    check_state(S[tail : tail + N_OFFSET_STATE])
     time_at = tail + N_OFFSET_STATE
     for k in (0, 2):  # run length, bursts
         count(f"time classifier [{k}]", S[time_at + k], 0, seg_count)

@@ -73,8 +73,10 @@ from .._exceptions import ConfigError
 
 __all__ = [
     "BEAM",
+    "N_OFFSET_SCRATCH",
     "OFFSET_FEATURES",
     "OffsetParams",
+    "check_state",
     "offset_features",
     "offset_features_reference",
     "offset_step",
@@ -147,6 +149,11 @@ S_COUNT, S_E, S_N, S_NORM, S_T = range(5)
 _S_BEAM = 5
 _CHANNEL_STATE = 1 + BEAM * N_H
 N_OFFSET_STATE = _S_BEAM + 2 * _CHANNEL_STATE
+# Work space of one fix: up to four children per hypothesis and a restart, whether each
+# has been ranked, the indices kept; then each channel's five outputs.
+_MAX_KIDS = 4 * BEAM + 1
+_CHILDREN = _MAX_KIDS * (N_H + 1) + BEAM
+N_OFFSET_SCRATCH = _CHILDREN + 10
 
 
 @dataclass(frozen=True)
@@ -277,7 +284,7 @@ def _measure_position(h: FloatArray, y: float, r: float) -> float:
     h[H_PP] = (1.0 - k0) * a
     h[H_PV] = (1.0 - k0) * b
     h[H_VV] = c - k1 * b
-    return -0.5 * math.log(2.0 * math.pi * s) - 0.5 * nu * nu / s
+    return float(-0.5 * math.log(2.0 * math.pi * s) - 0.5 * nu * nu / s)
 
 
 @numba.njit(cache=True)
@@ -293,12 +300,12 @@ def _measure_velocity(h: FloatArray, y: float, r: float) -> float:
     h[H_PP] = a - k0 * b
     h[H_PV] = (1.0 - k1) * b
     h[H_VV] = (1.0 - k1) * c
-    return -0.5 * math.log(2.0 * math.pi * s) - 0.5 * nu * nu / s
+    return float(-0.5 * math.log(2.0 * math.pi * s) - 0.5 * nu * nu / s)
 
 
 @numba.njit(cache=True)
 def _same(a: FloatArray, b: FloatArray) -> bool:
-    return (
+    return bool(
         a[H_MODE] == b[H_MODE]
         and abs(a[H_P] - b[H_P]) < _SAME
         and abs(a[H_O] - b[H_O]) < _SAME
@@ -325,16 +332,20 @@ def _channel_start(p: FloatArray, beam: FloatArray, z: float) -> None:
 def _channel_step(
     p: FloatArray,
     beam: FloatArray,
+    scratch: FloatArray,
     z: float,
     dt: float,
     v: float,
     log_restart: float,
     repeated: bool,
-) -> FloatArray:
+    res: FloatArray,
+) -> None:
     """Advance one channel's beam to the fix ``z`` (``v``: reported velocity or NaN;
     ``log_restart``: log of the chance the clean track was wrong, :func:`_log_restart`;
-    ``repeated``: the fix repeats the previous one exactly, see :data:`_HELD`);
-    returns [offset, innovation over its spread, |z - predicted track|, age, evidence]."""
+    ``repeated``: the fix repeats the previous one exactly, see :data:`_HELD`); write
+    [offset, innovation over its spread, |z - predicted track|, age, evidence] into
+    ``res``. ``scratch`` (:data:`N_OFFSET_SCRATCH`) holds the children, so a fix
+    allocates nothing."""
     q = p[P_SIGMA_A] ** 2
     r = p[P_SIGMA_M] ** 2
     rv = p[P_SIGMA_V] ** 2
@@ -342,105 +353,110 @@ def _channel_step(
     held = math.log(_HELD) if repeated else 0.0  # the fix is a held one, or ...
     live = math.log(1.0 - _HELD) if repeated else 0.0  # ... what it would be anyway
     n = int(beam[0])
-    kids = np.empty((4 * n + 1, N_H))
+    kids = scratch[: _MAX_KIDS * N_H].reshape((_MAX_KIDS, N_H))
+    used = scratch[_MAX_KIDS * N_H : _MAX_KIDS * (N_H + 1)]
+    kept = scratch[_MAX_KIDS * (N_H + 1) : _MAX_KIDS * (N_H + 1) + BEAM]
     k = 0
-    nu_out = 0.0
-    dist_out = 0.0
     for j in range(n):
-        hp = beam[1 + j * N_H : 1 + (j + 1) * N_H].copy()
+        hp = kids[k]  # the parent, predicted: the first child's row until it is copied
+        hp[:] = beam[1 + j * N_H : 1 + (j + 1) * N_H]
         _predict(hp, dt, q)
         mode = hp[H_MODE]
+        to_clean, to_keep, to_jump, to_noise = _transitions(p, mode, dt)
+        age = hp[H_AGE] + dt if mode != CLEAN else dt
         if j == 0:  # the best hypothesis before this fix
             o = hp[H_O] if mode == JUMP else 0.0
-            nu_out = (z - o - hp[H_P]) / math.sqrt(hp[H_PP] + r)
-            dist_out = abs(z - hp[H_P])
+            res[1] = (z - o - hp[H_P]) / math.sqrt(hp[H_PP] + r)
+            res[2] = abs(z - hp[H_P])
             # restart: the clean track starts again on the fix, its velocity as
             # uncertain as at a segment's start (a track that was wrong may have
             # been wrong in its velocity too)
-            kids[4 * n, :] = hp
-            kids[4 * n, H_P] = z
-            kids[4 * n, H_PP] = r
-            kids[4 * n, H_PV] = 0.0
-            kids[4 * n, H_VV] = max(hp[H_VV], p[P_V0] ** 2)
-            kids[4 * n, H_O] = 0.0
-            kids[4 * n, H_AGE] = 0.0
-            kids[4 * n, H_MODE] = CLEAN
-            kids[4 * n, H_W] = hp[H_W] + live + log_restart + log_u
-        to_clean, to_keep, to_jump, to_noise = _transitions(p, mode, dt)
-        age = hp[H_AGE] + dt if mode != CLEAN else dt
-        c = kids[k]
-        c[:] = hp
-        c[H_W] += live + to_clean + _measure_position(c, z, r)
-        c[H_O] = 0.0
-        c[H_AGE] = 0.0
-        c[H_MODE] = CLEAN
-        k += 1
-        if to_keep > -math.inf:
-            c = kids[k]
-            c[:] = hp
-            c[H_W] += live + to_keep + _measure_position(c, z - hp[H_O], r)
-            c[H_AGE] = age
-            k += 1
-        c = kids[k]
-        c[:] = hp
-        c[H_O] = z - hp[H_P]
-        c[H_W] += live + to_jump + log_u
-        c[H_AGE] = age
-        c[H_MODE] = JUMP
-        k += 1
-        c = kids[k]
-        c[:] = hp
-        c[H_O] = z - hp[H_P]
-        c[H_W] += (held if repeated else to_noise) + log_u
-        c[H_AGE] = age
-        c[H_MODE] = NOISE
-        k += 1
-    kids[k] = kids[4 * n]
+            rs = kids[_MAX_KIDS - 1]
+            rs[:] = hp
+            rs[H_P] = z
+            rs[H_PP] = r
+            rs[H_PV] = 0.0
+            rs[H_VV] = max(hp[H_VV], p[P_V0] ** 2)
+            rs[H_O] = 0.0
+            rs[H_AGE] = 0.0
+            rs[H_MODE] = CLEAN
+            rs[H_W] = hp[H_W] + live + log_restart + log_u
+        first = k
+        keep = to_keep > -math.inf
+        for c in range(1, 4 if keep else 3):  # copies of the predicted parent
+            kids[first + c, :] = hp
+        jump = kids[first + (2 if keep else 1)]
+        jump[H_O] = z - hp[H_P]
+        jump[H_W] += live + to_jump + log_u
+        jump[H_AGE] = age
+        jump[H_MODE] = JUMP
+        noise = kids[first + (3 if keep else 2)]
+        noise[H_O] = z - hp[H_P]
+        noise[H_W] += (held if repeated else to_noise) + log_u
+        noise[H_AGE] = age
+        noise[H_MODE] = NOISE
+        if keep:  # the jump goes on: z - o measures the track
+            on = kids[first + 1]
+            on[H_W] += live + to_keep + _measure_position(on, z - on[H_O], r)
+            on[H_AGE] = age
+        clean = kids[first]  # the fix measures the track
+        clean[H_W] += live + to_clean + _measure_position(clean, z, r)
+        clean[H_O] = 0.0
+        clean[H_AGE] = 0.0
+        clean[H_MODE] = CLEAN
+        k = first + (4 if keep else 3)
+    kids[k, :] = kids[_MAX_KIDS - 1]
     k += 1
     if np.isfinite(v):
         for j in range(k):
             kids[j, H_W] += _measure_velocity(kids[j], v, rv)
-    order = np.argsort(-kids[:k, H_W], kind="mergesort")
-    kept = np.empty(BEAM, dtype=np.int64)
+    # The best children in order of weight (the first of equals), duplicates merged,
+    # the last _RESERVED places kept for modes not yet among them.
+    for j in range(k):
+        used[j] = 0.0
     m = 0
-    seen = np.zeros(3, dtype=np.bool_)
-    for idx in order:
-        ch = kids[idx]
+    seen_clean = False
+    seen_jump = False
+    seen_noise = False
+    while m < BEAM:
+        best = -1
+        for j in range(k):
+            if used[j] == 0.0 and (best < 0 or kids[j, H_W] > kids[best, H_W]):
+                best = j
+        if best < 0:
+            break
+        used[best] = 1.0
         duplicate = False
         for j in range(m):
-            if _same(ch, kids[kept[j]]):
+            if _same(kids[best], kids[int(kept[j])]):
                 duplicate = True
                 break
         if duplicate:
             continue
-        mode = int(ch[H_MODE])
-        if m < BEAM - _RESERVED or not seen[mode]:
-            kept[m] = idx
+        mode = kids[best, H_MODE]
+        seen = seen_clean if mode == CLEAN else (seen_jump if mode == JUMP else seen_noise)
+        if m < BEAM - _RESERVED or not seen:
+            kept[m] = best
             m += 1
-            seen[mode] = True
-        if m >= BEAM:
-            break
-    weights = np.empty(m)
-    for j in range(m):
-        weights[j] = kids[kept[j], H_W]
-    final = np.argsort(-weights, kind="mergesort")
-    top = weights[final[0]]
+            if mode == CLEAN:
+                seen_clean = True
+            elif mode == JUMP:
+                seen_jump = True
+            else:
+                seen_noise = True
+    top = kids[int(kept[0]), H_W]
     best_clean = -math.inf
     beam[0] = float(m)
     for j in range(m):
         h = beam[1 + j * N_H : 1 + (j + 1) * N_H]
-        h[:] = kids[kept[final[j]]]
+        h[:] = kids[int(kept[j])]
         h[H_W] -= top
         if h[H_MODE] == CLEAN and h[H_W] > best_clean:
             best_clean = h[H_W]
-    best = beam[1 : 1 + N_H]
-    result = np.empty(5)
-    result[0] = 0.0 if best[H_MODE] == CLEAN else best[H_O]
-    result[1] = nu_out
-    result[2] = dist_out
-    result[3] = best[H_AGE]
-    result[4] = min(-best_clean, _NO_CLEAN)
-    return result
+    lead = beam[1 : 1 + N_H]
+    res[0] = 0.0 if lead[H_MODE] == CLEAN else lead[H_O]
+    res[3] = lead[H_AGE]
+    res[4] = min(-best_clean, _NO_CLEAN)
 
 
 @numba.njit(cache=True)
@@ -453,8 +469,10 @@ def offset_step(
     speed: float,
     heading: float,
     out: FloatArray,
+    scratch: FloatArray,
 ) -> None:
-    """One point of the tracker: advance ``state`` and write the features into ``out``."""
+    """One point of the tracker: advance ``state`` and write the features into ``out``;
+    ``scratch``: :data:`N_OFFSET_SCRATCH` floats of work space (made once per segment)."""
     beam_e = state[_S_BEAM : _S_BEAM + _CHANNEL_STATE]
     beam_n = state[_S_BEAM + _CHANNEL_STATE : _S_BEAM + 2 * _CHANNEL_STATE]
     for k in range(N_OFFSET_FEATURES):
@@ -474,8 +492,10 @@ def offset_step(
         state[S_T] += dt
         log_restart = _log_restart(p, state[S_T], dt)
         repeated = east == state[S_E] and north == state[S_N]
-        e = _channel_step(p, beam_e, east, dt, ve, log_restart, repeated)
-        n = _channel_step(p, beam_n, north, dt, vn, log_restart, repeated)
+        e = scratch[_CHILDREN : _CHILDREN + 5]
+        n = scratch[_CHILDREN + 5 : _CHILDREN + 10]
+        _channel_step(p, beam_e, scratch, east, dt, ve, log_restart, repeated, e)
+        _channel_step(p, beam_n, scratch, north, dt, vn, log_restart, repeated, n)
         out[0] = e[0]
         out[1] = n[0]
         out[2] = np.hypot(e[0], n[0])
@@ -491,6 +511,23 @@ def offset_step(
     state[S_N] = north
 
 
+def check_state(state: FloatArray) -> None:
+    """Raise ValueError where a stored tracker state would make the compiled step index
+    out of bounds (it has no bounds checks): each channel's hypothesis count must be a
+    whole number of at most :data:`BEAM` (at least one once a fix has been read), and
+    each of its hypotheses' modes clean, jump or outlier."""
+    for c, name in enumerate(("east", "north")):
+        at = _S_BEAM + c * _CHANNEL_STATE
+        n = float(state[at])
+        low = 1.0 if state[S_COUNT] > 0 else 0.0
+        if not (math.isfinite(n) and n == int(n) and low <= n <= BEAM):
+            raise ValueError(f"offset tracker {name} hypotheses = {n!r}, expected {low:g}..{BEAM}")
+        for j in range(int(n)):
+            mode = float(state[at + 1 + j * N_H + H_MODE])
+            if mode not in (CLEAN, JUMP, NOISE):
+                raise ValueError(f"offset tracker {name} hypothesis {j} has mode {mode!r}")
+
+
 @numba.njit(cache=True)
 def _offset_kernel(
     p: FloatArray,
@@ -501,9 +538,10 @@ def _offset_kernel(
     heading: FloatArray,
 ) -> FloatArray:
     state = np.zeros(N_OFFSET_STATE)
+    scratch = np.zeros(N_OFFSET_SCRATCH)
     out = np.empty((east.size, N_OFFSET_FEATURES))
     for i in range(east.size):
-        offset_step(p, state, dt[i], east[i], north[i], speed[i], heading[i], out[i])
+        offset_step(p, state, dt[i], east[i], north[i], speed[i], heading[i], out[i], scratch)
     return out
 
 
@@ -652,7 +690,6 @@ def _reference_channel(
                 seen.add(h.mode)
             if len(kept) >= BEAM:
                 break
-        kept.sort(key=lambda h: -h.weight)
         top = kept[0].weight
         for h in kept:
             h.weight -= top

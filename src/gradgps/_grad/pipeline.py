@@ -93,6 +93,7 @@ from .motion import (
 from .offset import (
     N_OFFSET_FEATURES,
     N_OFFSET_PARAMS,
+    N_OFFSET_SCRATCH,
     N_OFFSET_STATE,
     OFFSET_FEATURES,
     OffsetParams,
@@ -175,9 +176,10 @@ N_PENDING = _PEND_SCRATCH + N_TIME_STATE + N_RECOVERY_STATE
 # ``off_out`` scratch: offset features, motion features, then the speed and
 # heading the pipeline used for the point (reported, or the motion model's).
 _SH = N_OFFSET_FEATURES + N_MOTION_FEATURES
-# Then the drift witness's outputs (flag, offset m).
+# Then the drift witness's outputs (flag, offset m), then the offset tracker's work space.
 _DRIFT_OUT = _SH + 2
-_N_OFF_OUT = _DRIFT_OUT + N_DRIFT_OUT
+_OFF_SCRATCH = _DRIFT_OUT + N_DRIFT_OUT
+_N_OFF_OUT = _OFF_SCRATCH + N_OFFSET_SCRATCH
 # State blocks after the core's: offset, time, recovery, drift witness, motion.
 _N_TAIL_STATE = N_OFFSET_STATE + N_TIME_STATE + N_RECOVERY_STATE + N_DRIFT_STATE + N_MOTION_STATE
 # Per-point outputs. O_CONFIRM, with a confirm head: where verdicts settle one fix late,
@@ -407,6 +409,7 @@ def _features_point(
         off_speed,
         off_heading,
         off_out,
+        off_out[_OFF_SCRATCH:],
     )
     f0 = N_RESULT + 2 * N_OUT
     nc = _n_core_features(Pc)
