@@ -72,15 +72,15 @@ def test_fault_held_too_long_is_released() -> None:
 
 @pytest.mark.parametrize("with_velocity", [True, False])
 def test_a_released_faults_end_leaves_the_other_channels_fault_held(with_velocity: bool) -> None:
-    """A north fault outlives ``max_fault_s`` and is released (remembered); an east jump
-    starts; then the north fault ends with a step back. That step ends the released
-    north fault only: the east offset is still held, and its own end (the step back
-    to the track) leaves no offset behind. The tracker once zeroed both channels at
+    """A north fault outlives what the tracker holds and is released (a restart wins); an
+    east jump starts; then the north fault ends with a step back. That step ends the
+    released north fault only: the east offset is still held, and its own end (the step
+    back to the track) leaves no offset behind. The rule-based tracker once zeroed both channels at
     the north return and re-anchored the clean track on the east-shifted fix, so
     the east jump's end read as a new 50 m jump, held on clean fixes."""
     dt, east, north, speed, heading = _drive()
     east, north = east.copy(), north.copy()
-    north[50:100] += 100.0  # released at 80 s (max_fault_s = 30 s), returns at 100
+    north[50:100] += 100.0  # released before it returns at 100 (fault_s = 10 s below)
     east[90:115] -= 50.0
     sp, hd = (speed, heading) if with_velocity else (None, None)
     prm = OffsetParams(fault_s=10.0)

@@ -73,21 +73,15 @@ def tracker_offsets(params: OffsetParams, max_gap_s: float, fixes: pd.DataFrame)
     tracker run alone on the detector's segments (positions only, it takes no other
     velocity than a reported one, so this is what the pipeline computes)."""
     out = np.zeros((len(fixes), 2))
-    track = fixes["track"].to_numpy()
-    for name in pd.unique(track):
-        rows = np.flatnonzero(track == name)
-        part = fixes.iloc[rows].reset_index(drop=True)
-        usable = np.flatnonzero(stream_reasons(part, min_step_s=MIN_STEP_S) == "")
-        prepared = grad_points(part.iloc[usable], max_gap_s)
-        values = np.zeros((len(prepared.points), 2))
-        for _, sl in prepared.segment_slices():
-            pts = prepared.points.iloc[sl]
-            t = pts["t"].to_numpy(np.float64)
-            east, north = (pts[c].to_numpy(np.float64) for c in ("east", "north"))
-            values[sl] = offset_features(np.diff(t, prepend=t[0]), east, north, params=params)[
-                :, :2
-            ]
-        out[rows[usable]] = prepared.to_rows(values, fill=0.0)
+    usable = np.flatnonzero(stream_reasons(fixes, min_step_s=MIN_STEP_S) == "")
+    prepared = grad_points(fixes.iloc[usable], max_gap_s)
+    values = np.zeros((len(prepared.points), 2))
+    for _, sl in prepared.segment_slices():
+        pts = prepared.points.iloc[sl]
+        t = pts["t"].to_numpy(np.float64)
+        east, north = (pts[c].to_numpy(np.float64) for c in ("east", "north"))
+        values[sl] = offset_features(np.diff(t, prepend=t[0]), east, north, params=params)[:, :2]
+    out[usable] = prepared.to_rows(values, fill=0.0)
     return out
 
 

@@ -629,10 +629,7 @@ def _reference_channel(
         since_start += d
         # a fix repeated exactly: held (an outlier) or live, at even odds (_HELD)
         live = math.log(1 - _HELD) if repeated[i] else 0.0
-        # the track is least certain where it starts (see OffsetParams)
-        decay = math.exp(-since_start / prm.start_s)
-        rate = prm.restart_per_s + (prm.start_restart_per_s - prm.restart_per_s) * decay
-        log_restart = math.log(1 - math.exp(-rate * d))
+        log_restart = _log_restart(p, since_start, d)  # least certain where it starts
         kids: list[_Hypothesis] = []
         restart = None
         for j, parent in enumerate(beam):
