@@ -11,8 +11,14 @@ The model (per channel, east and north apart: faults may hit one and not the
 other, and a prediction error in one must not leak into the other). The fix
 is ``z = p + o + e``:
 
-* ``p``, the **clean track**: constant velocity driven by white acceleration
-  noise of ``sigma_a`` m/s² (a car's routine speeding up, braking, turning);
+* ``p``, the **clean track**: position, velocity and an acceleration that
+  lasts (Singer's model: the acceleration is a Gauss-Markov process of spread
+  ``sigma_a`` m/s² that forgets itself with time constant ``tau_a`` s). A car
+  turning or braking accelerates for seconds, not for one fix: a track of
+  constant velocity with white acceleration noise lags such a manoeuvre by
+  about ``a * sigma_m / sigma_a`` metres at any rate, and at 10 Hz ten fixes a
+  second testify to the lag, so a long fault was released early and its end
+  read as a new jump (``docs/deviations.md``);
 * ``e``, the receiver's **noise**, ``sigma_m`` m;
 * ``o``, the **fault**, in one of three modes: *clean* (``o = 0``; the fix
   measures the track), *jump* (``o`` constant; the fix measures the track
@@ -96,9 +102,10 @@ OFFSET_FEATURES = (
     "fault_evidence",
 )
 N_OFFSET_FEATURES = len(OFFSET_FEATURES)
-N_OFFSET_PARAMS = 13
+N_OFFSET_PARAMS = 14
 (
     P_SIGMA_A,
+    P_TAU_A,
     P_SIGMA_M,
     P_SIGMA_V,
     P_JUMP,
@@ -120,10 +127,14 @@ N_OFFSET_PARAMS = 13
 #: survives a noise run.
 BEAM = 12
 _RESERVED = 3
-# A hypothesis: clean track, velocity, covariance (pp, pv, vv), offset, fault age,
-# log-weight, mode.
-H_P, H_V, H_PP, H_PV, H_VV, H_O, H_AGE, H_W, H_MODE = range(9)
-N_H = 9
+# A hypothesis: clean track, velocity, acceleration, their covariance (the upper
+# triangle row by row: pp, pv, pa, vv, va, aa), offset, fault age, log-weight, mode.
+H_P, H_V, H_A = range(3)
+H_PP, H_PV, H_PA, H_VV, H_VA, H_AA = range(3, 9)
+H_O, H_AGE, H_W, H_MODE = range(9, 13)
+N_H = 13
+# Where covariance entry (i, j) sits in a hypothesis.
+_COV = np.array([[H_PP, H_PV, H_PA], [H_PV, H_VV, H_VA], [H_PA, H_VA, H_AA]])
 CLEAN, JUMP, NOISE = 0.0, 1.0, 2.0
 # Two children closer than this (m, m/s) in track, velocity and offset, of one
 # mode, are one hypothesis (the better weight kept).
@@ -153,15 +164,18 @@ N_OFFSET_STATE = _S_BEAM + 2 * _CHANNEL_STATE
 # has been ranked, the indices kept; then each channel's five outputs.
 _MAX_KIDS = 4 * BEAM + 1
 _CHILDREN = _MAX_KIDS * (N_H + 1) + BEAM
-N_OFFSET_SCRATCH = _CHILDREN + 10
+#: Work space of :func:`singer_step`: dt, the three transition entries that are not 0
+#: or 1, then the process noise's upper triangle (pp, pv, pa, vv, va, aa).
+N_STEP = 10
+N_OFFSET_SCRATCH = _CHILDREN + 10 + N_STEP
 
 
 @dataclass(frozen=True)
 class OffsetParams:
     """The model's stated parameters (see the module docstring).
 
-    ``sigma_a`` m/s² and ``sigma_m`` m: the clean track's acceleration noise and
-    the receiver's; ``sigma_v`` m/s: a reported velocity's noise; ``jump_per_s``,
+    ``sigma_a`` m/s² and ``tau_a`` s: the spread of the clean track's acceleration and
+    how long an acceleration lasts; ``sigma_m`` m: the receiver's noise; ``sigma_v`` m/s: a reported velocity's noise; ``jump_per_s``,
     ``noise_per_s``: how often a jump or an outlier run starts on a clean track;
     ``switch_per_s``: how often a fault changes kind or a jump its offset;
     ``noise_stay``: the chance an outlier is followed by another; ``span_m``: the
@@ -175,7 +189,8 @@ class OffsetParams:
     a track starts.
     """
 
-    sigma_a: float = 1.5
+    sigma_a: float = 1.0
+    tau_a: float = 4.0
     sigma_m: float = 3.5
     sigma_v: float = 2.0
     jump_per_s: float = 0.005
@@ -192,6 +207,7 @@ class OffsetParams:
     def to_array(self) -> FloatArray:
         values = [
             self.sigma_a,
+            self.tau_a,
             self.sigma_m,
             self.sigma_v,
             self.jump_per_s,
@@ -208,6 +224,7 @@ class OffsetParams:
         if not (
             all(math.isfinite(v) for v in values)
             and self.sigma_a > 0
+            and self.tau_a > 0
             and self.sigma_m > 0
             and self.sigma_v > 0
             and self.jump_per_s > 0
@@ -222,7 +239,7 @@ class OffsetParams:
             and self.v0_sigma > 0
         ):
             raise ConfigError(
-                "offset tracker needs finite sigma_a, sigma_m, sigma_v, jump_per_s, "
+                "offset tracker needs finite sigma_a, tau_a, sigma_m, sigma_v, jump_per_s, "
                 "noise_per_s, switch_per_s, span_m, fault_s, restart_per_s, "
                 "start_restart_per_s, start_s, v0_sigma > 0 and noise_stay in (0, 1); "
                 f"got {self}"
@@ -260,46 +277,95 @@ def _log_restart(p: FloatArray, age_s: float, dt: float) -> float:
     return math.log(1.0 - math.exp(-rate * dt))
 
 
-@numba.njit(cache=True)
-def _predict(h: FloatArray, dt: float, q: float) -> None:
-    """Constant velocity over ``dt`` with white acceleration noise of variance ``q``."""
-    a, b, c = h[H_PP], h[H_PV], h[H_VV]
-    h[H_P] += h[H_V] * dt
-    h[H_PP] = a + 2.0 * dt * b + dt * dt * c + q * dt**4 / 4.0
-    h[H_PV] = b + dt * c + q * dt**3 / 2.0
-    h[H_VV] = c + q * dt * dt
+# Gauss-Legendre nodes and weights on [0, 1] (four points): the process noise of a
+# step is integrated piecewise over spans of at most ``tau_a`` with them.
+_GL_X = np.array([0.0694318442029737, 0.3300094782075719, 0.6699905217924281, 0.9305681557970263])
+_GL_W = np.array([0.1739274225687269, 0.3260725774312731, 0.3260725774312731, 0.1739274225687269])
 
 
 @numba.njit(cache=True)
-def _measure_position(h: FloatArray, y: float, r: float) -> float:
-    """Kalman update with ``y``, a measurement of the track of variance ``r``; the log-
-    likelihood of ``y``."""
-    s = h[H_PP] + r
-    k0 = h[H_PP] / s
-    k1 = h[H_PV] / s
-    nu = y - h[H_P]
-    a, b, c = h[H_PP], h[H_PV], h[H_VV]
-    h[H_P] += k0 * nu
-    h[H_V] += k1 * nu
-    h[H_PP] = (1.0 - k0) * a
-    h[H_PV] = (1.0 - k0) * b
-    h[H_VV] = c - k1 * b
-    return float(-0.5 * math.log(2.0 * math.pi * s) - 0.5 * nu * nu / s)
+def _response(s: float, alpha: float) -> tuple[float, float, float]:
+    """Position, velocity and acceleration ``s`` seconds after a unit of acceleration,
+    which then fades at rate ``alpha`` (expm1: exact where ``alpha * s`` is small)."""
+    x = alpha * s
+    return (math.expm1(-x) + x) / alpha**2, -math.expm1(-x) / alpha, math.exp(-x)
 
 
 @numba.njit(cache=True)
-def _measure_velocity(h: FloatArray, y: float, r: float) -> float:
-    """Kalman update with ``y``, a measurement of the velocity of variance ``r``."""
-    s = h[H_VV] + r
-    k0 = h[H_PV] / s
-    k1 = h[H_VV] / s
-    nu = y - h[H_V]
-    a, b, c = h[H_PP], h[H_PV], h[H_VV]
-    h[H_P] += k0 * nu
-    h[H_V] += k1 * nu
-    h[H_PP] = a - k0 * b
-    h[H_PV] = (1.0 - k1) * b
-    h[H_VV] = (1.0 - k1) * c
+def singer_step(p: FloatArray, dt: float, out: FloatArray) -> None:
+    """The clean track's transition over ``dt`` seconds (Singer's model: the acceleration
+    decays with ``tau_a`` and is driven by white noise that keeps its spread at
+    ``sigma_a``) into ``out`` (:data:`N_STEP`): ``dt``, the transition's entries
+    (p <- a, v <- a, a <- a) and the process noise ``Q = qc * int_0^dt r(s) r(s)' ds``
+    (``r``: :func:`_response`, ``qc = 2 sigma_a² / tau_a``), integrated numerically
+    (the closed form cancels catastrophically at 10 Hz). Shared by the kernel and the
+    readable reference: one dt serves both channels and every hypothesis."""
+    alpha = 1.0 / p[P_TAU_A]
+    qc = 2.0 * p[P_SIGMA_A] ** 2 * alpha
+    f02, f12, f22 = _response(dt, alpha)
+    out[0] = dt
+    out[1] = f02
+    out[2] = f12
+    out[3] = f22
+    for k in range(4, N_STEP):
+        out[k] = 0.0
+    pieces = min(max(math.ceil(dt / p[P_TAU_A]), 1), 16)
+    width = dt / pieces
+    for j in range(pieces):
+        for g in range(4):
+            r0, r1, r2 = _response((j + _GL_X[g]) * width, alpha)
+            w = qc * width * _GL_W[g]
+            out[4] += w * r0 * r0
+            out[5] += w * r0 * r1
+            out[6] += w * r0 * r2
+            out[7] += w * r1 * r1
+            out[8] += w * r1 * r2
+            out[9] += w * r2 * r2
+
+
+@numba.njit(cache=True)
+def _predict(h: FloatArray, step: FloatArray) -> None:
+    """The hypothesis's track and covariance one step on (``step``: :func:`singer_step`):
+    ``x <- F x``, ``P <- F P F' + Q``, written out for the transition's zeros."""
+    dt, f02, f12, f22 = step[0], step[1], step[2], step[3]
+    pp, pv, pa, vv, va, aa = h[H_PP], h[H_PV], h[H_PA], h[H_VV], h[H_VA], h[H_AA]
+    h[H_P] += dt * h[H_V] + f02 * h[H_A]
+    h[H_V] += f12 * h[H_A]
+    h[H_A] *= f22
+    # M = F P
+    m00 = pp + dt * pv + f02 * pa
+    m01 = pv + dt * vv + f02 * va
+    m02 = pa + dt * va + f02 * aa
+    m11 = vv + f12 * va
+    m12 = va + f12 * aa
+    # P' = M F' + Q (symmetric: the upper triangle)
+    h[H_PP] = m00 + dt * m01 + f02 * m02 + step[4]
+    h[H_PV] = m01 + f12 * m02 + step[5]
+    h[H_PA] = f22 * m02 + step[6]
+    h[H_VV] = m11 + f12 * m12 + step[7]
+    h[H_VA] = f22 * m12 + step[8]
+    h[H_AA] = f22 * f22 * aa + step[9]
+
+
+@numba.njit(cache=True)
+def _measure(h: FloatArray, of_velocity: bool, y: float, r: float) -> float:
+    """Kalman update with ``y``, a measurement of variance ``r`` of the track's position
+    (or its velocity); the log-likelihood of ``y``."""
+    if of_velocity:
+        c0, c1, c2, nu = h[H_PV], h[H_VV], h[H_VA], y - h[H_V]
+        s = c1 + r
+    else:
+        c0, c1, c2, nu = h[H_PP], h[H_PV], h[H_PA], y - h[H_P]
+        s = c0 + r
+    h[H_P] += c0 * nu / s
+    h[H_V] += c1 * nu / s
+    h[H_A] += c2 * nu / s
+    h[H_PP] -= c0 * c0 / s
+    h[H_PV] -= c0 * c1 / s
+    h[H_PA] -= c0 * c2 / s
+    h[H_VV] -= c1 * c1 / s
+    h[H_VA] -= c1 * c2 / s
+    h[H_AA] -= c2 * c2 / s
     return float(-0.5 * math.log(2.0 * math.pi * s) - 0.5 * nu * nu / s)
 
 
@@ -325,6 +391,7 @@ def _channel_start(p: FloatArray, beam: FloatArray, z: float) -> None:
     h[H_P] = z
     h[H_PP] = p[P_SIGMA_M] ** 2
     h[H_VV] = p[P_V0] ** 2
+    h[H_AA] = p[P_SIGMA_A] ** 2
     h[H_MODE] = CLEAN
 
 
@@ -334,19 +401,20 @@ def _channel_step(
     beam: FloatArray,
     scratch: FloatArray,
     z: float,
-    dt: float,
+    step: FloatArray,
     v: float,
     log_restart: float,
     repeated: bool,
     res: FloatArray,
 ) -> None:
-    """Advance one channel's beam to the fix ``z`` (``v``: reported velocity or NaN;
+    """Advance one channel's beam to the fix ``z`` (``step``: :func:`singer_step`;
+    ``v``: reported velocity or NaN;
     ``log_restart``: log of the chance the clean track was wrong, :func:`_log_restart`;
     ``repeated``: the fix repeats the previous one exactly, see :data:`_HELD`); write
     [offset, innovation over its spread, |z - predicted track|, age, evidence] into
     ``res``. ``scratch`` (:data:`N_OFFSET_SCRATCH`) holds the children, so a fix
     allocates nothing."""
-    q = p[P_SIGMA_A] ** 2
+    dt = step[0]
     r = p[P_SIGMA_M] ** 2
     rv = p[P_SIGMA_V] ** 2
     log_u = -math.log(2.0 * p[P_SPAN])
@@ -360,7 +428,7 @@ def _channel_step(
     for j in range(n):
         hp = kids[k]  # the parent, predicted: the first child's row until it is copied
         hp[:] = beam[1 + j * N_H : 1 + (j + 1) * N_H]
-        _predict(hp, dt, q)
+        _predict(hp, step)
         mode = hp[H_MODE]
         to_clean, to_keep, to_jump, to_noise = _transitions(p, mode, dt)
         age = hp[H_AGE] + dt if mode != CLEAN else dt
@@ -374,9 +442,13 @@ def _channel_step(
             rs = kids[_MAX_KIDS - 1]
             rs[:] = hp
             rs[H_P] = z
+            rs[H_A] = 0.0
             rs[H_PP] = r
             rs[H_PV] = 0.0
+            rs[H_PA] = 0.0
             rs[H_VV] = max(hp[H_VV], p[P_V0] ** 2)
+            rs[H_VA] = 0.0
+            rs[H_AA] = p[P_SIGMA_A] ** 2
             rs[H_O] = 0.0
             rs[H_AGE] = 0.0
             rs[H_MODE] = CLEAN
@@ -397,10 +469,10 @@ def _channel_step(
         noise[H_MODE] = NOISE
         if keep:  # the jump goes on: z - o measures the track
             on = kids[first + 1]
-            on[H_W] += live + to_keep + _measure_position(on, z - on[H_O], r)
+            on[H_W] += live + to_keep + _measure(on, False, z - on[H_O], r)
             on[H_AGE] = age
         clean = kids[first]  # the fix measures the track
-        clean[H_W] += live + to_clean + _measure_position(clean, z, r)
+        clean[H_W] += live + to_clean + _measure(clean, False, z, r)
         clean[H_O] = 0.0
         clean[H_AGE] = 0.0
         clean[H_MODE] = CLEAN
@@ -409,7 +481,7 @@ def _channel_step(
     k += 1
     if np.isfinite(v):
         for j in range(k):
-            kids[j, H_W] += _measure_velocity(kids[j], v, rv)
+            kids[j, H_W] += _measure(kids[j], True, v, rv)
     # The best children in order of weight (the first of equals), duplicates merged,
     # the last _RESERVED places kept for modes not yet among them.
     for j in range(k):
@@ -494,8 +566,10 @@ def offset_step(
         repeated = east == state[S_E] and north == state[S_N]
         e = scratch[_CHILDREN : _CHILDREN + 5]
         n = scratch[_CHILDREN + 5 : _CHILDREN + 10]
-        _channel_step(p, beam_e, scratch, east, dt, ve, log_restart, repeated, e)
-        _channel_step(p, beam_n, scratch, north, dt, vn, log_restart, repeated, n)
+        step = scratch[_CHILDREN + 10 : _CHILDREN + 10 + N_STEP]
+        singer_step(p, dt, step)
+        _channel_step(p, beam_e, scratch, east, step, ve, log_restart, repeated, e)
+        _channel_step(p, beam_n, scratch, north, step, vn, log_restart, repeated, n)
         out[0] = e[0]
         out[1] = n[0]
         out[2] = np.hypot(e[0], n[0])
@@ -573,9 +647,8 @@ def offset_features(
 
 @dataclass
 class _Hypothesis:
-    track: float
-    velocity: float
-    cov: list[float]  # pp, pv, vv
+    x: FloatArray  # track, velocity, acceleration
+    cov: FloatArray  # their 3 x 3 covariance
     offset: float
     age: float
     weight: float
@@ -583,46 +656,56 @@ class _Hypothesis:
 
     def copy(self) -> _Hypothesis:
         return _Hypothesis(
-            self.track, self.velocity, list(self.cov), self.offset, self.age, self.weight, self.mode
+            self.x.copy(), self.cov.copy(), self.offset, self.age, self.weight, self.mode
         )
 
-    def predict(self, dt: float, q: float) -> None:
-        a, b, c = self.cov
-        self.track += self.velocity * dt
-        self.cov = [
-            a + 2 * dt * b + dt * dt * c + q * dt**4 / 4,
-            b + dt * c + q * dt**3 / 2,
-            c + q * dt * dt,
-        ]
+    @property
+    def track(self) -> float:
+        return float(self.x[0])
+
+    @property
+    def velocity(self) -> float:
+        return float(self.x[1])
+
+    def predict(self, f: FloatArray, q: FloatArray) -> None:
+        self.x = f @ self.x
+        self.cov = f @ self.cov @ f.T + q
 
     def measure(self, y: float, r: float, of_velocity: bool = False) -> float:
         """Kalman update with a measurement ``y`` of the track (or the velocity); its
         log-likelihood."""
-        a, b, c = self.cov
-        s = (c if of_velocity else a) + r
-        gain = (b / s, c / s) if of_velocity else (a / s, b / s)
-        nu = y - (self.velocity if of_velocity else self.track)
-        self.track += gain[0] * nu
-        self.velocity += gain[1] * nu
-        if of_velocity:
-            self.cov = [a - gain[0] * b, (1 - gain[1]) * b, (1 - gain[1]) * c]
-        else:
-            self.cov = [(1 - gain[0]) * a, (1 - gain[0]) * b, c - gain[1] * b]
+        h = np.array([0.0, 1.0, 0.0]) if of_velocity else np.array([1.0, 0.0, 0.0])
+        s = float(h @ self.cov @ h) + r
+        gain = self.cov @ h / s
+        nu = y - float(h @ self.x)
+        self.x = self.x + gain * nu
+        self.cov = self.cov - np.outer(gain, gain) * s
         return -0.5 * math.log(2 * math.pi * s) - 0.5 * nu * nu / s
+
+
+def _singer_matrices(p: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
+    """The transition F and process noise Q of the clean track over ``dt``."""
+    step = np.zeros(N_STEP)
+    singer_step(p, dt, step)
+    f = np.array([[1.0, dt, step[1]], [0.0, 1.0, step[2]], [0.0, 0.0, step[3]]])
+    pp, pv, pa, vv, va, aa = step[4:]
+    q = np.array([[pp, pv, pa], [pv, vv, va], [pa, va, aa]])
+    return f, q
 
 
 def _reference_channel(
     prm: OffsetParams, dt: FloatArray, z: FloatArray, v: FloatArray, repeated: NDArray[np.bool_]
 ) -> FloatArray:
     p = prm.to_array()
-    q, r, rv = prm.sigma_a**2, prm.sigma_m**2, prm.sigma_v**2
+    r, rv = prm.sigma_m**2, prm.sigma_v**2
     log_u = -math.log(2 * prm.span_m)
     out = np.zeros((len(z), 5))
     beam: list[_Hypothesis] = []
     since_start = 0.0
     for i in range(len(z)):
         if i == 0 or not dt[i] > 0:
-            beam = [_Hypothesis(float(z[i]), 0.0, [r, 0.0, prm.v0_sigma**2], 0.0, 0.0, 0.0, CLEAN)]
+            start_cov = np.diag([r, prm.v0_sigma**2, prm.sigma_a**2])
+            beam = [_Hypothesis(np.array([z[i], 0.0, 0.0]), start_cov, 0.0, 0.0, 0.0, CLEAN)]
             since_start = 0.0
             continue
         d = float(dt[i])
@@ -630,23 +713,20 @@ def _reference_channel(
         # a fix repeated exactly: held (an outlier) or live, at even odds (_HELD)
         live = math.log(1 - _HELD) if repeated[i] else 0.0
         log_restart = _log_restart(p, since_start, d)  # least certain where it starts
+        f, q = _singer_matrices(p, d)
         kids: list[_Hypothesis] = []
         restart = None
         for j, parent in enumerate(beam):
             h = parent.copy()
-            h.predict(d, q)
+            h.predict(f, q)
             if j == 0:
                 o = h.offset if h.mode == JUMP else 0.0
-                out[i, 1] = (z[i] - o - h.track) / math.sqrt(h.cov[0] + r)
+                out[i, 1] = (z[i] - o - h.track) / math.sqrt(h.cov[0, 0] + r)
                 out[i, 2] = abs(z[i] - h.track)
                 restart = h.copy()
-                restart.track, restart.offset, restart.age, restart.mode = (
-                    float(z[i]),
-                    0.0,
-                    0.0,
-                    CLEAN,
-                )
-                restart.cov = [r, 0.0, max(h.cov[2], prm.v0_sigma**2)]
+                restart.x = np.array([z[i], h.velocity, 0.0])
+                restart.offset, restart.age, restart.mode = 0.0, 0.0, CLEAN
+                restart.cov = np.diag([r, max(h.cov[1, 1], prm.v0_sigma**2), prm.sigma_a**2])
                 restart.weight += live + log_restart + log_u
             to_clean, to_keep, to_jump, to_noise = _transitions(p, h.mode, d)
             age = h.age + d if h.mode != CLEAN else d
