@@ -14,7 +14,8 @@ How a drive is made (all in NumPy, one track at a time):
    arterial, highway; the mix differs per track). A leg is a series of
    straights joined by gentle curves and, off the highway, intersections:
    drive through, traffic light (red: stop and wait), stop sign (stop 1-4 s),
-   or a ~90 degree turn of small radius. Highway legs are entered and left by
+   or a ~90 degree turn of small radius; a few stops are long (queues) and a
+   few are braked into hard. Highway legs are entered and left by
    a ramp curve. The route is a curvature profile ``kappa(s)`` on a 1 m grid
    along the path, box-smoothed so curvature ramps linearly in and out of
    every curve (a clothoid transition, as roads are built).
@@ -24,7 +25,8 @@ How a drive is made (all in NumPy, one track at a time):
    acceleration and a backward pass bounds braking (both exact cumulative
    minima of ``v^2``, so vectorised). The resulting time history is then
    box-filtered over ``T = (a_max + b_max) / jerk_max`` seconds, which bounds
-   jerk by ``jerk_max`` while keeping ``|a|`` within the limits; the caps
+   jerk by ``jerk_max`` while keeping ``|a|`` within the limits (a hard stop
+   brakes beyond ``b_max`` and so with a higher jerk, as a real one); the caps
    are eroded beforehand by the distance the smoothing can shift a speed, so
    the lateral limit still holds after smoothing.
 3. **Sensors** (:func:`_measure`): GNSS position = truth + a first-order
@@ -32,12 +34,13 @@ How a drive is made (all in NumPy, one track at a time):
    by a simulated HDOP; speed and heading come from a noisy velocity vector
    (so heading noise grows as ``1/speed`` and is uniform when stopped);
    receivers in *static hold* freeze position, zero speed and hold heading at
-   some stops; optional IMU longitudinal acceleration (with the gravity
+   some stops, from the moment the car rolls slower than the receiver's
+   threshold (0.3-1.5 m/s, per track) until it rolls faster again; optional IMU longitudinal acceleration (with the gravity
    component of the road grade) and yaw rate, each with a per-track bias and
    white noise.
 
 Randomness: every track draws from ``numpy.random.default_rng(SeedSequence(
-[seed, track]))`` in a fixed order, so a track is a pure function of
+[seed, track]))`` in a fixed order (stop styles from a stream spawned off it), so a track is a pure function of
 ``(seed, track, minutes, rate_hz, origin, params)``; the IMU draws happen even
 when ``imu=False`` so the GNSS columns do not depend on that switch.
 Time starts at :data:`EPOCH` (2023-11-14 22:13:20 UTC) for every track.
@@ -76,6 +79,7 @@ _GRAVITY = 9.80665
 _DS = 1.0  # metres between route grid nodes
 _FINE_DT = 0.1  # seconds: at most this between samples of the true motion
 _URBAN, _ARTERIAL, _HIGHWAY = 0, 1, 2
+_HARD_STOP_M = 150.0  # metres before a hard stop braked at SimulatorParams.hard_stop_decel
 
 
 @dataclass(frozen=True)
@@ -125,6 +129,17 @@ class SimulatorParams:
     """s waited at a red light (chosen: real stops last 1-80 s, median ~15 s)."""
     stop_sign_wait: tuple[float, float] = (1.0, 4.0)
     """s stopped at a stop sign (chosen)."""
+    long_stop_probability: float = 0.05
+    """Chance that a stop on the way (not the start) is a long one (chosen, see :attr:`long_stop_wait`)."""
+    long_stop_wait: tuple[float, float] = (90.0, 300.0)
+    """s, a long stop's wait: queues, level crossings, drop-offs.
+
+    Why: lights and signs alone never stop a simulated car over ~90 s, but
+    the real train/validation drives do (longest stop: Austin 93-104 s,
+    Nevada 240-316 s, DrivePlotR 349-522 s; Nevada's p90 is ~220 s). A
+    detector that only saw short stops may take a long pinned fix for a
+    frozen receiver.
+    """
     idle: tuple[float, float] = (5.0, 40.0)
     """s idling before the start (chosen)."""
     transition_length: float = 6.0
@@ -147,9 +162,36 @@ class SimulatorParams:
     velocity_sigma: float = 0.1
     """m/s per axis, Doppler velocity noise (datasheet: u-blox M8 0.05 m/s in open sky; doubled by us to match the real heading noise at low speed)."""
     static_hold_speed: float = 0.3
-    """m/s, below which a receiver in static hold freezes position (datasheet: u-blox static-hold threshold, configurable)."""
+    """m/s, the lowest speed below which a receiver in static hold pins its position (datasheet: u-blox static-hold threshold, configurable)."""
+    static_hold_speed_max: float = 1.5
+    """m/s, the highest such threshold; each track's receiver draws its own between the two.
+
+    Why: real loggers pin the fix while the car still rolls. The Austin 2006
+    logger's train/validation stops reach their first repeated fix after a
+    last step of 1.4-5.5 m/s (p10-p90, 1 Hz), the NL phones' and DrivePlotR's
+    after 1-2.8 m/s, while a single 0.3 m/s threshold gave the simulator
+    1.1-2.2 m/s and never more than 3.5. Pinning early also makes the first
+    step after the stop a catch-up step when the hold lets go (Austin: 11-26 %
+    of exits are 2 m/s longer than the step after). datasheet: u-blox
+    ``staticHoldThresh`` is 0-2.55 m/s; SiRF static navigation ~1.2 m/s.
+    """
     static_hold_probability: float = 0.7
     """Chance that a given stop is in static hold (chosen to match the real share of zero-length steps)."""
+    hard_stop_probability: float = 0.1
+    """Chance that a stop is braked into hard (chosen, see :attr:`hard_stop_decel`)."""
+    hard_stop_decel: tuple[float, float] = (4.0, 7.0)
+    """m/s^2, braking on the last :data:`_HARD_STOP_M` metres before a hard stop (before the speed fade).
+
+    Why: :attr:`max_decel` is comfortable braking, but real drives also halt
+    hard (late at a light, a car ahead): fix-derived deceleration over the 5 s
+    before a stop exceeds 4 m/s^2 at 18-32 % of the Austin 2006 train/validation
+    stops and 0-7 % of DrivePlotR's (max 6.6 m/s^2 in Austin validation),
+    against 0-3 % in the simulator without it. A detector that never saw a
+    hard halt onto a pinned fix reads one as a frozen receiver. Emergency
+    braking of a passenger car reaches 8-9 m/s^2 (road: dry-pavement
+    friction); the range stays below it, and the speed fade and the jerk
+    smoothing lower what the fixes show (1 Hz fixes: up to ~6.5 m/s^2).
+    """
     vertical_sigma: float = 2.5
     """m, std of the correlated altitude error (datasheet: vertical ~1.5x horizontal)."""
     hdop_median: float = 1.2
@@ -212,6 +254,12 @@ class SimulatorParams:
             )
         if self.static_hold_probability > 1 or self.accel_use[1] > 1:
             raise ConfigError("SimulatorParams: static_hold_probability and accel_use must be <= 1")
+        if self.hard_stop_probability > 1 or self.long_stop_probability > 1:
+            raise ConfigError(
+                "SimulatorParams: hard_stop_probability and long_stop_probability must be <= 1"
+            )
+        if self.static_hold_speed_max < self.static_hold_speed:
+            raise ConfigError("SimulatorParams: static_hold_speed_max must be >= static_hold_speed")
 
     @property
     def smoothing_time(self) -> float:
@@ -236,6 +284,7 @@ class _Route:
     stop_node: NDArray[np.int64]  # node index of each stop (first one: the start)
     stop_wait: FloatArray  # seconds stopped at each
     stop_hold: NDArray[np.bool_]  # receiver in static hold during that stop
+    hold_speed: float  # m/s below which this track's receiver pins its fix at a held stop
 
 
 def _plan_route(rng: np.random.Generator, duration: float, p: SimulatorParams) -> _Route:
@@ -329,6 +378,15 @@ def _plan_route(rng: np.random.Generator, duration: float, p: SimulatorParams) -
                 arc(p.turn_radius, (80.0, 100.0))
     add(50.0, 0.0)  # room to come to the final stop
     hold = rng.random(len(stop_at)) < p.static_hold_probability
+    # Stop style draws from a stream of its own, so everything else about a drive
+    # (route, wander, sensor noise) stays what it was before hard stops existed.
+    style = rng.spawn(1)[0]
+    hold_speed = float(style.uniform(p.static_hold_speed, p.static_hold_speed_max))
+    hard = style.random(len(stop_at)) < p.hard_stop_probability
+    hard_decel = style.uniform(*p.hard_stop_decel, len(stop_at))
+    long = style.random(len(stop_at)) < p.long_stop_probability
+    long[0] = False  # the start keeps its idle time
+    waits = np.where(long, style.uniform(*p.long_stop_wait, len(stop_at)), stop_wait)
 
     length_arr = np.asarray(lengths)
     ends = np.cumsum(length_arr)
@@ -341,15 +399,20 @@ def _plan_route(rng: np.random.Generator, duration: float, p: SimulatorParams) -
     wanted = np.exp(_gauss_markov(rng, n_nodes, p.speed_wander, p.wander_length, _DS))
     starts = np.concatenate([[0.0], ends[:-1]])
     stop_node = np.round(starts[np.asarray(stop_at)] / _DS).astype(np.int64)
+    decel = p.max_decel * np.asarray(decels)[element]
+    reach = round(_HARD_STOP_M / _DS)
+    for node, b in zip(stop_node[hard], hard_decel[hard], strict=True):
+        decel[max(0, node - reach) : node] = b
     return _Route(
         kappa=kappa,
         limit=limits[np.asarray(classes)][element] * driver * wanted,
         accel=p.max_accel * np.asarray(accels)[element],
-        decel=p.max_decel * np.asarray(decels)[element],
+        decel=decel,
         grade=np.asarray(grades)[element],
         stop_node=stop_node,
-        stop_wait=np.asarray(stop_wait),
+        stop_wait=waits,
         stop_hold=hold,
+        hold_speed=hold_speed,
     )
 
 
@@ -518,14 +581,19 @@ def _motion(
     north_nodes = np.concatenate([[0.0], np.cumsum(np.cos(psi_mid) * _DS)])
     alt_nodes = p.origin_alt + np.concatenate([[0.0], np.cumsum(route.grade[:-1] * _DS)])
 
-    # Static hold: between arriving at and leaving a held stop, once nearly still.
+    # Static hold: every run of samples slower than the receiver's threshold that
+    # reaches into a held stop (between arriving and leaving), so the fix pins while
+    # the car still rolls in and lets go once it rolls out faster than that.
     t_out = t_fine[out]
     stop_idx = np.searchsorted(leave[route.stop_node], t_out, side="left")
     stop_idx = np.minimum(stop_idx, route.stop_node.size - 1)
     at_stop = (t_out >= arrive[route.stop_node][stop_idx]) & (
         t_out <= leave[route.stop_node][stop_idx]
     )
-    hold = at_stop & route.stop_hold[stop_idx] & (v_fine[out] < p.static_hold_speed)
+    slow = v_fine[out] < route.hold_speed
+    run = np.cumsum(np.r_[True, slow[1:] != slow[:-1]])
+    held_runs = np.unique(run[at_stop & route.stop_hold[stop_idx] & slow])
+    hold = slow & np.isin(run, held_runs)
 
     return _Truth(
         t=t_out,
