@@ -11,7 +11,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gradgps import ConfigError
-from gradgps._grad.offset import OffsetParams, offset_features, offset_features_reference
+from gradgps._grad.offset import (
+    N_STEP,
+    OffsetParams,
+    offset_features,
+    offset_features_reference,
+    singer_step,
+)
 
 
 def _drive(n: int = 300, seed: int = 0) -> tuple[np.ndarray, ...]:
@@ -341,3 +347,28 @@ def test_a_standing_car_whose_receiver_pins_its_fix_holds_no_offset() -> None:
         offset_features_reference(dt, east, north, nan, nan),
     ):
         assert (out[:, 2] < 6.0).all()
+
+
+@pytest.mark.parametrize("dt", [0.1, 1.0, 2.0, 9.0, 40.0])
+def test_singer_process_noise_is_singers_closed_form(dt: float) -> None:
+    """The numerically integrated process noise equals Singer's (1970) closed form
+    where that form is well conditioned (alpha * dt >= 0.025), and the transition is
+    the Singer model's."""
+    prm = OffsetParams(sigma_a=1.3, tau_a=4.0)
+    step = np.zeros(N_STEP)
+    singer_step(prm.to_array(), dt, step)
+    a, x = 1.0 / prm.tau_a, dt / prm.tau_a
+    e1, e2 = np.exp(-x), np.exp(-2 * x)
+    qc = 2 * a * prm.sigma_a**2
+    closed = [
+        qc / (2 * a**5) * (1 - e2 + 2 * x + 2 * x**3 / 3 - 2 * x**2 - 4 * x * e1),
+        qc / (2 * a**4) * (e2 + 1 - 2 * e1 + 2 * x * e1 - 2 * x + x**2),
+        qc / (2 * a**3) * (1 - e2 - 2 * x * e1),
+        qc / (2 * a**3) * (4 * e1 - 3 - e2 + 2 * x),
+        qc / (2 * a**2) * (e2 + 1 - 2 * e1),
+        qc / (2 * a) * (1 - e2),
+    ]
+    np.testing.assert_allclose(step[4:], closed, rtol=1e-6)
+    np.testing.assert_allclose(step[:4], [dt, (x - 1 + e1) / a**2, (1 - e1) / a, e1], rtol=1e-12)
+    # the acceleration's spread is stationary: a long step forgets the start entirely
+    assert step[9] == pytest.approx(prm.sigma_a**2 * (1 - e2), rel=1e-6)
