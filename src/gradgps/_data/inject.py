@@ -956,7 +956,9 @@ def sensor_grid_rates(labelled: pd.DataFrame) -> pd.DataFrame:
 #: "stop" within one step, 5 m/s² or more at 0.5 Hz and beyond any car's
 #: braking at 1 Hz and faster; a hold on a slower car is indistinguishable
 #: from it braking to a stop until the hold ends, and a label no causal
-#: detector can earn only teaches a model to flag every stop.
+#: detector can earn only teaches a model to flag every stop. (The simulator's
+#: hard stops, up to 7 m/s², reach a pinned fix after a step of up to ~11 m/s
+#: at 0.5 Hz: a few honest look-alikes, labelled normal.)
 _FREEZE_ONSET_SPEED = 10.0
 
 
