@@ -1,0 +1,62 @@
+"""Where a run of false positives comes from: the detector started afresh at later rows.
+
+A network can *latch*: after a fault it keeps flagging fixes whose features are all
+clean again (no offset, no evidence, REMA and the motion model quiet), sometimes to
+its segment's end (docs/model-card.md, "Limits"). Its state then carries something
+an earlier stretch put there. This runs the shipped model (or ``--model``) on the
+segment that holds row ``--row`` of the drives ``simulated_trace.py`` draws
+(simulator seed ``--sim-seed``, ``--hz``, protocol ``grad`` seed ``--inject-seed``,
+positions only), first whole, then starting at each row of ``--starts`` (rows of the
+whole table, in the same segment) with a fresh state, and counts the false positives
+from ``--row`` on: the latest start that still gives them brackets the stretch that
+set the latch. Never the test splits. Run:
+
+    python benchmarks/tried/latch_check.py --hz 0.5 --sim-seed 4242 --inject-seed 0 \\
+        --row 400 --starts 100,200,300,340,372
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from gradgps._data.inject import inject_grad
+from gradgps._data.simulator import simulate_fleet
+from gradgps._grad.detector import Detector
+from gradgps._tracks.track import ColumnMap, to_fixes
+
+POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--hz", type=float, required=True)
+    parser.add_argument("--sim-seed", type=int, default=4242)
+    parser.add_argument("--inject-seed", type=int, default=0)
+    parser.add_argument("--row", type=int, required=True, help="count false positives from here")
+    parser.add_argument("--starts", required=True, help="rows to start afresh at, comma-separated")
+    parser.add_argument("--model", default=None)
+    args = parser.parse_args()
+
+    sim = simulate_fleet(6, 15.0, args.hz, args.sim_seed, imu=False)
+    table = sim[["track", "t", "lat", "lon"]]
+    labelled = inject_grad(table, seed=args.inject_seed, columns=POSITIONS)
+    fixes = to_fixes(labelled, POSITIONS)
+    truth = labelled["label_anomaly"].to_numpy() == 1
+    track = fixes["track"].to_numpy()
+    rows = np.flatnonzero(track == track[args.row])  # the drive that holds --row
+    detector = Detector(args.model)
+    print("| start row | false positives from the row on | false positives in all |")
+    print("|---|---|---|")
+    for start in [int(rows[0]), *(int(s) for s in args.starts.split(","))]:
+        if not rows[0] <= start <= args.row:
+            raise SystemExit(f"start {start} is not between the drive's first row and --row")
+        part = rows[rows >= start]
+        flag = detector.detect(fixes.iloc[part].reset_index(drop=True))["anomaly"].to_numpy() == 1
+        false = flag & ~truth[part]
+        print(f"| {start} | {int(false[part >= args.row].sum())} | {int(false.sum())} |")
+
+
+if __name__ == "__main__":
+    main()
