@@ -340,3 +340,20 @@ def test_parquet_chunks_read_without_pandas_3s_converter(
     for column in ("t", "lat", "lon"):
         np.testing.assert_array_equal(read[column].to_numpy(), frame[column].to_numpy())
     assert read["id"].astype(str).tolist() == frame["id"].tolist()
+
+
+def test_a_model_saved_before_the_singer_clean_track_asks_to_be_retrained(tmp_path: Path) -> None:
+    """Its feature names are today's, its offset tracker's values are not: loading it
+    must fail loudly rather than run it on features it never saw."""
+    import json
+
+    from gradgps import Detector, ModelError
+
+    folder = _model_copy(tmp_path)
+    config = json.loads((folder / "config.json").read_text())
+    offset = config["features"]["params"]["pipeline"]["offset"]
+    del offset["tau_a"]
+    offset["sigma_a"] = 1.5  # as the constant-velocity track saved it
+    (folder / "config.json").write_text(json.dumps(config))
+    with pytest.raises(ModelError, match=r"no tau_a.*retrain it"):
+        Detector(folder)

@@ -188,7 +188,7 @@ def _load_cached(path: str, mtime_ns: int) -> GradModel:
     except (GradGPSError, KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ModelError(
             f"{path}/config.json: no usable pipeline settings ({exc}); "
-            "the model was not trained by gradgps train"
+            "retrain it with this version's gradgps train"
         ) from exc
     names = pipeline_feature_names(params)
     if list(config["features"]["names"]) != names:

@@ -248,6 +248,14 @@ class PipelineParams:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PipelineParams:
+        if "tau_a" not in data["offset"]:
+            # Saved before the clean track had a lasting acceleration: the same feature
+            # names, other values; running it on today's tracker would mislead silently.
+            raise ConfigError(
+                "its offset tracker settings have no tau_a: it was trained with the "
+                "constant-velocity clean track of gradgps before 2026-11-27, whose "
+                "features this version no longer computes"
+            )
         return cls(
             rema=RemaParams.from_dict(data["rema"]),
             features=FeatureParams(**data["features"]),
