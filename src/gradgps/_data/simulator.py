@@ -166,7 +166,8 @@ class SimulatorParams:
     static_hold_speed_max: float = 1.5
     """m/s, the highest such threshold; each track's receiver draws its own between the two.
 
-    Why: real loggers pin the fix while the car still rolls. The Austin 2006
+    Why (figures: ``python benchmarks/stop_stats.py real`` and ``sim``): real
+    loggers pin the fix while the car still rolls. The Austin 2006
     logger's train/validation stops reach their first repeated fix after a
     last step of 1.4-5.5 m/s (p10-p90, 1 Hz), the NL phones' and DrivePlotR's
     after 1-2.8 m/s, while a single 0.3 m/s threshold gave the simulator
