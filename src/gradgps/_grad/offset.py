@@ -133,8 +133,6 @@ H_P, H_V, H_A = range(3)
 H_PP, H_PV, H_PA, H_VV, H_VA, H_AA = range(3, 9)
 H_O, H_AGE, H_W, H_MODE = range(9, 13)
 N_H = 13
-# Where covariance entry (i, j) sits in a hypothesis.
-_COV = np.array([[H_PP, H_PV, H_PA], [H_PV, H_VV, H_VA], [H_PA, H_VA, H_AA]])
 CLEAN, JUMP, NOISE = 0.0, 1.0, 2.0
 # Two children closer than this (m, m/s) in track, velocity and offset, of one
 # mode, are one hypothesis (the better weight kept).
@@ -175,8 +173,8 @@ class OffsetParams:
     """The model's stated parameters (see the module docstring).
 
     ``sigma_a`` m/s² and ``tau_a`` s: the spread of the clean track's acceleration and
-    how long an acceleration lasts; ``sigma_m`` m: the receiver's noise; ``sigma_v`` m/s: a reported velocity's noise; ``jump_per_s``,
-    ``noise_per_s``: how often a jump or an outlier run starts on a clean track;
+    how long an acceleration lasts; ``sigma_m`` m: the receiver's noise; ``sigma_v``
+    m/s: a reported velocity's noise; ``jump_per_s``, ``noise_per_s``: how often a jump or an outlier run starts on a clean track;
     ``switch_per_s``: how often a fault changes kind or a jump its offset;
     ``noise_stay``: the chance an outlier is followed by another; ``span_m``: the
     half-width of the uniform density of a fault's offset; ``fault_s``: a fault's

@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
 import numba
@@ -248,13 +248,15 @@ class PipelineParams:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PipelineParams:
-        if "tau_a" not in data["offset"]:
-            # Saved before the clean track had a lasting acceleration: the same feature
-            # names, other values; running it on today's tracker would mislead silently.
+        missing = [f.name for f in fields(OffsetParams) if f.name not in data["offset"]]
+        if missing:
+            # Saved by an earlier tracker (before 2026-11-27: no tau_a, a constant-velocity
+            # clean track): the same feature names, other values. Filling in today's
+            # defaults would run the network on features it never saw, silently.
             raise ConfigError(
-                "its offset tracker settings have no tau_a: it was trained with the "
-                "constant-velocity clean track of gradgps before 2026-11-27, whose "
-                "features this version no longer computes"
+                f"its offset tracker settings have no {', '.join(missing)}: it was trained "
+                "with an earlier offset tracker, whose features this version no longer "
+                "computes"
             )
         return cls(
             rema=RemaParams.from_dict(data["rema"]),
