@@ -1,7 +1,8 @@
 """The pipeline's features per segment of a table of fixes, in metres and seconds.
 
 For the scripts that read what the detector's network sees (``tried/error_places.py``,
-``tried/simulated_trace.py``, ``tried/tracker_accuracy.py``); never the test splits.
+``tried/simulated_trace.py``, ``tried/tracker_accuracy.py``, ``tried/latch_members.py``);
+never the test splits.
 """
 
 from __future__ import annotations
@@ -16,11 +17,12 @@ from gradgps._grad.pipeline import grad_features
 
 
 def segment_features(
-    det: Detector, fixes: pd.DataFrame
+    det: Detector, fixes: pd.DataFrame, decompress: bool = True
 ) -> Iterator[tuple[np.ndarray, pd.DataFrame, np.ndarray]]:
     """Per segment of each track of ``fixes`` (``to_fixes``' table, positions only): its
     rows (positions in ``fixes``), its prepared points (with ``east``/``north``) and the
-    features, decompressed from the network's signed ``log1p``, one column per name of
+    features, decompressed from the network's signed ``log1p`` (or as the network reads
+    them, ``decompress=False``), one column per name of
     :func:`gradgps._grad.pipeline.pipeline_feature_names`."""
     track = fixes["track"].to_numpy()
     for name in pd.unique(track):
@@ -33,4 +35,9 @@ def segment_features(
             raw = grad_features(
                 det.model_.params, prepared.segment_frames[k], t, lat, lon, nan, nan
             )
-            yield rows[sl], pts, np.sign(raw.features) * np.expm1(np.abs(raw.features))
+            values = raw.features
+            yield (
+                rows[sl],
+                pts,
+                np.sign(values) * np.expm1(np.abs(values)) if decompress else values,
+            )

@@ -18,15 +18,16 @@ set the latch. Never the test splits. Run:
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 import numpy as np
 
-from gradgps._data.inject import inject_grad
-from gradgps._data.simulator import simulate_fleet
 from gradgps._grad.detector import Detector
-from gradgps._tracks.track import ColumnMap, to_fixes
+from gradgps._tracks.track import to_fixes
 
-POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # for simulated_trace
+from simulated_trace import drives
 
 
 def main() -> None:
@@ -38,11 +39,10 @@ def main() -> None:
     parser.add_argument("--starts", required=True, help="rows to start afresh at, comma-separated")
     parser.add_argument("--model", default=None)
     args = parser.parse_args()
+    args.dataset = None  # simulated drives, as simulated_trace.py draws them
 
-    sim = simulate_fleet(6, 15.0, args.hz, args.sim_seed, imu=False)
-    table = sim[["track", "t", "lat", "lon"]]
-    labelled = inject_grad(table, seed=args.inject_seed, columns=POSITIONS)
-    fixes = to_fixes(labelled, POSITIONS)
+    labelled, cmap = drives(args)
+    fixes = to_fixes(labelled, cmap)
     truth = labelled["label_anomaly"].to_numpy() == 1
     track = fixes["track"].to_numpy()
     rows = np.flatnonzero(track == track[args.row])  # the drive that holds --row

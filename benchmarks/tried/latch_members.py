@@ -20,19 +20,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from gradgps._data.inject import inject_grad
-from gradgps._data.simulator import simulate_fleet
 from gradgps._grad.detector import Detector
 from gradgps._grad.gru import _reference_cell, diagonal_blocks, scale_features
 from gradgps._grad.model_io import gru_model
-from gradgps._grad.pipeline import grad_features
-from gradgps._tracks.track import ColumnMap, to_fixes
+from gradgps._tracks.track import to_fixes
 
-POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # for simulated_trace
+from _segment_features import segment_features
+from simulated_trace import drives
 
 
 def main() -> None:
@@ -46,34 +47,24 @@ def main() -> None:
     parser.add_argument("--every", type=int, default=3)
     parser.add_argument("--model", default=None)
     args = parser.parse_args()
+    args.dataset = None  # simulated drives, as simulated_trace.py draws them
 
-    sim = simulate_fleet(6, 15.0, args.hz, args.sim_seed, imu=False)
-    labelled = inject_grad(
-        sim[["track", "t", "lat", "lon"]], seed=args.inject_seed, columns=POSITIONS
-    )
-    fixes = to_fixes(labelled, POSITIONS)
+    labelled, cmap = drives(args)
+    fixes = to_fixes(labelled, cmap)
     truth = labelled["label_anomaly"].to_numpy()
     det = Detector(args.model)
-    det.detect(fixes.iloc[:2])  # loads the model
-    folder = Path(det.model_.path)
-    config = json.loads((folder / "config.json").read_text())
-    with np.load(folder / config["weights_file"]) as archive:
-        gru = gru_model({name: archive[name] for name in archive.files}, config)
-    w = gru.weights
-    members = diagonal_blocks(w)
     track = fixes["track"].to_numpy()
     rows = np.flatnonzero(track == track[args.row])
-    _, _, prepared, _ = det._point_outputs(fixes.iloc[rows].reset_index(drop=True))
-    local = args.row - rows[0]
-    for k, sl in prepared.segment_slices():
-        seg = np.arange(len(prepared.points))[sl]
-        if not seg[0] <= local <= seg[-1]:
+    for seg, _, raw in segment_features(det, fixes.iloc[rows], decompress=False):
+        if args.row not in rows[seg]:
             continue
-        pts = prepared.points.iloc[sl]
-        t, lat, lon = (pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon"))
-        nan = np.full(len(t), np.nan)
-        raw = grad_features(det.model_.params, prepared.segment_frames[k], t, lat, lon, nan, nan)
-        scaled = scale_features(raw.features, gru.mean, gru.std)
+        folder = Path(det.model_.path)  # loaded by segment_features
+        config = json.loads((folder / "config.json").read_text())
+        with np.load(folder / config["weights_file"]) as archive:
+            gru = gru_model({name: archive[name] for name in archive.files}, config)
+        w = gru.weights
+        members = diagonal_blocks(w)
+        scaled = scale_features(raw, gru.mean, gru.std)
         h1 = np.zeros(w["gru1.weight_hh"].shape[1], np.float32)
         h2 = np.zeros(w["gru2.weight_hh"].shape[1], np.float32)
         margin = w["anomaly_head.weight"][1] - w["anomaly_head.weight"][0]
@@ -82,7 +73,7 @@ def main() -> None:
         head = [f"member {m + 1}" for m in range(members)]
         print("| fix | faulty | " + " | ".join(head) + " | bias | sum |")
         print("|" + "---|" * (members + 4))
-        at = local - seg[0]
+        at = int(np.flatnonzero(rows[seg] == args.row)[0])
         for i in range(len(scaled)):
             h1 = _reference_cell(
                 scaled[i], h1, w["gru1.weight_ih"], w["gru1.weight_hh"],
