@@ -1,0 +1,83 @@
+"""Protocol ``gnss`` on the real *validation* drives, positions only: a tuning view.
+
+``gradgps bench --protocol gnss`` scores the test splits, which tuning must not
+read. Its long episodes (frozen fixes up to 60 s, multipath bursts, drifts up to
+300 s) end with clean driving, the case where a detector that learnt "a long
+fault never ends" keeps flagging: the normal recall shows it. This runs the same
+cell (:func:`gradgps._eval.gnss.gnss_cell`, protocol ``gnss`` seed ``--seed``)
+on every data set's validation split, positions only, with the shipped model or
+``--model``. ``--after`` says where the false positives sit instead: per bias
+type of the episode before them (same track), how many, and how many fixes after
+its end (1-5, 6-30, later). Run:
+
+    python benchmarks/tried/gnss_validation.py [--model DIR] [--seed 0] [--after]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from gradgps._data.inject import inject_gnss
+from gradgps._eval.gnss import gnss_cell
+from gradgps._grad.detector import Detector
+from gradgps._tracks.track import to_fixes
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+from _validation_drives import validation_positions
+
+
+def after_faults(det: Detector, labelled: pd.DataFrame, cols: list[str], cmap) -> pd.DataFrame:
+    """One row per false positive: the bias type of the last episode that ended before it
+    on its track (``none`` if none) and the fixes since that episode's last fix."""
+    fixes = to_fixes(labelled[cols], cmap)
+    hit = det.detect(fixes)["anomaly"].to_numpy(dtype=np.int64) == 1
+    bias = labelled["label_bias"].to_numpy(dtype=object)
+    rows = []
+    for _, idx in fixes.groupby("track", sort=False).indices.items():
+        last_kind, last_end = "none", -1
+        for k, i in enumerate(idx):
+            if bias[i] != "none":
+                last_kind, last_end = str(bias[i]), k
+            elif hit[i]:
+                rows.append({"before": last_kind, "since": k - last_end if last_end >= 0 else -1})
+    return pd.DataFrame(rows, columns=["before", "since"])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", default=None)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--after", action="store_true", help="where the false positives sit")
+    args = parser.parse_args()
+    det = Detector(args.model)
+    if args.after:
+        print("| data set | episode before | false positives | 1-5 fixes after | 6-30 | later |")
+        print("|---|---|---|---|---|---|")
+        for name, table, cols, cmap, _ in validation_positions(None, keep_native=True):
+            fp = after_faults(det, inject_gnss(table, seed=args.seed), cols, cmap)
+            for kind, g in fp.groupby("before"):
+                s = g["since"].to_numpy()
+                near, mid = ((s >= 1) & (s <= 5)).sum(), ((s > 5) & (s <= 30)).sum()
+                print(f"| {name} | {kind} | {len(g)} | {near} | {mid} | {len(g) - near - mid} |")
+        return
+    kinds = ("noise", "jump", "freeze", "multipath", "outage")
+    print("| data set | rows | anomaly F1 | normal recall | " + " | ".join(kinds) + " |")
+    print("|---|---|---|---|" + "---|" * len(kinds))
+    for name, table, cols, cmap, _ in validation_positions(None, keep_native=True):
+        labelled = inject_gnss(table, seed=args.seed)
+        cell = gnss_cell(det, labelled, cols, cmap)
+        recalls = [cell["types"][k]["recall"] for k in kinds]
+        shown = " | ".join("-" if r is None else f"{r:.2f}" for r in recalls)
+        print(
+            f"| {name} | {cell['rows']:,} | {cell['anomaly']['f1']:.3f} | {cell['normal']['recall']:.3f} | "
+            f"{shown} |"
+        )
+
+
+if __name__ == "__main__":
+    main()
