@@ -27,19 +27,15 @@ from gradgps._grad.detector import Detector
 from gradgps._tracks.track import to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for simulated_trace
-from simulated_trace import drives
+from simulated_trace import drive_arguments, drives
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--hz", type=float, required=True)
-    parser.add_argument("--sim-seed", type=int, default=4242)
-    parser.add_argument("--inject-seed", type=int, default=0)
+    drive_arguments(parser, simulated_only=True)  # simulated drives, as simulated_trace.py
     parser.add_argument("--row", type=int, required=True, help="count false positives from here")
     parser.add_argument("--starts", required=True, help="rows to start afresh at, comma-separated")
-    parser.add_argument("--model", default=None)
     args = parser.parse_args()
-    args.dataset = None  # simulated drives, as simulated_trace.py draws them
 
     labelled, cmap = drives(args)
     fixes = to_fixes(labelled, cmap)

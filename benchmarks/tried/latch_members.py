@@ -33,21 +33,17 @@ from gradgps._tracks.track import to_fixes
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for simulated_trace
 from _segment_features import segment_features
-from simulated_trace import drives
+from simulated_trace import drive_arguments, drives
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--hz", type=float, required=True)
-    parser.add_argument("--sim-seed", type=int, default=4242)
-    parser.add_argument("--inject-seed", type=int, default=0)
+    drive_arguments(parser, simulated_only=True)  # simulated drives, as simulated_trace.py
     parser.add_argument("--row", type=int, required=True)
     parser.add_argument("--before", type=int, default=150)
     parser.add_argument("--after", type=int, default=48)
     parser.add_argument("--every", type=int, default=3)
-    parser.add_argument("--model", default=None)
     args = parser.parse_args()
-    args.dataset = None  # simulated drives, as simulated_trace.py draws them
 
     labelled, cmap = drives(args)
     fixes = to_fixes(labelled, cmap)

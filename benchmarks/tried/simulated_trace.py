@@ -90,18 +90,29 @@ def error_runs(
     return sorted(runs, key=lambda r: (-r[0], r[1]))
 
 
+def drive_arguments(parser: argparse.ArgumentParser, *, simulated_only: bool = False) -> None:
+    """The arguments :func:`drives` reads (which drives, which faults) and ``--model``;
+    ``simulated_only``: ``--hz`` is required and there is no ``--dataset``/``--period``."""
+    parser.add_argument(
+        "--hz", type=float, required=simulated_only, help="simulated drives at this rate"
+    )
+    parser.add_argument("--sim-seed", type=int, default=4242)
+    if simulated_only:
+        parser.set_defaults(dataset=None, period=0.0)
+    else:
+        parser.add_argument("--dataset", default=None, help="a data set's validation split instead")
+        parser.add_argument("--period", type=float, default=0.0, help="seconds; 0 = native")
+    parser.add_argument("--inject-seed", type=int, default=0)
+    parser.add_argument("--model", default=None)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--hz", type=float, default=None, help="simulated drives at this rate")
-    parser.add_argument("--sim-seed", type=int, default=4242)
-    parser.add_argument("--dataset", default=None, help="a data set's validation split instead")
-    parser.add_argument("--period", type=float, default=0.0, help="seconds; 0 = native")
-    parser.add_argument("--inject-seed", type=int, default=0)
+    drive_arguments(parser)
     parser.add_argument("--row", type=int, default=None)
     parser.add_argument("--errors", action="store_true", help="list the longest error runs")
     parser.add_argument("--before", type=int, default=30)
     parser.add_argument("--after", type=int, default=30)
-    parser.add_argument("--model", default=None)
     parser.add_argument("--features", default=DEFAULT_FEATURES)
     args = parser.parse_args()
     det = Detector(args.model)
