@@ -11,7 +11,7 @@ draw other simulated drives and other faults (training's simulated drives use
 seeds from 30,000 up). Run:
 
     python benchmarks/tried/hangover_check.py [--model DIR] [--data-dir DIR]
-        [--rates 10,5,1,0.5] [--sim-seed N] [--inject-seed K]
+        [--rates 10,5,1,0.5] [--sim-seed N] [--inject-seed K] [--simulated-only]
     python benchmarks/tried/hangover_check.py --longest 10   # the longest run, described
 """
 
@@ -105,6 +105,9 @@ def main() -> None:
     parser.add_argument("--rates", default="10,5,1", help="simulated rates, Hz, comma-separated")
     parser.add_argument("--sim-seed", type=int, default=4242)
     parser.add_argument("--inject-seed", type=int, default=0)
+    parser.add_argument(
+        "--simulated-only", action="store_true", help="leave the validation drives out"
+    )
     args = parser.parse_args()
     det = Detector(args.model)
     if args.longest is not None:
@@ -117,6 +120,8 @@ def main() -> None:
         drives = drives[["track", "t", "lat", "lon"]]
         row = hangover(det, drives, POSITIONS, args.inject_seed)
         print(f"| simulated {hz:g} Hz | " + row)
+    if args.simulated_only:
+        return
     for name, data, _, cmap, _ in validation_positions(None, args.data_dir, keep_native=True):
         print(f"| {name} validation | " + hangover(det, data, cmap, args.inject_seed))
 

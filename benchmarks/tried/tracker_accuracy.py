@@ -4,7 +4,8 @@ A change to the offset tracker changes the network's inputs, so judging it by th
 detector's F1 needs a retrain, and one retrain moves the validation numbers by as
 much as the changes tried so far (docs/deviations.md, "both of the rows above, with
 a retrained network"). This judges the tracker's own output instead, against what
-protocol ``grad`` (seed 0) wrote, positions only:
+protocol ``grad`` (seed 0) wrote, positions only (``--variant +speed+heading``: with the
+reported speed and heading, where a drive set has them):
 
 * **phantom**: the share of *normal* fixes (no injected fault in either channel)
   where the tracker holds an offset above 8 m in a channel: a
@@ -26,7 +27,7 @@ an episode's end (1, 2-3, 4-10, 11-30, 31-100, more). Run with the sources to ju
 on ``PYTHONPATH``:
 
     python benchmarks/tried/tracker_accuracy.py [--model DIR] [--period 0|2] [--where]
-        [--set K=V,...] [--skip NAME]
+        [--set K=V,...] [--skip NAME] [--variant positions|+speed|+speed+heading]
 """
 
 from __future__ import annotations
@@ -40,8 +41,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from gradgps._data.datasets import load_dataset
 from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import simulate_fleet
+from gradgps._eval.robustness import _variant_columns, decimate
 from gradgps._grad.defaults import MIN_STEP_S, grad_points
 from gradgps._grad.detector import Detector
 from gradgps._grad.offset import OffsetParams, offset_features
@@ -51,7 +54,7 @@ from gradgps._tracks.track import ColumnMap, to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helpers
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for error_places
-from _validation_drives import validation_positions
+from _validation_drives import DATASETS, validation_positions
 from error_places import episode_distances
 
 POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
@@ -59,19 +62,36 @@ THRESHOLD_M = 8.0
 _M_PER_DEG = 111_320.0
 
 
-def drives(period: float | None) -> Iterator[tuple[str, pd.DataFrame, ColumnMap]]:
-    """(name, table, column map): simulated drives, then the validation drives."""
+def drives(
+    period: float | None, variant: str = "positions"
+) -> Iterator[tuple[str, pd.DataFrame, ColumnMap]]:
+    """(name, table, column map): simulated drives, then the validation drives, in
+    ``variant``'s columns (drive sets without them left out)."""
     for hz in (10.0, 1.0, 0.5):
-        sim = simulate_fleet(6, 15.0, hz, 4242, imu=False)[["track", "t", "lat", "lon"]]
-        yield f"simulated {hz:g} Hz", sim, POSITIONS
-    for name, data, _, cmap, _ in validation_positions(period, keep_native=True):
-        yield name, data, cmap
+        sim = simulate_fleet(6, 15.0, hz, 4242, imu=False)
+        if variant == "positions":
+            yield f"simulated {hz:g} Hz", sim[["track", "t", "lat", "lon"]], POSITIONS
+        else:
+            picked = _variant_columns(sim, to_fixes(sim).attrs["columns"], variant)
+            assert picked is not None  # the simulator reports speed and heading
+            yield f"simulated {hz:g} Hz", sim[picked[0]], picked[1]
+    if variant == "positions":
+        for name, data, _, cmap, _ in validation_positions(period, keep_native=True):
+            yield name, data, cmap
+        return
+    for name in DATASETS:
+        table = load_dataset(name, "validation")
+        picked = _variant_columns(table, to_fixes(table).attrs["columns"], variant)
+        if picked is None:
+            continue
+        cols, cmap = picked
+        yield name, (table[cols] if period is None else decimate(table[cols], cmap, period)), cmap
 
 
 def tracker_offsets(params: OffsetParams, max_gap_s: float, fixes: pd.DataFrame) -> np.ndarray:
-    """Per fix of ``fixes`` (positions only): the tracker's offset east and north (m), the
-    tracker run alone on the detector's segments (positions only, it takes no other
-    velocity than a reported one, so this is what the pipeline computes)."""
+    """Per fix of ``fixes``: the tracker's offset east and north (m), the tracker run alone
+    on the detector's segments (it takes no other velocity than a reported speed and
+    heading, so this is what the pipeline computes)."""
     out = np.zeros((len(fixes), 2))
     usable = np.flatnonzero(stream_reasons(fixes, min_step_s=MIN_STEP_S) == "")
     prepared = grad_points(fixes.iloc[usable], max_gap_s)
@@ -80,7 +100,12 @@ def tracker_offsets(params: OffsetParams, max_gap_s: float, fixes: pd.DataFrame)
         pts = prepared.points.iloc[sl]
         t = pts["t"].to_numpy(np.float64)
         east, north = (pts[c].to_numpy(np.float64) for c in ("east", "north"))
-        values[sl] = offset_features(np.diff(t, prepend=t[0]), east, north, params=params)[:, :2]
+        speed, heading = (
+            pts[c].to_numpy(np.float64) if c in pts else None for c in ("speed", "heading")
+        )
+        values[sl] = offset_features(
+            np.diff(t, prepend=t[0]), east, north, speed, heading, params=params
+        )[:, :2]
     out[usable] = prepared.to_rows(values, fill=0.0)
     return out
 
@@ -133,6 +158,9 @@ def main() -> None:
     parser.add_argument("--period", type=float, default=0.0, help="seconds; 0 = native")
     parser.add_argument("--where", action="store_true", help="untouched drives, and where")
     parser.add_argument("--set", default="", help="tracker settings k=v,... over the model's")
+    parser.add_argument(
+        "--variant", default="positions", help="columns: positions, +speed, +speed+heading"
+    )
     parser.add_argument("--skip", default="", help="leave out drive sets whose name holds this")
     args = parser.parse_args()
     params = Detector(args.model).model_.params if args.model else PipelineParams()
@@ -146,7 +174,7 @@ def main() -> None:
         rule += "---|---|"
     print(head)
     print(rule)
-    for name, table, cmap in drives(None if args.period == 0 else args.period):
+    for name, table, cmap in drives(None if args.period == 0 else args.period, args.variant):
         if args.skip and args.skip in name:
             continue
         labelled = inject_grad(table, seed=0, columns=cmap)
