@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from gradgps import ConfigError
 from gradgps._grad.offset import (
     N_STEP,
+    OFFSET_FEATURES,
     OffsetParams,
     offset_features,
     offset_features_reference,
@@ -372,3 +373,41 @@ def test_singer_process_noise_is_singers_closed_form(dt: float) -> None:
     np.testing.assert_allclose(step[:4], [dt, (x - 1 + e1) / a**2, (1 - e1) / a, e1], rtol=1e-12)
     # the acceleration's spread is stationary: a long step forgets the start entirely
     assert step[9] == pytest.approx(prm.sigma_a**2 * (1 - e2), rel=1e-6)
+
+
+def _low_rate_drive(n: int, seed: int, turn_deg_s: float) -> tuple[np.ndarray, ...]:
+    """0.5 Hz, 12 m/s, turning at ``turn_deg_s``, 2 m receiver noise."""
+    rng = np.random.default_rng(seed)
+    dt = np.r_[0.0, np.full(n - 1, 2.0)]
+    heading = np.radians(40.0 + turn_deg_s * np.cumsum(dt))
+    east = np.cumsum(12.0 * np.sin(heading) * dt) + rng.normal(0, 2, n)
+    north = np.cumsum(12.0 * np.cos(heading) * dt) + rng.normal(0, 2, n)
+    return dt, east, north
+
+
+def test_the_previous_fix_is_revised_one_fix_later() -> None:
+    """``previous_offset_revised`` at a fix is the offset of the fix before as the best
+    hypothesis's history has it now, which one more fix can change either way."""
+    column = OFFSET_FEATURES.index("previous_offset_revised")
+    # a gross outlier: seen at once, and still an outlier one fix later
+    dt, east, north = _low_rate_drive(150, seed=1, turn_deg_s=0.0)
+    east[100] += 60.0
+    out = offset_features(dt, east, north)
+    assert out[100, 2] > 50.0
+    assert out[101, column] == pytest.approx(out[100, 2], abs=1e-9)
+    assert out[101, 2] == 0.0
+    # a 25 m outlier on a straight road: taken for the track at once, revealed at the next
+    dt, east, north = _low_rate_drive(150, seed=1, turn_deg_s=0.0)
+    east[100] += 25.0
+    out = offset_features(dt, east, north)
+    assert out[100, 2] == 0.0
+    assert out[101, column] > 20.0
+    # a 24.5 m outlier in a turn: the clean track follows it, so the good fix after it
+    # is read as a fault; one fix later the history that took the outlier for an outlier
+    # leads again and says that fix was clean
+    dt, east, north = _low_rate_drive(150, seed=21, turn_deg_s=-2.2)
+    east[100] += 24.5
+    out = offset_features(dt, east, north)
+    assert out[101, 2] > 25.0
+    assert out[102, column] == 0.0
+    assert (out[102:, 2] == 0.0).all()

@@ -58,7 +58,17 @@ it, over its spread, east/north (how surprising the fix is, in standard
 deviations), the distance from the fix to that hypothesis's predicted clean
 track (m), the fault's age (s, the older channel), and the evidence for a
 fault (the log-weight of the best hypothesis over the best clean one, nats,
-the larger channel).
+the larger channel), and the previous fix's offset norm as the best hypothesis's own
+history has it now (0 where that history reads the previous fix as clean).
+
+Why the last: the offset reported at a fix is the best hypothesis *then*; one fix
+later the beam often knows better. After an outlier that looked like a manoeuvre,
+the clean track follows it, the first good fix after it is read as a fault (a
+phantom offset), and at the next fix the hypothesis that took the outlier for an
+outlier wins again: its history says the fix before was clean. The network's
+confirm head judges the previous fix one fix late; this is what a fixed-lag
+smoother of one fix would tell it (``docs/deviations.md``, "the previous fix
+revised").
 
 Everything is causal and translation-invariant (the track starts on the
 first fix). :func:`offset_features_reference` is the readable version; the
@@ -100,6 +110,7 @@ OFFSET_FEATURES = (
     "clean_distance",
     "fault_age_s",
     "fault_evidence",
+    "previous_offset_revised",
 )
 N_OFFSET_FEATURES = len(OFFSET_FEATURES)
 N_OFFSET_PARAMS = 14
@@ -128,11 +139,12 @@ N_OFFSET_PARAMS = 14
 BEAM = 12
 _RESERVED = 3
 # A hypothesis: clean track, velocity, acceleration, their covariance (the upper
-# triangle row by row: pp, pv, pa, vv, va, aa), offset, fault age, log-weight, mode.
+# triangle row by row: pp, pv, pa, vv, va, aa), offset, fault age, log-weight, mode, and
+# the offset it reported at the previous fix (0 where it was clean there).
 H_P, H_V, H_A = range(3)
 H_PP, H_PV, H_PA, H_VV, H_VA, H_AA = range(3, 9)
-H_O, H_AGE, H_W, H_MODE = range(9, 13)
-N_H = 13
+H_O, H_AGE, H_W, H_MODE, H_PREV = range(9, 14)
+N_H = 14
 CLEAN, JUMP, NOISE = 0.0, 1.0, 2.0
 # Two children closer than this (m, m/s) in track, velocity and offset, of one
 # mode, are one hypothesis (the better weight kept).
@@ -159,13 +171,14 @@ _S_BEAM = 5
 _CHANNEL_STATE = 1 + BEAM * N_H
 N_OFFSET_STATE = _S_BEAM + 2 * _CHANNEL_STATE
 # Work space of one fix: up to four children per hypothesis and a restart, whether each
-# has been ranked, the indices kept; then each channel's five outputs.
+# has been ranked, the indices kept; then each channel's six outputs.
 _MAX_KIDS = 4 * BEAM + 1
 _CHILDREN = _MAX_KIDS * (N_H + 1) + BEAM
 #: Work space of :func:`singer_step`: dt, the three transition entries that are not 0
 #: or 1, then the process noise's upper triangle (pp, pv, pa, vv, va, aa).
 N_STEP = 10
-N_OFFSET_SCRATCH = _CHILDREN + 10 + N_STEP
+_N_CHANNEL_OUT = 6
+N_OFFSET_SCRATCH = _CHILDREN + 2 * _N_CHANNEL_OUT + N_STEP
 
 
 @dataclass(frozen=True)
@@ -409,8 +422,8 @@ def _channel_step(
     ``v``: reported velocity or NaN;
     ``log_restart``: log of the chance the clean track was wrong, :func:`_log_restart`;
     ``repeated``: the fix repeats the previous one exactly, see :data:`_HELD`); write
-    [offset, innovation over its spread, |z - predicted track|, age, evidence] into
-    ``res``. ``scratch`` (:data:`N_OFFSET_SCRATCH`) holds the children, so a fix
+    [offset, innovation over its spread, |z - predicted track|, age, evidence, the
+    previous fix's offset in the best hypothesis's history] into ``res``. ``scratch`` (:data:`N_OFFSET_SCRATCH`) holds the children, so a fix
     allocates nothing."""
     dt = step[0]
     r = p[P_SIGMA_M] ** 2
@@ -428,6 +441,7 @@ def _channel_step(
         hp[:] = beam[1 + j * N_H : 1 + (j + 1) * N_H]
         _predict(hp, step)
         mode = hp[H_MODE]
+        hp[H_PREV] = 0.0 if mode == CLEAN else hp[H_O]  # every child's previous fix
         to_clean, to_keep, to_jump, to_noise = _transitions(p, mode, dt)
         age = hp[H_AGE] + dt if mode != CLEAN else dt
         if j == 0:  # the best hypothesis before this fix
@@ -527,6 +541,7 @@ def _channel_step(
     res[0] = 0.0 if lead[H_MODE] == CLEAN else lead[H_O]
     res[3] = lead[H_AGE]
     res[4] = min(-best_clean, _NO_CLEAN)
+    res[5] = lead[H_PREV]
 
 
 @numba.njit(cache=True)
@@ -562,9 +577,9 @@ def offset_step(
         state[S_T] += dt
         log_restart = _log_restart(p, state[S_T], dt)
         repeated = east == state[S_E] and north == state[S_N]
-        e = scratch[_CHILDREN : _CHILDREN + 5]
-        n = scratch[_CHILDREN + 5 : _CHILDREN + 10]
-        step = scratch[_CHILDREN + 10 : _CHILDREN + 10 + N_STEP]
+        e = scratch[_CHILDREN : _CHILDREN + _N_CHANNEL_OUT]
+        n = scratch[_CHILDREN + _N_CHANNEL_OUT : _CHILDREN + 2 * _N_CHANNEL_OUT]
+        step = scratch[_CHILDREN + 2 * _N_CHANNEL_OUT : N_OFFSET_SCRATCH]
         singer_step(p, dt, step)
         _channel_step(p, beam_e, scratch, east, step, ve, log_restart, repeated, e)
         _channel_step(p, beam_n, scratch, north, step, vn, log_restart, repeated, n)
@@ -577,6 +592,7 @@ def offset_step(
         out[6] = np.hypot(e[2], n[2])
         out[7] = max(e[3], n[3])
         out[8] = max(e[4], n[4])
+        out[9] = np.hypot(e[5], n[5])
         state[S_NORM] = out[2]
     state[S_COUNT] += 1.0
     state[S_E] = east
@@ -651,10 +667,17 @@ class _Hypothesis:
     age: float
     weight: float
     mode: float
+    previous: float = 0.0  # the offset it reported at the previous fix (0: clean there)
 
     def copy(self) -> _Hypothesis:
         return _Hypothesis(
-            self.x.copy(), self.cov.copy(), self.offset, self.age, self.weight, self.mode
+            self.x.copy(),
+            self.cov.copy(),
+            self.offset,
+            self.age,
+            self.weight,
+            self.mode,
+            self.previous,
         )
 
     @property
@@ -697,7 +720,7 @@ def _reference_channel(
     p = prm.to_array()
     r, rv = prm.sigma_m**2, prm.sigma_v**2
     log_u = -math.log(2 * prm.span_m)
-    out = np.zeros((len(z), 5))
+    out = np.zeros((len(z), 6))
     beam: list[_Hypothesis] = []
     since_start = 0.0
     for i in range(len(z)):
@@ -717,6 +740,7 @@ def _reference_channel(
         for j, parent in enumerate(beam):
             h = parent.copy()
             h.predict(f, q)
+            h.previous = 0.0 if h.mode == CLEAN else h.offset  # what it said at the last fix
             if j == 0:
                 o = h.offset if h.mode == JUMP else 0.0
                 out[i, 1] = (z[i] - o - h.track) / math.sqrt(h.cov[0, 0] + r)
@@ -774,6 +798,7 @@ def _reference_channel(
         out[i, 0] = 0.0 if best.mode == CLEAN else best.offset
         out[i, 3] = best.age
         out[i, 4] = min(-best_clean, _NO_CLEAN)
+        out[i, 5] = best.previous
     return out
 
 
@@ -814,6 +839,7 @@ def offset_features_reference(
             math.hypot(e[i, 2], n[i, 2]),
             max(e[i, 3], n[i, 3]),
             max(e[i, 4], n[i, 4]),
+            math.hypot(e[i, 5], n[i, 5]),
         )
         norm_before = norm
     return out
