@@ -30,12 +30,23 @@ $(VENV)/.stamp-test: pyproject.toml | $(PY)
 	$(PY) -m pip install -q -e ".[io,train,dev,report,onnx,ros,fleet,geo,peers]"
 	touch $@ $(VENV)/.stamp-demo
 
-demo: $(VENV)/.stamp-demo
+# numba caches compiled kernels next to the sources and checks only the cached function's
+# own file, so after a pull or an edit that changes a kernel's callee in another module
+# an old compilation of the caller keeps running, silently. Every target that runs the
+# kernels clears the caches first whenever a source is newer than the last clearing
+# (the first run after it compiles afresh: a minute or two).
+KERNEL_SOURCES := $(shell find src -name '*.py')
+build/.stamp-kernels: $(KERNEL_SOURCES)
+	find src -name '*.nbi' -delete -o -name '*.nbc' -delete
+	rm -rf build/numba-boundscheck
+	@mkdir -p build && touch $@
+
+demo: $(VENV)/.stamp-demo build/.stamp-kernels
 	$(VENV)/bin/gradgps demo
 
 # The suite runs on TEST_WORKERS processes (pytest-xdist), a test module's tests in one of
 # them (--dist loadscope: a module's fixtures are built once); 2 fits CI's 2 cores.
-test: $(VENV)/.stamp-test
+test: $(VENV)/.stamp-test build/.stamp-kernels
 	$(PY) -m ruff check src tests benchmarks
 	$(PY) -m mypy
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadscope
@@ -47,7 +58,7 @@ TEST_WORKERS ?= 2
 # the normal build, about 25 s the first time): an out-of-bounds index, which a
 # normal build reads or writes silently (or ends in SIGSEGV), is an IndexError
 # that fails the case and names it.
-fuzz: $(VENV)/.stamp-test
+fuzz: $(VENV)/.stamp-test build/.stamp-kernels
 	GRADGPS_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) NUMBA_BOUNDSCHECK=1 NUMBA_CACHE_DIR=build/numba-boundscheck \
 		$(PY) -m pytest -q tests/test_fuzz.py
 FUZZ_EXAMPLES ?= 2500
@@ -57,7 +68,7 @@ lint: $(VENV)/.stamp-test
 	$(PY) -m ruff format --check src tests benchmarks
 	$(PY) -m mypy
 
-bench: $(VENV)/.stamp-test
+bench: $(VENV)/.stamp-test build/.stamp-kernels
 	$(PY) benchmarks/run_all.py
 
 # The model shipped in the package: the training recipe (src/gradgps/_train/recipe.py:
@@ -65,7 +76,7 @@ bench: $(VENV)/.stamp-test
 # ../shared/data, columns withheld at random, dropouts, frozen fixes), fixed
 # epochs, so anyone with the data can reproduce it byte for byte on the same processor
 # (torch's CPU kernels round differently across processors: docs/model-card.md).
-default-model: $(VENV)/.stamp-test
+default-model: $(VENV)/.stamp-test build/.stamp-kernels
 	$(VENV)/bin/gradgps train --dataset recipe --max-epochs $(DEFAULT_EPOCHS) --time-budget 3600 \
 		--members $(DEFAULT_MEMBERS) --jobs $(DEFAULT_JOBS) --confirm-head -o src/gradgps/models/default
 DEFAULT_EPOCHS ?= 30
@@ -77,8 +88,7 @@ DEFAULT_MEMBERS ?= 4
 # 2-core development machine, against about an hour one at a time.
 DEFAULT_JOBS ?= 2
 
-# numba caches compiled kernels next to the sources and does not notice when a
-# kernel's callee in another module changes: clear them after editing kernels.
+# Everything built: the environment, the caches, the compiled kernels (see above).
 clean:
 	rm -rf $(VENV) build .pytest_cache .mypy_cache .ruff_cache
 	find src -name '*.nbi' -delete -o -name '*.nbc' -delete
