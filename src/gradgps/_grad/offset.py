@@ -715,8 +715,18 @@ def _singer_matrices(p: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
 
 
 def _reference_channel(
-    prm: OffsetParams, dt: FloatArray, z: FloatArray, v: FloatArray, repeated: NDArray[np.bool_]
+    prm: OffsetParams,
+    dt: FloatArray,
+    z: FloatArray,
+    v: FloatArray,
+    repeated: NDArray[np.bool_],
+    trace: list[tuple[int, list[_Hypothesis]]] | None = None,
 ) -> FloatArray:
+    """One channel of :func:`offset_features_reference` (columns: offset, innovation over
+    its spread, distance to the predicted track, age, evidence, the previous fix's offset
+    as revised); ``trace``, where given, receives ``(fix, beam)`` after every fix, the
+    hypotheses best first, for reading why the tracker holds an offset
+    (``benchmarks/tried/beam_trace_sim.py``)."""
     p = prm.to_array()
     r, rv = prm.sigma_m**2, prm.sigma_v**2
     log_u = -math.log(2 * prm.span_m)
@@ -793,6 +803,8 @@ def _reference_channel(
         for h in kept:
             h.weight -= top
         beam = kept
+        if trace is not None:
+            trace.append((i, [h.copy() for h in kept]))
         best = beam[0]
         best_clean = max((h.weight for h in beam if h.mode == CLEAN), default=-math.inf)
         out[i, 0] = 0.0 if best.mode == CLEAN else best.offset
