@@ -1,4 +1,5 @@
-"""The real validation drives, positions only, at a rate: what the tuning scripts loop over.
+"""The real validation drives, positions only (or with speed, heading), at a rate: what the
+tuning scripts loop over.
 
 Never the test splits. Shared by ``false_positive_places.py``, ``held_offsets.py``
 and ``tried/lagged_verdict_check.py``.
@@ -19,19 +20,25 @@ DATASETS = ("driveplotr", "tuc", "nl_motorway", "nl_motorway_gopro", "austin2006
 
 
 def validation_positions(
-    period_s: float | None, data_dir: str | None = None, *, keep_native: bool = False
+    period_s: float | None,
+    data_dir: str | None = None,
+    *,
+    keep_native: bool = False,
+    variant: str = "positions",
 ) -> Iterator[tuple[str, pd.DataFrame, list[str], ColumnMap, np.ndarray]]:
     """Per data set with a validation split: ``(name, table, columns, column map, ordinary)``.
 
-    ``table`` holds t, lat, lon (and the track) at the native rate (``period_s``
-    None) or decimated to one fix per ``period_s``; a data set already at that
-    rate is skipped unless ``keep_native``. ``ordinary`` marks its rows without a
-    real ``glitch``.
+    ``table`` holds t, lat, lon (and the track; with ``variant`` ``+speed`` or
+    ``+speed+heading`` those columns too, data sets without them left out) at the
+    native rate (``period_s`` None) or decimated to one fix per ``period_s``; a data
+    set already at that rate is skipped unless ``keep_native``. ``ordinary`` marks
+    its rows without a real ``glitch``.
     """
     for name in DATASETS:
         table = load_dataset(name, "validation", data_dir=data_dir)
-        picked = _variant_columns(table, to_fixes(table).attrs["columns"], "positions")
-        assert picked is not None  # every data set has positions
+        picked = _variant_columns(table, to_fixes(table).attrs["columns"], variant)
+        if picked is None:  # every data set has positions; not all a speed or heading
+            continue
         cols, cmap = picked
         data = table[cols] if period_s is None else decimate(table[cols], cmap, period_s)
         if period_s is not None and len(data) == len(table) and not keep_native:

@@ -41,10 +41,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from gradgps._data.datasets import load_dataset
 from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import simulate_fleet
-from gradgps._eval.robustness import _variant_columns, decimate
+from gradgps._eval.robustness import _variant_columns
 from gradgps._grad.defaults import MIN_STEP_S, grad_points
 from gradgps._grad.detector import Detector
 from gradgps._grad.offset import OffsetParams, offset_features
@@ -54,7 +53,7 @@ from gradgps._tracks.track import ColumnMap, to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helpers
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for error_places
-from _validation_drives import DATASETS, validation_positions
+from _validation_drives import validation_positions
 from error_places import episode_distances
 
 POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
@@ -69,23 +68,11 @@ def drives(
     ``variant``'s columns (drive sets without them left out)."""
     for hz in (10.0, 1.0, 0.5):
         sim = simulate_fleet(6, 15.0, hz, 4242, imu=False)
-        if variant == "positions":
-            yield f"simulated {hz:g} Hz", sim[["track", "t", "lat", "lon"]], POSITIONS
-        else:
-            picked = _variant_columns(sim, to_fixes(sim).attrs["columns"], variant)
-            assert picked is not None  # the simulator reports speed and heading
-            yield f"simulated {hz:g} Hz", sim[picked[0]], picked[1]
-    if variant == "positions":
-        for name, data, _, cmap, _ in validation_positions(period, keep_native=True):
-            yield name, data, cmap
-        return
-    for name in DATASETS:
-        table = load_dataset(name, "validation")
-        picked = _variant_columns(table, to_fixes(table).attrs["columns"], variant)
-        if picked is None:
-            continue
-        cols, cmap = picked
-        yield name, (table[cols] if period is None else decimate(table[cols], cmap, period)), cmap
+        picked = _variant_columns(sim, to_fixes(sim).attrs["columns"], variant)
+        assert picked is not None  # the simulator reports speed and heading
+        yield f"simulated {hz:g} Hz", sim[picked[0]], picked[1]
+    for name, data, _, cmap, _ in validation_positions(period, keep_native=True, variant=variant):
+        yield name, data, cmap
 
 
 def tracker_offsets(params: OffsetParams, max_gap_s: float, fixes: pd.DataFrame) -> np.ndarray:

@@ -423,8 +423,8 @@ def _channel_step(
     ``log_restart``: log of the chance the clean track was wrong, :func:`_log_restart`;
     ``repeated``: the fix repeats the previous one exactly, see :data:`_HELD`); write
     [offset, innovation over its spread, |z - predicted track|, age, evidence, the
-    previous fix's offset in the best hypothesis's history] into ``res``. ``scratch`` (:data:`N_OFFSET_SCRATCH`) holds the children, so a fix
-    allocates nothing."""
+    previous fix's offset in the best hypothesis's history] into ``res``. ``scratch``
+    (:data:`N_OFFSET_SCRATCH`) holds the children, so a fix allocates nothing."""
     dt = step[0]
     r = p[P_SIGMA_M] ** 2
     rv = p[P_SIGMA_V] ** 2
@@ -804,7 +804,7 @@ def _reference_channel(
             h.weight -= top
         beam = kept
         if trace is not None:
-            trace.append((i, [h.copy() for h in kept]))
+            trace.append((i, kept))  # never changed after: the next fix copies them
         best = beam[0]
         best_clean = max((h.weight for h in beam if h.mode == CLEAN), default=-math.inf)
         out[i, 0] = 0.0 if best.mode == CLEAN else best.offset
