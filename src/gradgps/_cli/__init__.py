@@ -10,6 +10,7 @@ from __future__ import annotations
 import click
 
 from .bench import bench
+from .calibrate import calibrate
 from .demo import demo
 from .detect import detect
 from .detect_fleet import detect_fleet
@@ -32,6 +33,7 @@ def main() -> None:
 
 
 main.add_command(bench)
+main.add_command(calibrate)
 main.add_command(demo)
 main.add_command(detect)
 main.add_command(detect_fleet)

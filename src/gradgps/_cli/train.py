@@ -20,12 +20,6 @@ from .options import column_map, column_options, option, read_options
 
 __all__ = ["train"]
 
-#: Injection seeds of the recipe: five passes of protocol ``grad`` over its drives
-#: (three overfitted: the validation loss rose from epoch 7 while the training
-#: loss kept falling; five, with twice the simulated drives, gained 1-3 points of
-#: validation F1 on the real drives).
-RECIPE_SEEDS = (101, 102, 103, 104, 105)
-
 
 @click.command()
 @option(
@@ -125,18 +119,11 @@ def train(
     validated = None
     schedule: dict[str, Any] = {}
     if dataset == "recipe":
-        from .._train.grad import GradTrainingSet
-        from .._train.recipe import recipe_tables, recipe_validated
+        from .._train.recipe import recipe_faults, recipe_tables, recipe_validated
 
         train_tables = recipe_tables("train", data_dir=data_dir)
         val_tables = recipe_tables("validation", data_dir=data_dir)
-        # Stale starts (a track opening on a position from before, then a jump to
-        # the truth: a logger's cold start) on a tenth of the tracks. Their held
-        # fixes are not counted in the loss (no causal detector can tell them from
-        # a parked car; counted as faults they taught the model to flag every long
-        # stop), the fixes after the jump are: a jump off a standstill into full
-        # motion ends a fault (the Austin validation drive has a real one).
-        spec = GradTrainingSet(seeds=RECIPE_SEEDS, freeze_share=0.02, stale_start=0.1)
+        spec = recipe_faults()
         source = "recipe (gradgps._train.recipe.DefaultRecipe)"
         validated = recipe_validated()
         # Many small noisy batches from mixed sources: decay the rate, clip steps.
@@ -171,6 +158,13 @@ def train(
         notes={"source": source, "protocol": protocol},
         **schedule,
     )
+    if dataset == "recipe":
+        # The thresholds per rate band, on the validation drives with the model as
+        # shipped (gradgps._train.calibrate; `gradgps calibrate` redoes only this).
+        from .._train.calibrate import calibrate_model, describe_thresholds
+
+        assert spec is not None
+        click.echo(describe_thresholds(calibrate_model(output, val_tables, spec)))
     click.echo(
         f"wrote {output}: {report.n_train_points:,} training points, "
         f"{report.n_val_points:,} validation points; best epoch {report.best_epoch} "

@@ -111,6 +111,7 @@ from .pipeline import (
     O_TIME,
     PERIOD_STEPS,
     PipelineParams,
+    RateThresholds,
     _tail_end,
     grad_segments,
     grad_step,
@@ -198,11 +199,24 @@ def _load_cached(path: str, mtime_ns: int) -> GradModel:
         )
     threshold = float(config["thresholds"]["anomaly"])
     confirm = config["thresholds"].get("confirm")
+    try:
+        bands = tuple(
+            RateThresholds(
+                float(b["from_period_s"]), float(b["anomaly"]), float(b["confirm"])
+            ).checked()
+            for b in config["thresholds"].get("by_rate", [])
+        )
+    except (GradGPSError, KeyError, TypeError, ValueError) as exc:
+        raise ModelError(
+            f"{path}/config.json: thresholds.by_rate is not a list of "
+            f"{{from_period_s, anomaly, confirm}} ({exc}); recalibrate the model"
+        ) from exc
     params = PipelineParams(
         **{
             **params.__dict__,
             "threshold": threshold,
             "confirm_threshold": None if confirm is None else float(confirm),
+            "rate_thresholds": bands,
         }
     )
     try:
@@ -292,6 +306,9 @@ def _settings_checksum(model: GradModel) -> str:
     if model.params.confirm_threshold is not None:
         # It decides the pending fix a state holds; absent from older states' settings.
         settings["confirm_threshold"] = model.params.confirm_threshold
+    if model.params.rate_thresholds:
+        # So do a slow segment's; absent from the states of models without them.
+        settings["rate_thresholds"] = [b.__dict__ for b in model.params.rate_thresholds]
     text = json.dumps(settings, sort_keys=True, default=str, allow_nan=True)
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -455,7 +472,8 @@ class Detector:
         if threshold is not None:
             if not (0.0 < threshold < 1.0):
                 raise ConfigError(f"threshold must be in (0, 1), got {threshold}")
-            given = {"threshold": float(threshold)}
+            # The user's threshold holds at every rate.
+            given: dict[str, Any] = {"threshold": float(threshold), "rate_thresholds": ()}
             if loaded.params.confirm_threshold is not None:
                 given["confirm_threshold"] = float(threshold)
             loaded = GradModel(

@@ -48,6 +48,7 @@ __all__ = [
     "gru_model",
     "load_model",
     "save_model",
+    "save_thresholds",
     "torch_state",
 ]
 
@@ -249,6 +250,19 @@ def save_model(
     folder.mkdir(parents=True, exist_ok=True)
     _write_atomic(folder / WEIGHTS_FILE, data)
     _write_atomic(folder / CONFIG_FILE, text.encode())
+
+
+def save_thresholds(directory: str | os.PathLike[str], thresholds: dict[str, Any]) -> None:
+    """Replace the ``thresholds`` block of a saved model's ``config.json`` (atomically);
+    its weights and their checksum are untouched."""
+    path = Path(directory) / CONFIG_FILE
+    config = json.loads(path.read_text())
+    config["thresholds"] = thresholds
+    try:
+        text = json.dumps(config, indent=2, allow_nan=False) + "\n"
+    except (TypeError, ValueError) as error:
+        raise ModelError(f"thresholds for {directory} cannot be written as JSON ({error})") from None
+    _write_atomic(path, text.encode())
 
 
 def _write_atomic(path: Path, data: bytes) -> None:

@@ -119,6 +119,7 @@ __all__ = [
     "N_POINT_OUT",
     "PERIOD_STEPS",
     "PipelineParams",
+    "RateThresholds",
     "grad_features",
     "grad_segments",
     "grad_step",
@@ -194,6 +195,37 @@ PERIOD_STEPS = 5
 
 
 @dataclass(frozen=True)
+class RateThresholds:
+    """A model's thresholds for segments sampled every ``from_period_s`` seconds or slower.
+
+    Why: the network's probabilities are not calibrated alike at every rate. One
+    pair of thresholds, chosen on validation drives at 0.5-10 Hz pooled, kept the
+    pool's normal recall at the floor while the real drives at 0.5 Hz fell below
+    it (DrivePlotR 0.981, Austin 0.979 on the recipe's validation points), the
+    simulated 0.5 Hz drives and the faster ones hiding them
+    (``gradgps._train.calibrate``). ``confirm`` is ignored where the model settles
+    no verdicts late.
+    """
+
+    from_period_s: float
+    anomaly: float
+    confirm: float
+
+    def checked(self) -> RateThresholds:
+        if not (math.isfinite(self.from_period_s) and self.from_period_s > 0):
+            raise ConfigError(
+                f"a rate band's from_period_s must be a positive number, got {self.from_period_s!r}"
+            )
+        for name in ("anomaly", "confirm"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.0 < value < 1.0):
+                raise ConfigError(
+                    f"a rate band's {name} threshold must be in (0, 1), got {value!r}"
+                )
+        return self
+
+
+@dataclass(frozen=True)
 class PipelineParams:
     """Everything but the network weights; saved in a model's ``config.json``."""
 
@@ -221,6 +253,12 @@ class PipelineParams:
     at once at a segment's last fix), and its time type and repair follow that
     verdict (:func:`grad_step`). ``None``: verdicts at once. Set from the model's
     ``thresholds.confirm`` when it is loaded, never saved in the pipeline settings."""
+    rate_thresholds: tuple[RateThresholds, ...] = ()
+    """Thresholds of their own for slowly sampled segments: a segment sampled every
+    ``from_period_s`` seconds or slower takes the last such band's ``anomaly`` and
+    ``confirm`` in place of :attr:`threshold` and :attr:`confirm_threshold`. Set
+    from the model's ``thresholds.by_rate`` when it is loaded (:class:`RateThresholds`),
+    never saved in the pipeline settings; ``()``: one pair for every rate."""
     verdict_time: TimeSpans | None = field(default_factory=TimeSpans)
     """How the verdicts' time types (and so which faults are permanent) count ``time``'s
     thresholds at each segment's period: in fixes up to 1 Hz, in the time those take
@@ -244,7 +282,17 @@ class PipelineParams:
 
         data = asdict(self)
         del data["confirm_threshold"]  # the model's thresholds.confirm, not a setting
+        del data["rate_thresholds"]  # the model's thresholds.by_rate, not a setting
         return data
+
+    def thresholds_at(self, period: float) -> tuple[float, float | None]:
+        """(anomaly, confirm) thresholds of a segment sampled every ``period`` s."""
+        anomaly, confirm = self.threshold, self.confirm_threshold
+        for band in sorted(self.rate_thresholds, key=lambda b: b.from_period_s):
+            if period >= band.from_period_s:
+                anomaly = band.anomaly
+                confirm = confirm if confirm is None else band.confirm
+        return anomaly, confirm
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PipelineParams:
@@ -285,7 +333,7 @@ class PipelineParams:
                     else self.verdict_time.at_period(self.time, period)
                 ).to_array(),
                 self.recovery.to_array(),
-                [self.threshold, period],
+                [self.thresholds_at(period)[0], period],
                 np.asarray(dims, dtype=np.float64),
                 frame.constants(),
                 [0.0 if self.motion is None else 1.0],
@@ -293,26 +341,24 @@ class PipelineParams:
                 [0.0 if self.drift is None else 1.0],
                 np.zeros(N_DRIFT_PARAMS) if self.drift is None else self.drift.to_array(),
                 self.recovery.reach_array(),
-                [self._settle(dims)],
+                [self._settle(dims, self.thresholds_at(period)[1])],
             ]
         )
         return np.concatenate([core, rest])
 
-    def _settle(self, dims: NDArray[np.int64]) -> float:
+    def _settle(self, dims: NDArray[np.int64], confirm: float | None) -> float:
         """``P``'s settle slot: the confirm threshold where the network has the head and
         one is set, else 0."""
-        if self.confirm_threshold is None or int(dims[4]) == 0:
+        if confirm is None or int(dims[4]) == 0:
             return 0.0
-        if not 0.0 < self.confirm_threshold < 1.0:
-            raise ConfigError(
-                f"the confirm threshold must be in (0, 1), got {self.confirm_threshold}"
-            )
-        return float(self.confirm_threshold)
+        if not 0.0 < confirm < 1.0:
+            raise ConfigError(f"the confirm threshold must be in (0, 1), got {confirm}")
+        return float(confirm)
 
     def settles(self, dims: NDArray[np.int64]) -> bool:
         """Whether a network of ``dims`` gives its verdicts one fix late (see
         :attr:`confirm_threshold`)."""
-        return self._settle(dims) > 0.0
+        return self._settle(dims, self.confirm_threshold) > 0.0
 
 
 def _verdict_time(data: dict[str, Any]) -> TimeSpans | None:

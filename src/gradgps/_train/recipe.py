@@ -27,8 +27,10 @@ training data as varied as the files users have:
   fault after multipath, whose end is a jump *back* to the truth. Only
   holds that a causal detector could tell from a stop are labelled: the fix
   freezes on a vehicle at 10 m/s or more (a "stop" within one step, harder
-  than a car brakes at any rate from 0.5 Hz up); no stale starts (a track
-  opening on repeated fixes looks like a parked car until its end).
+  than a car brakes at any rate from 0.5 Hz up); and stale starts on a tenth
+  of the tracks (:func:`recipe_faults`), whose held fixes are left out of the
+  loss (a track opening on repeated fixes looks like a parked car until its
+  end).
 
 Everything is seeded: the same data folder and seed give the same tables.
 """
@@ -47,8 +49,37 @@ from .._data.simulator import simulate_fleet
 from .._exceptions import ConfigError
 from .._tracks.thin import thin_mask
 from .._tracks.track import to_fixes
+from .grad import GradTrainingSet
 
-__all__ = ["DefaultRecipe", "decimate_tracks", "recipe_tables", "recipe_validated"]
+__all__ = [
+    "RECIPE_SEEDS",
+    "DefaultRecipe",
+    "decimate_tracks",
+    "recipe_faults",
+    "recipe_tables",
+    "recipe_validated",
+]
+
+#: Injection seeds of the recipe: five passes of protocol ``grad`` over its drives
+#: (three overfitted: the validation loss rose from epoch 7 while the training
+#: loss kept falling; five, with twice the simulated drives, gained 1-3 points of
+#: validation F1 on the real drives).
+RECIPE_SEEDS = (101, 102, 103, 104, 105)
+
+
+def recipe_faults() -> GradTrainingSet:
+    """The recipe's faults: protocol ``grad`` with :data:`RECIPE_SEEDS` (validation: seed 7),
+    frozen fixes, and stale starts on a tenth of the tracks.
+
+    A stale start (a track opening on a position from before, then a jump to the
+    truth: a logger's cold start) has its held fixes left out of the loss (no
+    causal detector can tell them from a parked car; counted as faults they taught
+    the model to flag every long stop); the fixes after the jump count, as normal:
+    a jump off a standstill into full motion ends a fault (the Austin validation
+    drive has a real one).
+    """
+    return GradTrainingSet(seeds=RECIPE_SEEDS, freeze_share=0.02, stale_start=0.1)
+
 
 #: The columns a recipe table keeps (canonical names, as :func:`to_fixes` gives them).
 _KEEP = ("track", "t", "lat", "lon", "speed", "heading")

@@ -1,0 +1,232 @@
+"""Thresholds per sampling rate, chosen on the validation drives with the model as shipped.
+
+Why: the network's probabilities are not calibrated alike at every rate, and
+one pair of thresholds chosen on the pooled validation points (each member's
+own, then averaged) let the pool hide its hardest drives. On the shipped
+model's validation points (the recipe's, protocol ``grad`` seed 7, the model
+run as a user runs it) the pool's normal recall at 0.5 Hz was 0.9905 while the
+real drives in it were at DrivePlotR 0.981 and Austin 0.979, the simulated 0.5
+Hz drives (0.997) and the faster rates carrying the pool over the floor; on the
+real validation drives under another seed the 0.5 Hz normal recall was 0.976
+(DrivePlotR) and 0.978 (Austin). A user's file is one drive, not the pool.
+
+The rule, per band of sampling periods (faster than ``from_period_s``, and that
+or slower): the best F1 over the band's validation points among the thresholds
+that keep normal recall at the floor on *every* group of drives in the band
+(each real data set, and the simulated drives at each rate), not on their
+pool; where none keeps it on all, the one with the highest worst normal
+recall. The anomaly head's threshold is chosen on every point's at-once
+probability, the confirm head's on the reads that settle a verdict one fix
+late. Nothing here looks at a test split.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .._data.inject import inject_freeze, inject_grad
+from .._grad.detector import Detector
+from .._grad.model_io import CONFIG_FILE, save_thresholds
+from .._grad.pipeline import O_CONFIRM, O_SCORE, RateThresholds, segment_period
+from .._result import f1_score
+from .._tracks.track import to_fixes
+from .grad import GradTrainingSet
+
+__all__ = [
+    "CalibrationPoints",
+    "calibrate_model",
+    "calibration_points",
+    "describe_thresholds",
+    "recipe_group",
+    "worst_group_threshold",
+]
+
+#: Seconds between fixes from which a segment takes the slow band's thresholds:
+#: between the recipe's 1 Hz and 0.5 Hz (its slowest) drives.
+SLOW_FROM_PERIOD_S = 1.5
+
+
+def recipe_group(track: str) -> str:
+    """The group of a recipe track: its source, the part of its name before the first
+    ``-`` (``sim0.5Hz``, ``driveplotr``, ...; :func:`gradgps._train.recipe.recipe_tables`)."""
+    return str(track).split("-", 1)[0]
+
+
+@dataclass(frozen=True)
+class CalibrationPoints:
+    """Per point of the validation drives' segments: truth, the anomaly head's at-once
+    probability, the confirm head's settling read (NaN where none), the segment's
+    period (s) and the point's group."""
+
+    truth: np.ndarray
+    score: np.ndarray
+    confirm: np.ndarray
+    period: np.ndarray
+    group: np.ndarray
+
+
+def calibration_points(
+    detector: Detector,
+    tables: Sequence[pd.DataFrame],
+    spec: GradTrainingSet,
+    group: Callable[[str], str] = recipe_group,
+) -> CalibrationPoints:
+    """Inject the validation faults exactly as training does (``spec.val_seed``, frozen
+    fixes and stale starts), run ``detector`` on them and collect its per-point outputs.
+    A stale start's held fixes are left out, as from the training loss
+    (:mod:`gradgps._train.labels`)."""
+    parts: list[tuple[np.ndarray, ...]] = []
+    for table in tables:
+        cmap = to_fixes(table).attrs["columns"]
+        labelled = inject_grad(table, seed=spec.val_seed, columns=cmap)
+        if spec.freeze_share > 0 or spec.stale_start > 0:
+            labelled = inject_freeze(
+                labelled,
+                seed=spec.val_seed,
+                share=spec.freeze_share,
+                stale_start=spec.stale_start,
+                columns=cmap,
+            )
+        fixes = to_fixes(labelled, cmap)
+        _, usable, prepared, out = detector._point_outputs(fixes)
+        row_of_point = np.full(len(prepared.points), -1, np.int64)
+        mapped = prepared.to_rows(
+            np.arange(len(prepared.points), dtype=np.float64)[:, None], fill=-1.0
+        )[:, 0]
+        for row, point in enumerate(mapped):
+            if point >= 0:
+                row_of_point[int(point)] = usable[row]
+        truth_rows = labelled["label_anomaly"].to_numpy() == 1
+        stale_rows = (
+            labelled["label_stale"].to_numpy() == 1
+            if "label_stale" in labelled
+            else np.zeros(len(labelled), bool)
+        )
+        period = np.full(len(prepared.points), np.nan)
+        t = prepared.points["t"].to_numpy(np.float64)
+        for _, sl in prepared.segment_slices():
+            period[sl] = segment_period(t[sl])
+        keep = (row_of_point >= 0) & ~stale_rows[np.maximum(row_of_point, 0)]
+        tracks = prepared.points["track"].astype(str).to_numpy()
+        parts.append(
+            (
+                truth_rows[row_of_point[keep]],
+                out[keep, O_SCORE],
+                out[keep, O_CONFIRM],
+                period[keep],
+                np.array([group(x) for x in tracks[keep]], dtype=object),
+            )
+        )
+    if not parts:
+        empty = np.zeros(0)
+        return CalibrationPoints(empty.astype(bool), empty, empty, empty, empty.astype(object))
+    return CalibrationPoints(*(np.concatenate(c) for c in zip(*parts, strict=True)))
+
+
+def worst_group_threshold(
+    truth: np.ndarray, probability: np.ndarray, group: np.ndarray, floor: float
+) -> float:
+    """The best F1 among thresholds keeping normal recall >= ``floor`` in every group
+    (else the highest worst-group normal recall; 0.5 with nothing to choose on).
+
+    Candidates: a grid 0.05-0.995 in steps of 0.005 and, per group, its normal
+    points' probability quantiles from ``floor`` to 1 (probabilities bunch near 1).
+    """
+    ok = np.isfinite(probability)
+    truth, probability, group = truth[ok].astype(bool), probability[ok], group[ok]
+    names = [g for g in dict.fromkeys(group) if (~truth[group == g]).any()]
+    if not names:
+        return 0.5
+    candidates = [np.round(np.arange(0.05, 0.9951, 0.005), 3)]
+    for g in names:
+        normal = probability[(group == g) & ~truth]
+        candidates.append(np.nextafter(np.quantile(normal, np.linspace(floor, 1.0, 51)), np.inf))
+    grid = np.unique(np.concatenate(candidates))
+    grid = grid[(grid > 0.0) & (grid < 1.0)]
+    normal_of = [(group == g) & ~truth for g in names]
+    best: tuple[bool, float, float] | None = None
+    best_t = 0.5
+    for t in grid:
+        flagged = probability >= t
+        worst = min(float(np.mean(~flagged[m])) for m in normal_of)
+        holds = worst >= floor
+        key = (holds, f1_score(truth, flagged) if holds else worst, -t)
+        if best is None or key > best:
+            best, best_t = key, float(t)
+    return best_t
+
+
+def calibrate_model(
+    directory: str | Path,
+    tables: Sequence[pd.DataFrame],
+    spec: GradTrainingSet,
+    *,
+    floor: float = 0.99,
+    from_period_s: float = SLOW_FROM_PERIOD_S,
+    group: Callable[[str], str] = recipe_group,
+) -> dict[str, object]:
+    """Choose the model's thresholds per rate band (see the module docstring) and write
+    them into its ``config.json``: ``thresholds.anomaly``/``confirm`` for segments faster
+    than ``from_period_s``, ``thresholds.by_rate`` for the rest. Returns the new
+    ``thresholds`` block; the members' pooled choices stay in ``thresholds.pooled``."""
+    path = Path(directory)
+    config_path = path / CONFIG_FILE
+    config = json.loads(config_path.read_text())
+    thresholds = dict(config["thresholds"])
+    pooled = thresholds.pop("pooled", None) or {
+        k: thresholds[k] for k in ("anomaly", "confirm") if k in thresholds
+    }
+    # Calibrate the network as trained: its pooled thresholds at every rate.
+    save_thresholds(path, {**pooled})
+    points = calibration_points(Detector(path), tables, spec, group)
+    slow = points.period >= from_period_s
+    chosen: dict[str, float] = {}
+    for band, mask in (("fast", ~slow), ("slow", slow)):
+        for head, values in (("anomaly", points.score), ("confirm", points.confirm)):
+            if head == "confirm" and "confirm" not in pooled:
+                continue
+            chosen[f"{band} {head}"] = worst_group_threshold(
+                points.truth[mask], values[mask], points.group[mask], floor
+            )
+    new: dict[str, object] = {
+        "anomaly": chosen["fast anomaly"],
+        **({"confirm": chosen["fast confirm"]} if "confirm" in pooled else {}),
+        "by_rate": [
+            RateThresholds(
+                from_period_s,
+                chosen["slow anomaly"],
+                chosen.get("slow confirm", chosen["slow anomaly"]),
+            )
+            .checked()
+            .__dict__
+        ],
+        "rule": (
+            f"per band of sampling periods (< {from_period_s:g} s, >= {from_period_s:g} s): "
+            f"the best validation F1 keeping normal recall >= {floor:g} on every group of "
+            "validation drives (gradgps._train.calibrate)"
+        ),
+        "pooled": pooled,
+    }
+    save_thresholds(path, new)
+    return new
+
+
+def describe_thresholds(thresholds: dict[str, object]) -> str:
+    """One line for the command line: the thresholds per rate band."""
+    bands = thresholds.get("by_rate") or []
+    assert isinstance(bands, list)
+    confirm = thresholds.get("confirm")
+    text = f"thresholds: faster fixes anomaly {thresholds['anomaly']:.3f}" + (
+        f", confirm {confirm:.3f}" if isinstance(confirm, float) else ""
+    )
+    for band in bands:
+        text += f"; every {band['from_period_s']:g} s or slower anomaly {band['anomaly']:.3f}" + (
+            f", confirm {band['confirm']:.3f}" if isinstance(confirm, float) else ""
+        )
+    return text
