@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -104,6 +106,8 @@ def test_cli_exports_the_shipped_model_and_it_runs_on_real_features(tmp_path):
     loaded = load_grad_model(None)
     assert meta["bias_classes"].split(",") == list(loaded.bias_classes)
     assert float(meta["anomaly_threshold"]) == loaded.params.threshold
+    bands = json.loads(meta["thresholds_by_rate"])  # the shipped model's slow band
+    assert [b["anomaly"] for b in bands] == [b.anomaly for b in loaded.params.rate_thresholds]
 
     drive = simulate_drive(minutes=3.0, seed=2)
     frame = LocalFrame(float(drive["lat"].iloc[0]), float(drive["lon"].iloc[0]))

@@ -31,7 +31,9 @@ def export(model_dir: Path | None, onnx_path: Path) -> None:
                (time, batch, K) (classes in metadata 'bias_classes'), h1_out,
                h2_out (feed them back in to continue the stream)
     Feature extraction, REMA, the time classifier and recovery stay in gradgps;
-    the anomaly threshold is in metadata 'anomaly_threshold'. Needs the extra
+    the anomaly threshold is in metadata 'anomaly_threshold' (and, for files
+    sampled slowly, 'thresholds_by_rate': JSON bands that replace it from their
+    'from_period_s' seconds between fixes on). Needs the extra
     'onnx' (pip install 'gradgps[onnx]').
     """
     try:

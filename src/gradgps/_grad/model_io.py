@@ -261,7 +261,9 @@ def save_thresholds(directory: str | os.PathLike[str], thresholds: dict[str, Any
     try:
         text = json.dumps(config, indent=2, allow_nan=False) + "\n"
     except (TypeError, ValueError) as error:
-        raise ModelError(f"thresholds for {directory} cannot be written as JSON ({error})") from None
+        raise ModelError(
+            f"thresholds for {directory} cannot be written as JSON ({error})"
+        ) from None
     _write_atomic(path, text.encode())
 
 

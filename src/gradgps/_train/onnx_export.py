@@ -34,6 +34,7 @@ with the returned states gives the same numbers as feeding the whole segment.
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -220,6 +221,12 @@ def export_onnx(model_dir: str | os.PathLike[str] | None, output: str | os.PathL
             **(
                 {"confirm_threshold": repr(float(config["thresholds"]["confirm"]))}
                 if "confirm" in config["thresholds"]
+                else {}
+            ),
+            # Segments sampled this slowly or slower take these thresholds instead.
+            **(
+                {"thresholds_by_rate": json.dumps(config["thresholds"]["by_rate"])}
+                if config["thresholds"].get("by_rate")
                 else {}
             ),
         },
