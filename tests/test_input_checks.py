@@ -31,6 +31,7 @@ def _kinds(fixes: pd.DataFrame, **rates: float) -> set[str]:
             ("repeat the previous", "repeats"),
             ("imply speeds", "speeds"),
             ("irregular", "irregular"),
+            ("noisy fixes", "noisy"),
         ):
             if key in w:
                 kinds.add(kind)
@@ -97,6 +98,7 @@ def test_chunks_give_the_same_warnings_as_the_whole_file() -> None:
     assert whole.warnings() == chunked.warnings()
     assert len(whole.warnings()) >= 2
     assert (whole.hist == chunked.hist).all()
+    assert (whole.second_diff_hist == chunked.second_diff_hist).all()
     assert whole.repeats == chunked.repeats
 
 
@@ -160,3 +162,30 @@ def test_report_summary_lists_the_warnings(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     html = report.read_text()
     assert html.count("slower than the slowest rate the model was validated on") == 1
+
+
+def _noisy(sigma_m: float, seed: int = 0, t: np.ndarray = REGULAR) -> pd.DataFrame:
+    """A straight drive whose fixes scatter by ``sigma_m`` m per axis, independently."""
+    fixes = _track(t)
+    rng = np.random.default_rng(seed)
+    fixes["lat"] += rng.normal(0.0, sigma_m, len(fixes)) / 111_195.0
+    fixes["lon"] += rng.normal(0.0, sigma_m, len(fixes)) / (111_195.0 * np.cos(np.radians(52.0)))
+    return fixes
+
+
+def test_a_noisy_receiver_is_named_with_its_noise() -> None:
+    """Fixes scattering by 3 m per axis land about 7 m off their predecessors' line (the
+    second difference of independent errors: sqrt(6) sigma, a median of 1.18 of that);
+    by 0.3 m: under a metre, like every real drive the model knows."""
+    assert "noisy" in _kinds(_noisy(3.0))
+    (warning,) = input_warnings(_noisy(3.0))
+    assert "m off the line" in warning
+    assert "1.4 m" in warning
+    assert _kinds(_noisy(0.3)) == set()
+    checks = InputChecks().add(_noisy(3.0))
+    assert 5.0 < checks.second_difference_median() < 12.0
+    # Too few triples say nothing; uneven steps make no triple.
+    assert _kinds(_noisy(3.0).iloc[:40]) == set()
+    assert (
+        InputChecks().add(_track(np.cumsum(np.tile([1.0, 2.0], 100)))).second_diff_hist.sum() == 0
+    )

@@ -34,7 +34,19 @@ Warnings (thresholds are module constants):
   clean real drives have 0-3 such steps each; a misread time unit or
   coordinate column makes nearly all of them that fast;
 * ``irregular sampling``: the proper steps' interquartile range is more than
-  half their median.
+  half their median;
+* ``noisy fixes``: the median *second difference* of the positions (over three
+  fixes with steps within 10 % of each other: where the third fix lands beyond
+  the line the first two draw, in metres) is above :data:`NOISY_SECOND_DIFF_M`
+  over at least :data:`MIN_TRIPLES` such triples. A car's driving moves it by
+  centimetres to a metre there; a receiver's noise by more. Every real drive
+  the shipped model was trained and validated on has a median of at most 1.35 m
+  (the Nevada Garmin's train drive at 0.5 Hz; DrivePlotR 0.64 m, the NL
+  motorway phones and logger 0.39-0.44 m, Austin 1.1 m; TUC's smoothed ground
+  truth 0.01 m), the simulator's logger 0.3-1.0 m; on simulated receivers with a median of 2 m the
+  shipped model flagged 0.35-0.41 % of clean fixes, with 5.7 m 2-9 %, with
+  12 m 9-51 % (``benchmarks/tried/receiver_noise_check.py``): its answers on
+  such files are not backed by any measurement on real data.
 
 A small tolerance (:data:`RATE_TOLERANCE`) keeps a file recorded exactly at
 the validated limit (0.5 Hz) from being warned about.
@@ -57,6 +69,8 @@ __all__ = [
     "MAX_FAST_STEPS",
     "MAX_REPEAT_SHARE",
     "MAX_SPEED_MPS",
+    "MIN_TRIPLES",
+    "NOISY_SECOND_DIFF_M",
     "RATE_TOLERANCE",
     "REPEAT_S",
     "VALIDATED_DEFAULT",
@@ -77,6 +91,14 @@ MAX_FAST_STEPS = 5
 #: ... and more than this share of the proper steps (see the module docstring).
 MAX_FAST_SHARE = 0.2
 IRREGULAR_IQR_RATIO = 0.5
+#: m: a median second difference of the positions above this is a noisy receiver
+#: (see the module docstring: at most 1.35 m on the real drives the model knows).
+NOISY_SECOND_DIFF_M = 3.0
+#: Second differences needed before the median says anything.
+MIN_TRIPLES = 50
+#: Steps of a triple whose durations differ by more than this share are not used.
+_TRIPLE_TOLERANCE = 0.1
+_EARTH_RADIUS_M = 6371008.8
 #: Relative slack on the rate limits (histogram resolution and clock jitter).
 RATE_TOLERANCE = 0.05
 
@@ -84,6 +106,10 @@ RATE_TOLERANCE = 0.05
 _BINS_PER_DECADE = 200
 _K_MIN = round(_BINS_PER_DECADE * math.log10(REPEAT_S))
 _K_MAX = _BINS_PER_DECADE * 9  # 1e9 s: anything longer lands in the last bin
+# Histogram of second differences (m): bin j holds round(_BINS_PER_DECADE * log10(d)) == j,
+# from 1 mm (and below) to 100 km (and above).
+_J_MIN = -3 * _BINS_PER_DECADE
+_J_MAX = 5 * _BINS_PER_DECADE
 
 
 def validated_rates(config: Mapping[str, Any] | None) -> tuple[float, float]:
@@ -114,7 +140,9 @@ class InputChecks:
         self.repeats = 0
         self.fast = 0
         self.fastest = 0.0
-        self._last: dict[str, tuple[float, float, float]] = {}
+        self.second_diff_hist = np.zeros(_J_MAX - _J_MIN + 1, dtype=np.int64)
+        # The last two fixes of each track (t, lat, lon), oldest first.
+        self._last: dict[str, list[tuple[float, float, float]]] = {}
         #: What the reader assumed about the columns (``fixes.attrs["notes"]``), once each.
         self.notes: list[str] = []
 
@@ -146,12 +174,55 @@ class InputChecks:
             tt = part["t"].to_numpy()
             la = part["lat"].to_numpy()
             lo = part["lon"].to_numpy()
-            last = self._last.get(str(name))
-            if last is not None and tt[0] >= last[0]:
-                tt, la, lo = np.r_[last[0], tt], np.r_[last[1], la], np.r_[last[2], lo]
-            self._last[str(name)] = (float(tt[-1]), float(la[-1]), float(lo[-1]))
-            self._steps(tt, la, lo)
+            last = self._last.get(str(name), [])
+            if last and tt[0] >= last[-1][0]:
+                kept = [fix for fix in last if fix[0] <= tt[0]]
+                tt = np.r_[[f[0] for f in kept], tt]
+                la = np.r_[[f[1] for f in kept], la]
+                lo = np.r_[[f[2] for f in kept], lo]
+                self._steps(tt[len(kept) - 1 :], la[len(kept) - 1 :], lo[len(kept) - 1 :])
+            else:
+                self._steps(tt, la, lo)
+            self._second_differences(tt, la, lo)
+            self._last[str(name)] = [
+                (float(a), float(b), float(c))
+                for a, b, c in zip(tt[-2:], la[-2:], lo[-2:], strict=True)
+            ]
         return self
+
+    def _second_differences(self, t: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
+        """Histogram where each fix lands beyond the line its two predecessors draw (m), over
+        triples whose two steps are proper and within 10 % of each other."""
+        if t.size < 3:
+            return
+        dt = np.diff(t)
+        d1, d2 = dt[:-1], dt[1:]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            even = (d1 >= REPEAT_S) & (d2 >= REPEAT_S) & (np.abs(d2 - d1) <= _TRIPLE_TOLERANCE * d1)
+        if not even.any():
+            return
+        i = np.flatnonzero(even)
+        per_deg = math.radians(1.0) * _EARTH_RADIUS_M
+        scale = np.cos(np.radians(lat[i + 1])) * per_deg
+        east01 = ((lon[i + 1] - lon[i] + 540.0) % 360.0 - 180.0) * scale  # across +-180 too
+        east12 = ((lon[i + 2] - lon[i + 1] + 540.0) % 360.0 - 180.0) * scale
+        ratio = d2[i] / d1[i]
+        # The third fix against the first two's straight-line extrapolation over its step.
+        de = east12 - east01 * ratio
+        dn = ((lat[i + 2] - lat[i + 1]) - (lat[i + 1] - lat[i]) * ratio) * per_deg
+        size = np.hypot(de, dn)
+        with np.errstate(divide="ignore"):
+            j = np.rint(_BINS_PER_DECADE * np.log10(np.maximum(size, 1e-9)))
+        j = np.clip(j.astype(np.int64), _J_MIN, _J_MAX)
+        self.second_diff_hist += np.bincount(j - _J_MIN, minlength=self.second_diff_hist.size)
+
+    def second_difference_median(self) -> float:
+        """Median second difference of the positions in metres (bin centre); nan if none."""
+        n = int(self.second_diff_hist.sum())
+        if n == 0:
+            return float("nan")
+        j = int(np.searchsorted(np.cumsum(self.second_diff_hist), max(1, math.ceil(0.5 * n))))
+        return float(10.0 ** ((j + _J_MIN) / _BINS_PER_DECADE))
 
     def _steps(self, t: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
         dt = np.diff(t)
@@ -216,6 +287,15 @@ class InputChecks:
                 f"imply speeds above {MAX_SPEED_MPS:g} m/s (fastest {self.fastest:,.0f} m/s): "
                 "check the time unit and the latitude/longitude columns; so many are not "
                 "glitches of a car's receiver"
+            )
+        triples = int(self.second_diff_hist.sum())
+        noise = self.second_difference_median()
+        if triples >= MIN_TRIPLES and noise > NOISY_SECOND_DIFF_M:
+            out.append(
+                f"noisy fixes: the median fix lands {noise:.2g} m off the line its two "
+                "predecessors draw (at most 1.4 m on every real drive the model was "
+                "trained and validated on): a noisier receiver than the model has been "
+                "measured on; expect false alarms on its ordinary noise"
             )
         q1, q3 = self.step_quantile(0.25), self.step_quantile(0.75)
         if math.isfinite(median) and q3 - q1 > IRREGULAR_IQR_RATIO * median:
