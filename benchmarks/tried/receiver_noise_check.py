@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+import pandas as pd
 
 from gradgps._data.inject import inject_grad
 from gradgps._data.simulator import SimulatorParams, simulate_fleet
@@ -34,6 +35,24 @@ RECEIVERS = (
 )
 
 
+def receiver_drives(noise: dict[str, float], hz: float) -> pd.DataFrame:
+    """Six fresh 15-minute simulated drives (seed 4242; track, t, lat, lon) at ``hz`` from a
+    receiver of :data:`RECEIVERS` (``{}``: the simulator's logger)."""
+    params = SimulatorParams(
+        **(
+            {
+                "gnss_correlated_sigma": noise["sigma"],
+                "gnss_correlation_time": noise["tau"],
+                "gnss_white_sigma": noise["white"],
+            }
+            if noise
+            else {}
+        )
+    )
+    sim = simulate_fleet(6, 15.0, hz, 4242, imu=False, params=params)
+    return sim[["track", "t", "lat", "lon"]]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default=None, help="model directory (default: shipped)")
@@ -42,20 +61,8 @@ def main() -> None:
     print("| receiver | rate | clean false alarms | anomaly F1 | normal recall |")
     print("|---|---|---|---|---|")
     for name, noise in RECEIVERS:
-        params = SimulatorParams(
-            **(
-                {
-                    "gnss_correlated_sigma": noise["sigma"],
-                    "gnss_correlation_time": noise["tau"],
-                    "gnss_white_sigma": noise["white"],
-                }
-                if noise
-                else {}
-            )
-        )
         for hz in (1.0, 0.5, 5.0):
-            sim = simulate_fleet(6, 15.0, hz, 4242, imu=False, params=params)
-            sim = sim[["track", "t", "lat", "lon"]]
+            sim = receiver_drives(noise, hz)
             clean = det.detect(to_fixes(sim, POSITIONS))["anomaly"].to_numpy() == 1
             labelled = inject_grad(sim, seed=0, columns=POSITIONS)
             flagged = (

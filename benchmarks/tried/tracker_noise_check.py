@@ -21,12 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from gradgps._data.inject import inject_grad
-from gradgps._data.simulator import SimulatorParams, simulate_fleet
 from gradgps._grad.pipeline import PipelineParams
 from gradgps._tracks.track import ColumnMap, to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from receiver_noise_check import RECEIVERS
+from receiver_noise_check import RECEIVERS, receiver_drives
 from tracker_accuracy import THRESHOLD_M, accuracy, tracker_offsets
 
 POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
@@ -43,20 +42,8 @@ def main() -> None:
     print("| receiver | rate | clean phantom | injected phantom | jump fixes held |")
     print("|---|---|---|---|---|")
     for name, noise in RECEIVERS:
-        sim_params = SimulatorParams(
-            **(
-                {
-                    "gnss_correlated_sigma": noise["sigma"],
-                    "gnss_correlation_time": noise["tau"],
-                    "gnss_white_sigma": noise["white"],
-                }
-                if noise
-                else {}
-            )
-        )
         for hz in (1.0, 0.5, 5.0):
-            sim = simulate_fleet(6, 15.0, hz, 4242, imu=False, params=sim_params)
-            sim = sim[["track", "t", "lat", "lon"]]
+            sim = receiver_drives(noise, hz)
             clean = tracker_offsets(tracker, params.max_gap_s, to_fixes(sim, POSITIONS))
             labelled = inject_grad(sim, seed=0, columns=POSITIONS)
             held_offsets = tracker_offsets(tracker, params.max_gap_s, to_fixes(labelled, POSITIONS))
