@@ -730,7 +730,7 @@ def _reference_channel(
     p = prm.to_array()
     r, rv = prm.sigma_m**2, prm.sigma_v**2
     log_u = -math.log(2 * prm.span_m)
-    out = np.zeros((len(z), 6))
+    out = np.zeros((len(z), _N_CHANNEL_OUT))
     beam: list[_Hypothesis] = []
     since_start = 0.0
     for i in range(len(z)):

@@ -324,6 +324,7 @@ class PipelineParams:
         if len(dims) != N_NETWORK_DIMS:  # every slot after them would be read one off
             raise ConfigError(f"a network's dims have {N_NETWORK_DIMS} entries, got {len(dims)}")
         core = self.core(period).to_array()
+        anomaly, confirm = self.thresholds_at(period)
         rest = np.concatenate(
             [
                 self.offset.to_array(),
@@ -333,7 +334,7 @@ class PipelineParams:
                     else self.verdict_time.at_period(self.time, period)
                 ).to_array(),
                 self.recovery.to_array(),
-                [self.thresholds_at(period)[0], period],
+                [anomaly, period],
                 np.asarray(dims, dtype=np.float64),
                 frame.constants(),
                 [0.0 if self.motion is None else 1.0],
@@ -341,7 +342,7 @@ class PipelineParams:
                 [0.0 if self.drift is None else 1.0],
                 np.zeros(N_DRIFT_PARAMS) if self.drift is None else self.drift.to_array(),
                 self.recovery.reach_array(),
-                [self._settle(dims, self.thresholds_at(period)[1])],
+                [self._settle(dims, confirm)],
             ]
         )
         return np.concatenate([core, rest])

@@ -112,6 +112,17 @@ _J_MIN = -3 * _BINS_PER_DECADE
 _J_MAX = 5 * _BINS_PER_DECADE
 
 
+def _log_quantile(hist: np.ndarray, first_bin: int, q: float) -> float:
+    """The ``q`` quantile of a histogram whose bin ``k`` holds values with
+    ``round(_BINS_PER_DECADE * log10(value)) == k + first_bin`` (the bin's centre); nan
+    if it is empty."""
+    n = int(hist.sum())
+    if n == 0:
+        return float("nan")
+    k = int(np.searchsorted(np.cumsum(hist), max(1, math.ceil(q * n))))
+    return float(10.0 ** ((k + first_bin) / _BINS_PER_DECADE))
+
+
 def validated_rates(config: Mapping[str, Any] | None) -> tuple[float, float]:
     """``(min_rate_hz, max_rate_hz)`` from a model config's ``validated`` block, else the defaults."""
     block = (config or {}).get("validated")
@@ -176,11 +187,12 @@ class InputChecks:
             lo = part["lon"].to_numpy()
             last = self._last.get(str(name), [])
             if last and tt[0] >= last[-1][0]:
-                kept = [fix for fix in last if fix[0] <= tt[0]]
-                tt = np.r_[[f[0] for f in kept], tt]
-                la = np.r_[[f[1] for f in kept], la]
-                lo = np.r_[[f[2] for f in kept], lo]
-                self._steps(tt[len(kept) - 1 :], la[len(kept) - 1 :], lo[len(kept) - 1 :])
+                # The track goes on: its last fixes (in time order) lead this chunk's;
+                # their own step was counted with the chunk before.
+                tt = np.r_[[f[0] for f in last], tt]
+                la = np.r_[[f[1] for f in last], la]
+                lo = np.r_[[f[2] for f in last], lo]
+                self._steps(tt[len(last) - 1 :], la[len(last) - 1 :], lo[len(last) - 1 :])
             else:
                 self._steps(tt, la, lo)
             self._second_differences(tt, la, lo)
@@ -218,11 +230,7 @@ class InputChecks:
 
     def second_difference_median(self) -> float:
         """Median second difference of the positions in metres (bin centre); nan if none."""
-        n = int(self.second_diff_hist.sum())
-        if n == 0:
-            return float("nan")
-        j = int(np.searchsorted(np.cumsum(self.second_diff_hist), max(1, math.ceil(0.5 * n))))
-        return float(10.0 ** ((j + _J_MIN) / _BINS_PER_DECADE))
+        return _log_quantile(self.second_diff_hist, _J_MIN, 0.5)
 
     def _steps(self, t: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
         dt = np.diff(t)
@@ -247,11 +255,7 @@ class InputChecks:
 
     def step_quantile(self, q: float) -> float:
         """The ``q`` quantile of the proper steps in seconds (histogram bin centre); nan if none."""
-        n = int(self.hist.sum())
-        if n == 0:
-            return float("nan")
-        k = int(np.searchsorted(np.cumsum(self.hist), max(1, math.ceil(q * n))))
-        return float(10.0 ** ((k + _K_MIN) / _BINS_PER_DECADE))
+        return _log_quantile(self.hist, _K_MIN, q)
 
     def warnings(self) -> list[str]:
         """One sentence per way the input is outside what the model was validated on."""

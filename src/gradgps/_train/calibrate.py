@@ -99,9 +99,8 @@ def calibration_points(
         mapped = prepared.to_rows(
             np.arange(len(prepared.points), dtype=np.float64)[:, None], fill=-1.0
         )[:, 0]
-        for row, point in enumerate(mapped):
-            if point >= 0:
-                row_of_point[int(point)] = usable[row]
+        placed = mapped >= 0
+        row_of_point[mapped[placed].astype(np.int64)] = usable[placed]
         truth_rows = labelled["label_anomaly"].to_numpy() == 1
         stale_rows = (
             labelled["label_stale"].to_numpy() == 1
