@@ -43,10 +43,11 @@ Warnings (thresholds are module constants):
   the shipped model was trained and validated on has a median of at most 1.35 m
   (the Nevada Garmin's train drive at 0.5 Hz; DrivePlotR 0.64 m, the NL
   motorway phones and logger 0.39-0.44 m, Austin 1.1 m; TUC's smoothed ground
-  truth 0.01 m), the simulator's logger 0.3-1.0 m; on simulated receivers with a median of 2 m the
-  shipped model flagged 0.35-0.41 % of clean fixes, with 5.7 m 2-9 %, with
-  12 m 9-51 % (``benchmarks/tried/receiver_noise_check.py``): its answers on
-  such files are not backed by any measurement on real data.
+  truth 0.01 m), the simulator's logger 0.58 m at 1 Hz; on simulated receivers with a median of 2.1 m the
+  shipped model flagged 0.35-0.41 % of clean fixes, with 6.0 m 2-9 %, with
+  12.2 m 9-51 % (``benchmarks/tried/receiver_noise_levels.py``,
+  ``benchmarks/tried/receiver_noise_check.py``): its answers on such files are
+  not backed by any measurement on real data.
 
 A small tolerance (:data:`RATE_TOLERANCE`) keeps a file recorded exactly at
 the validated limit (0.5 Hz) from being warned about.
