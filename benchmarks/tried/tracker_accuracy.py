@@ -46,7 +46,7 @@ from gradgps._data.simulator import simulate_fleet
 from gradgps._eval.robustness import _variant_columns
 from gradgps._grad.defaults import MIN_STEP_S, grad_points
 from gradgps._grad.detector import Detector
-from gradgps._grad.offset import OffsetParams, offset_features
+from gradgps._grad.offset import OFFSET_FEATURES, OffsetParams, offset_features
 from gradgps._grad.pipeline import PipelineParams
 from gradgps._tracks.preprocess import stream_reasons
 from gradgps._tracks.track import ColumnMap, to_fixes
@@ -75,14 +75,17 @@ def drives(
         yield name, data, cmap
 
 
-def tracker_offsets(params: OffsetParams, max_gap_s: float, fixes: pd.DataFrame) -> np.ndarray:
-    """Per fix of ``fixes``: the tracker's offset east and north (m), the tracker run alone
-    on the detector's segments (it takes no other velocity than a reported speed and
-    heading, so this is what the pipeline computes)."""
-    out = np.zeros((len(fixes), 2))
+def tracker_features(
+    params: OffsetParams, max_gap_s: float, fixes: pd.DataFrame, fill: float = 0.0
+) -> np.ndarray:
+    """Per fix of ``fixes``: the tracker's outputs (:data:`OFFSET_FEATURES`), the tracker
+    run alone on the detector's segments (it takes no other velocity than a reported
+    speed and heading, so this is what the pipeline computes); ``fill`` where a fix is
+    not used."""
+    out = np.full((len(fixes), len(OFFSET_FEATURES)), fill)
     usable = np.flatnonzero(stream_reasons(fixes, min_step_s=MIN_STEP_S) == "")
     prepared = grad_points(fixes.iloc[usable], max_gap_s)
-    values = np.zeros((len(prepared.points), 2))
+    values = np.zeros((len(prepared.points), len(OFFSET_FEATURES)))
     for _, sl in prepared.segment_slices():
         pts = prepared.points.iloc[sl]
         t = pts["t"].to_numpy(np.float64)
@@ -92,9 +95,15 @@ def tracker_offsets(params: OffsetParams, max_gap_s: float, fixes: pd.DataFrame)
         )
         values[sl] = offset_features(
             np.diff(t, prepend=t[0]), east, north, speed, heading, params=params
-        )[:, :2]
-    out[usable] = prepared.to_rows(values, fill=0.0)
+        )
+    out[usable] = prepared.to_rows(values, fill=fill)
     return out
+
+
+def tracker_offsets(params: OffsetParams, max_gap_s: float, fixes: pd.DataFrame) -> np.ndarray:
+    """Per fix of ``fixes``: the tracker's offset east and north (m), 0 where a fix is not
+    used (:func:`tracker_features`)."""
+    return tracker_features(params, max_gap_s, fixes)[:, :2]
 
 
 AFTER_BINS = (1, 2, 4, 11, 31, 101)  # fixes after an episode's end: 1, 2-3, ..., 101+

@@ -43,6 +43,7 @@ __all__ = [
     "calibrate_model",
     "calibration_points",
     "describe_thresholds",
+    "inject_validation_faults",
     "recipe_group",
     "worst_group_threshold",
 ]
@@ -56,6 +57,23 @@ def recipe_group(track: str) -> str:
     """The group of a recipe track: its source, the part of its name before the first
     ``-`` (``sim0.5Hz``, ``driveplotr``, ...; :func:`gradgps._train.recipe.recipe_tables`)."""
     return str(track).split("-", 1)[0]
+
+
+def inject_validation_faults(table: pd.DataFrame, spec: GradTrainingSet) -> pd.DataFrame:
+    """``table`` (one of the recipe's tables) with the validation faults injected exactly
+    as training injects them: protocol ``grad`` at ``spec.val_seed``, then frozen fixes
+    and stale starts where the spec has them."""
+    cmap = to_fixes(table).attrs["columns"]
+    labelled = inject_grad(table, seed=spec.val_seed, columns=cmap)
+    if spec.freeze_share > 0 or spec.stale_start > 0:
+        labelled = inject_freeze(
+            labelled,
+            seed=spec.val_seed,
+            share=spec.freeze_share,
+            stale_start=spec.stale_start,
+            columns=cmap,
+        )
+    return labelled
 
 
 @dataclass(frozen=True)
@@ -84,15 +102,7 @@ def calibration_points(
     parts: list[tuple[np.ndarray, ...]] = []
     for table in tables:
         cmap = to_fixes(table).attrs["columns"]
-        labelled = inject_grad(table, seed=spec.val_seed, columns=cmap)
-        if spec.freeze_share > 0 or spec.stale_start > 0:
-            labelled = inject_freeze(
-                labelled,
-                seed=spec.val_seed,
-                share=spec.freeze_share,
-                stale_start=spec.stale_start,
-                columns=cmap,
-            )
+        labelled = inject_validation_faults(table, spec)
         fixes = to_fixes(labelled, cmap)
         _, usable, prepared, out = detector._point_outputs(fixes)
         row_of_point = np.full(len(prepared.points), -1, np.int64)
