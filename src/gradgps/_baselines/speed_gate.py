@@ -35,12 +35,12 @@ import pandas as pd
 
 from .._exceptions import ConfigError
 from .._result import PointResult, decode_floats, invalid_reasons, results_frame
+from .._tracks.geo import EARTH_MEAN_RADIUS_M
 from .._tracks.track import track_rows
 from .base import Reading, StreamingBaseline, load_time, state_error
 
 __all__ = ["SpeedGate"]
 
-_EARTH_RADIUS_M = 6371008.8
 _STATE_KEYS = ("anchor", "rejected", "streak", "last_t")
 
 
@@ -51,7 +51,7 @@ def _distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
         math.sin((p2 - p1) / 2) ** 2
         + math.cos(p1) * math.cos(p2) * math.sin(math.radians(lon2 - lon1) / 2) ** 2
     )
-    return 2.0 * _EARTH_RADIUS_M * math.asin(math.sqrt(min(max(h, 0.0), 1.0)))
+    return 2.0 * EARTH_MEAN_RADIUS_M * math.asin(math.sqrt(min(max(h, 0.0), 1.0)))
 
 
 def _speed(a: list[float], t: float, lat: float, lon: float) -> float:

@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._exceptions import ConfigError
 
 __all__ = [
+    "EARTH_MEAN_RADIUS_M",
     "N_FRAME_CONSTANTS",
     "WGS84_A",
     "WGS84_F",
@@ -40,6 +41,9 @@ WGS84_A = 6378137.0
 WGS84_F = 1.0 / 298.257223563
 _B = WGS84_A * (1.0 - WGS84_F)
 _E2 = WGS84_F * (2.0 - WGS84_F)
+#: m: the WGS84 mean radius, (2a + b) / 3 rounded to 0.1 m: the sphere of the distances
+#: that need no local frame (summaries, the speed gate, the input checks).
+EARTH_MEAN_RADIUS_M = 6371008.8
 
 FloatArray = NDArray[np.float64]
 
@@ -131,7 +135,7 @@ def haversine_m(lat1: ArrayLike, lon1: ArrayLike, lat2: ArrayLike, lon2: ArrayLi
 
     Good to about 0.5 %; used for summaries (gaps, speeds), not for detection.
     """
-    r = 6371008.8
+    r = EARTH_MEAN_RADIUS_M
     p1 = np.radians(np.asarray(lat1, dtype=np.float64))
     p2 = np.radians(np.asarray(lat2, dtype=np.float64))
     dp = p2 - p1
@@ -193,7 +197,7 @@ def far_apart_scalar(lat0: float, lon0: float, lat: float, lon: float, radius_m:
     s_dl = math.sin(0.5 * math.radians(lon - lon0))
     h = s_dp * s_dp + math.cos(p1) * math.cos(p2) * s_dl * s_dl
     h = min(max(h, 0.0), 1.0)
-    return 2.0 * 6371008.8 * math.asin(math.sqrt(h)) > radius_m
+    return 2.0 * EARTH_MEAN_RADIUS_M * math.asin(math.sqrt(h)) > radius_m
 
 
 @numba.njit(cache=True)

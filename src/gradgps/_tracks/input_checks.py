@@ -62,7 +62,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .geo import haversine_m
+from .geo import EARTH_MEAN_RADIUS_M, haversine_m
 
 __all__ = [
     "IRREGULAR_IQR_RATIO",
@@ -99,7 +99,6 @@ NOISY_SECOND_DIFF_M = 3.0
 MIN_TRIPLES = 50
 #: Steps of a triple whose durations differ by more than this share are not used.
 _TRIPLE_TOLERANCE = 0.1
-_EARTH_RADIUS_M = 6371008.8
 #: Relative slack on the rate limits (histogram resolution and clock jitter).
 RATE_TOLERANCE = 0.05
 
@@ -215,7 +214,7 @@ class InputChecks:
         if not even.any():
             return
         i = np.flatnonzero(even)
-        per_deg = math.radians(1.0) * _EARTH_RADIUS_M
+        per_deg = math.radians(1.0) * EARTH_MEAN_RADIUS_M
         scale = np.cos(np.radians(lat[i + 1])) * per_deg
         east01 = ((lon[i + 1] - lon[i] + 540.0) % 360.0 - 180.0) * scale  # across +-180 too
         east12 = ((lon[i + 2] - lon[i + 1] + 540.0) % 360.0 - 180.0) * scale
