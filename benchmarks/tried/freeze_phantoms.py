@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +31,7 @@ from gradgps._train.calibrate import inject_validation_faults, recipe_group
 from gradgps._train.recipe import recipe_faults, recipe_tables
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for tracker_accuracy
-from tracker_accuracy import tracker_features
+from tracker_accuracy import tracker_features, tracker_settings
 
 THRESHOLD_M = 8.0
 NORM, AGE = OFFSET_FEATURES.index("offset_norm"), OFFSET_FEATURES.index("fault_age_s")
@@ -44,8 +43,7 @@ def main() -> None:
     parser.add_argument("--set", default="", help="tracker settings k=v,... over the defaults")
     args = parser.parse_args()
     params = PipelineParams()
-    overrides = {k: float(v) for k, v in (kv.split("=") for kv in args.set.split(",") if kv)}
-    tracker = replace(params.offset, **overrides)
+    tracker = tracker_settings(params.offset, args.set)
     spec = recipe_faults()
     counts: dict[str, np.ndarray] = {}
     for table in recipe_tables("validation"):

@@ -148,6 +148,12 @@ def phantom_places(labelled: pd.DataFrame, fixes: pd.DataFrame, offset: np.ndarr
     return [int(n) for n in counts]
 
 
+def tracker_settings(base: OffsetParams, settings: str) -> OffsetParams:
+    """``base`` with the overrides of a ``--set`` option (``"sigma_m=3,fault_s=45"``)."""
+    overrides = {k: float(v) for k, v in (kv.split("=") for kv in settings.split(",") if kv)}
+    return replace(base, **overrides)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default=None)
@@ -160,8 +166,7 @@ def main() -> None:
     parser.add_argument("--skip", default="", help="leave out drive sets whose name holds this")
     args = parser.parse_args()
     params = Detector(args.model).model_.params if args.model else PipelineParams()
-    overrides = {k: float(v) for k, v in (kv.split("=") for kv in args.set.split(",") if kv)}
-    tracker = replace(params.offset, **overrides)
+    tracker = tracker_settings(params.offset, args.set)
     print(tracker)
     head = "| drives | normal fixes with a phantom offset | jump fixes held (channel fixes) |"
     rule = "|---|---|---|"

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +25,7 @@ from gradgps._tracks.track import ColumnMap, to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from receiver_noise_check import RECEIVERS, receiver_drives
-from tracker_accuracy import THRESHOLD_M, accuracy, tracker_offsets
+from tracker_accuracy import THRESHOLD_M, accuracy, tracker_offsets, tracker_settings
 
 POSITIONS = ColumnMap(track="track", time="t", lat="lat", lon="lon", speed="", heading="")
 
@@ -36,8 +35,7 @@ def main() -> None:
     parser.add_argument("--set", default="", help="tracker settings k=v,... over the defaults")
     args = parser.parse_args()
     params = PipelineParams()
-    overrides = {k: float(v) for k, v in (kv.split("=") for kv in args.set.split(",") if kv)}
-    tracker = replace(params.offset, **overrides)
+    tracker = tracker_settings(params.offset, args.set)
     print(tracker)
     print("| receiver | rate | clean phantom | injected phantom | jump fixes held |")
     print("|---|---|---|---|---|")
