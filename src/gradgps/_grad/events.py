@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .._tracks.geo import haversine_m
+
 __all__ = ["EVENT_COLUMNS", "EventBuilder", "fault_events"]
 
 EVENT_COLUMNS = (
@@ -35,17 +37,6 @@ EVENT_COLUMNS = (
     "first_row",
     "last_row",
 )
-_EARTH_M = 6_371_008.8
-
-
-def _distance_m(
-    lat1: np.ndarray, lon1: np.ndarray, lat2: np.ndarray, lon2: np.ndarray
-) -> np.ndarray:
-    p1, p2 = np.radians(lat1), np.radians(lat2)
-    dp = p2 - p1
-    dl = np.radians(lon2 - lon1)
-    a = np.sin(dp / 2) ** 2 + np.cos(p1) * np.cos(p2) * np.sin(dl / 2) ** 2
-    return np.asarray(2 * _EARTH_M * np.arcsin(np.sqrt(np.clip(a, 0.0, 1.0))), dtype=np.float64)
 
 
 class EventBuilder:
@@ -91,7 +82,7 @@ class EventBuilder:
                         "row": sel + self._rows,
                         "bias_type": result["bias_type"].to_numpy(object)[sel],
                         "time_type": result["time_type"].to_numpy(object)[sel],
-                        "offset": _distance_m(lat, lon, lat_c, lon_c),
+                        "offset": haversine_m(lat, lon, lat_c, lon_c),
                         "score": result["score"].to_numpy(np.float64)[sel],
                         "alert": result["alert"].to_numpy()[sel].astype(np.int64),
                     }
