@@ -4,7 +4,9 @@
 #   benchmarks/tried/eval_bundle.sh MODEL_DIR OUT [JOBS]
 # Run with the sources to judge on PYTHONPATH (a tracker change lives in the kernel, not
 # in the model's settings) and a NUMBA_CACHE_DIR of their own. About 10 minutes on two
-# cores. Checks: validation_check.py positions, +speed, +speed+heading; simulated_check.py;
+# cores. Checks: validation_check.py positions, +speed, +speed+heading; fault_age_recall.py
+# (five fault draws, positions and every column variant: the figures to judge cells by, since
+# one draw hid a 0.5 Hz loss, docs/deviations.md); simulated_check.py;
 # tried/gnss_validation.py; tried/hangover_check.py over the five seed pairs at 10, 5,
 # 1, 0.5 Hz and eight more at 1, 0.5 Hz (the pairs of docs/deviations.md); and
 # tried/variant_errors.py on DrivePlotR with speed and heading.
@@ -16,6 +18,7 @@ mkdir -p "$out"
   echo "validation_positions python $here/validation_check.py --model $model"
   echo "validation_speed python $here/validation_check.py --model $model --variant +speed"
   echo "validation_speed_heading python $here/validation_check.py --model $model --variant +speed+heading"
+  echo "draws5 python $here/fault_age_recall.py --model $model --variant positions --variant +speed --variant +speed+heading"
   echo "simulated python $here/simulated_check.py --model $model"
   echo "gnss python $here/tried/gnss_validation.py --model $model"
   echo "variant_errors python $here/tried/variant_errors.py --model $model"

@@ -3,7 +3,8 @@
     python benchmarks/tried/eval_summary.py OUT_A OUT_B ...
 
 Rows: validation anomaly F1 per data set, rate and column variant (and the
-positions-only mean), clean false alarms where they exceed 0.3 %, simulated F1,
+positions-only mean), the same over five fault draws (``F1x5``, with normal recall
+``NRx5`` and each variant's mean), clean false alarms where they exceed 0.3 %, simulated F1,
 protocol ``gnss`` normal recall per data set, false positives and hang-over fixes
 summed over the seed pairs per rate (and over the validation drives) with the longest
 hang-over run, and DrivePlotR with speed and
@@ -42,6 +43,16 @@ def figures(out: Path) -> dict[str, str]:
                 f1s.append(float(f1))
         if f1s:
             got[f"F1 mean {variant}"] = f"{sum(f1s) / len(f1s):.3f}"
+    path = out / "draws5.txt"
+    if path.exists():
+        means: dict[str, list[float]] = {}
+        for row in _table_rows(path.read_text())[1:]:
+            name, columns, rate, _, f1, nr = row[:6]
+            got[f"F1x5 {name} {columns} {rate}"] = f1
+            got[f"NRx5 {name} {columns} {rate}"] = nr
+            means.setdefault(columns, []).append(float(f1))
+        for columns, f1s in means.items():
+            got[f"F1x5 mean {columns}"] = f"{sum(f1s) / len(f1s):.3f}"
     path = out / "simulated.txt"
     if path.exists():
         for row in _table_rows(path.read_text())[1:]:
