@@ -86,13 +86,17 @@ def main() -> None:
     args = parser.parse_args()
     import torch
 
-    from gradgps._baselines.channel_grad import SENSOR_BIAS_CLASSES
     from gradgps._grad.gru import GRUModel
     from gradgps._result import f1_score
     from gradgps._train.baseline_recipe import splits
-    from gradgps._train.channel_grad import GRU_WINDOW, _sequences, dataset_channel_grad
+    from gradgps._train.channel_grad import (
+        GRU_WINDOW,
+        _sequences,
+        channel_grad_config,
+        dataset_channel_grad,
+    )
     from gradgps._train.thresholds import NORMAL_RECALL_FLOOR, recall_floor_threshold
-    from gradgps._train.torch_gru import TrainConfig, train_model
+    from gradgps._train.torch_gru import train_model
 
     torch.set_num_threads(1)
     variants = [_parse(v) for v in (args.variant or ["base:"])]
@@ -115,18 +119,7 @@ def main() -> None:
                 _rank_transform(tr, [v7, score]) if transform == "quantile" else (tr, [v7, score])
             )
             for seed in seeds:
-                config = replace(
-                    TrainConfig(
-                        bias_classes=SENSOR_BIAS_CLASSES,
-                        mode="window",
-                        window=GRU_WINDOW,
-                        progress=False,
-                        early_stopping="floor-f1",
-                        normal_recall_floor=NORMAL_RECALL_FLOOR,
-                        **replace(rec, seed=seed).loop_settings(),
-                    ),
-                    **override,
-                )
+                config = replace(channel_grad_config(replace(rec, seed=seed)), **override)
                 began = time.perf_counter()
                 trained = train_model(tr_v, v7_v, config)
                 took = time.perf_counter() - began

@@ -28,7 +28,7 @@ import json
 from collections.abc import Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -49,6 +49,9 @@ from .._result import f1_score
 from .baseline_recipe import BaselineRecipe, inputs_for, labelled_fixes, splits
 from .cache import baseline_dir
 from .thresholds import NORMAL_RECALL_FLOOR, best_f1_threshold, recall_floor_threshold
+
+if TYPE_CHECKING:  # torch only when training
+    from .torch_gru import TrainConfig
 
 __all__ = [
     "GRU_WINDOW",
@@ -136,6 +139,24 @@ def _tuned_rema(val: Any, recipe: BaselineRecipe) -> tuple[tuple[RemaParams, ...
     return tuple(chosen), scores
 
 
+def channel_grad_config(rec: BaselineRecipe) -> TrainConfig:
+    """The channel GRAD's training settings under ``rec``: the paper's window (W =
+    :data:`GRU_WINDOW`), the sensor-grid bias classes, early stopping on the validation
+    F1 at the recall-floor threshold, and the recipe's loop settings (seed, budget,
+    patience) shared with every baseline. Imports torch."""
+    from .torch_gru import TrainConfig
+
+    return TrainConfig(
+        bias_classes=SENSOR_BIAS_CLASSES,
+        mode="window",
+        window=GRU_WINDOW,
+        progress=False,
+        early_stopping="floor-f1",
+        normal_recall_floor=NORMAL_RECALL_FLOOR,
+        **rec.loop_settings(),
+    )
+
+
 def dataset_channel_grad(
     dataset: str,
     data_dir: str | Path | None = None,
@@ -163,19 +184,11 @@ def dataset_channel_grad(
     target = baseline_dir("channel-grad", dataset, "sensor-grid", rec, data_dir, extra)
     if not (target / "config.json").is_file():
         # torch only when training
-        from .torch_gru import TrainConfig, train_model
+        from .torch_gru import train_model
 
         train, val = splits(dataset, data_dir)
         rema, rema_f1 = _tuned_rema(val, rec)
-        config = TrainConfig(
-            bias_classes=SENSOR_BIAS_CLASSES,
-            mode="window",
-            window=GRU_WINDOW,
-            progress=False,
-            early_stopping="floor-f1",
-            normal_recall_floor=NORMAL_RECALL_FLOOR,
-            **rec.loop_settings(),
-        )
+        config = channel_grad_config(rec)
         val_seqs = _sequences(val, (rec.val_seed,), features, rema, rec)
         trained = train_model(_sequences(train, rec.seeds, features, rema, rec), val_seqs, config)
         mean = trained.network.scaler_mean.detach().numpy().astype(np.float64)
