@@ -421,6 +421,9 @@ def _speed_section(speed: dict[str, Any]) -> list[str]:
 
 
 ROBUSTNESS_DETECTOR = "grad-default"
+#: Fault draws per robustness cell (the verdicts are seed 0's; the spread says how far
+#: one draw moves a cell of one or two test drives).
+ROBUSTNESS_DRAWS = 5
 R_START, R_END = "<!-- robustness:start -->", "<!-- robustness:end -->"
 
 
@@ -432,7 +435,10 @@ def robustness_table(args: argparse.Namespace) -> dict[str, Any]:
     from gradgps._eval.robustness import robustness_markdown, run_robustness
 
     report = run_robustness(
-        make_detector(ROBUSTNESS_DETECTOR), ROBUSTNESS_DETECTOR, data_dir=args.data_dir
+        make_detector(ROBUSTNESS_DETECTOR),
+        ROBUSTNESS_DETECTOR,
+        data_dir=args.data_dir,
+        draws=ROBUSTNESS_DRAWS,
     )
     words = ["benchmarks/run_all.py"]
     words += [os.path.relpath(a, REPO) if a.startswith(str(REPO)) else a for a in sys.argv[1:]]

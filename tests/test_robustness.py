@@ -209,3 +209,38 @@ def test_evident_holds_follow_each_track_in_time_order() -> None:
     table = pd.concat([a, b]).iloc[::-1].reset_index(drop=True)  # rows in reverse
     expected = (table["track"] == "a") & (table["t"] == 3.0)
     assert evident_holds(table).tolist() == expected.tolist()
+
+
+def test_more_fault_draws_add_their_spread_and_keep_seed_0s_verdicts(tmp_path: Path) -> None:
+    """``draws`` scores seeds 1..N-1 beside seed 0 in every scored cell: seed 0's numbers
+    and every verdict are those of a one-draw run, the other draws are really other
+    faults, and the Markdown adds one spread row per scored cell."""
+    _tiny_data(tmp_path)
+    write_tiny_new_drives(tmp_path)
+    det = Detector()
+    one = run_robustness(det, "grad-default", datasets=["driveplotr"], data_dir=tmp_path)
+    three = run_robustness(det, "grad-default", datasets=["driveplotr"], data_dir=tmp_path, draws=3)
+    assert one["draws"] == 1
+    assert three["draws"] == 3
+    assert [c["passed"] for c in three["cells"]] == [c["passed"] for c in one["cells"]]
+    scored = [c for c in three["cells"] if not c["same_as"]]
+    assert scored
+    for c, c1 in zip(three["cells"], one["cells"], strict=True):
+        if c["same_as"]:
+            continue
+        assert "draws" not in c1["grad"]
+        d = c["grad"]["draws"]
+        assert d["seeds"] == [0, 1, 2]
+        assert d["anomaly_f1"][0] == c1["grad"]["anomaly"]["f1"]
+        assert d["normal_recall"][0] == c1["grad"]["normal"]["recall"]
+    # other seeds inject other faults: not every cell scores the same in all three draws
+    assert any(len(set(c["grad"]["draws"]["anomaly_f1"])) > 1 for c in scored)
+    text = robustness_markdown(three, "x")
+    assert "Spread over 3 fault draws" in "\n".join(text)
+    rows = [line for line in text if line.startswith("| driveplotr |") and " of 3 |" in line]
+    assert len(rows) == len(scored)
+    assert not any("Spread over" in line for line in robustness_markdown(one, "x"))
+    bad = CliRunner().invoke(main, ["bench", "--suite", "robustness", "--draws", "0"])
+    assert bad.exit_code == 2
+    with pytest.raises(ConfigError, match="draws must be at least 1"):
+        run_robustness(det, "grad-default", datasets=["driveplotr"], data_dir=tmp_path, draws=0)

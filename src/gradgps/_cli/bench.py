@@ -70,6 +70,7 @@ def _robustness(
     train_dataset: str | None,
     data_dir: Path | None,
     model: Path | None,
+    draws: int,
     json_path: Path | None,
 ) -> None:
     """``--suite robustness``: run the suite, print its matrix (Markdown), save the JSON."""
@@ -78,10 +79,17 @@ def _robustness(
     with click_errors():
         det = _real_drive_detector(detector, train_dataset, data_dir, model)
         with _step_progress("robustness", None) as advance:
-            report = run_robustness(det, detector, model=model, data_dir=data_dir, advance=advance)
+            report = run_robustness(
+                det, detector, model=model, data_dir=data_dir, advance=advance, draws=draws
+            )
     _report(
         ["gradgps", "bench", "--suite", "robustness", "--detector", detector],
-        {"--model": model, "--dataset": train_dataset, "--data-dir": data_dir},
+        {
+            "--model": model,
+            "--dataset": train_dataset,
+            "--data-dir": data_dir,
+            "--draws": draws if draws > 1 else None,
+        },
         robustness_markdown,
         report,
         json_path,
@@ -213,6 +221,13 @@ def _fmt(value: object) -> str:
     metavar="ROW[,ROW...]",
     help="sensor-grid: only these rows (default: all 19 and mixed)",
 )
+@option(
+    "--draws",
+    minimum=1,
+    default=1,
+    help="--suite robustness: also score protocol grad with seeds 1..N-1 in every cell and "
+    "print the spread over the N fault draws (the verdicts stay seed 0's)",
+)
 @option("--json", "json_path", path="file", help="write the full report here")
 def bench(
     suite: str | None,
@@ -230,6 +245,7 @@ def bench(
     fix_speed: bool,
     window: int,
     rows: str | None,
+    draws: int,
     json_path: Path | None,
 ) -> None:
     """Inject faults into a data split, run detectors, print and save their scores."""
@@ -239,7 +255,7 @@ def bench(
     from .._eval.bench import bench_units, run_bench
 
     if suite == "robustness":
-        _robustness(detectors or "grad-default", dataset, data_dir, model, json_path)
+        _robustness(detectors or "grad-default", dataset, data_dir, model, draws, json_path)
         return
     if suite is None and protocol == "gnss":
         if detectors is not None and "," in detectors:
