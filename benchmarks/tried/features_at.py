@@ -2,13 +2,18 @@
 
 For looking at one event (issue 13: why a clean fix is flagged), never the test
 splits. Positions only (t, lat, lon), the data set's validation split at its
-native rate: per fix of ``--rows`` (positions in the drive's first segment),
+native rate (or ``--period``'s): per fix of ``--rows`` (rows of the drive, within the
+segment holding the first),
 the step speed from the fixes, the chosen features (decompressed: metres,
 seconds), the model's at-once flag and, with ``--confirm``, the confirm head's
 verdict read at the next fix (``lagged_verdict_check.py --confirm``). Run:
 
     python benchmarks/tried/features_at.py --dataset nevada --rows 520:575 \\
         [--model DIR] [--confirm] [--features offset_norm,fault_age_s,...]
+        [--period 2] [--inject-seed S]
+
+``--period`` decimates the drive first; ``--inject-seed`` reads it with protocol
+``grad`` faults of that seed (positions), to see what the pipeline saw in a missed fault.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gradgps._data.inject import inject_grad
 from gradgps._grad.detector import Detector
 from gradgps._grad.pipeline import grad_features, pipeline_feature_names
 from gradgps._tracks.track import to_fixes
@@ -39,20 +45,28 @@ def main() -> None:
     parser.add_argument("--confirm", action="store_true")
     parser.add_argument("--features", default=DEFAULT_FEATURES)
     parser.add_argument("--data-dir", default=None)
+    parser.add_argument("--period", type=float, default=0.0, help="decimate (s); 0 = native")
+    parser.add_argument("--inject-seed", type=int, default=None, help="protocol grad seed")
     args = parser.parse_args()
     first, last = (int(v) for v in args.rows.split(":"))
     det = Detector(args.model)
     once = at_once_detector(det)
     names = pipeline_feature_names(det.model_.params)
     wanted = args.features.split(",")
-    for name, data, _, cmap, _ in validation_positions(None, args.data_dir, keep_native=True):
+    period = args.period if args.period > 0 else None
+    for name, data, _, cmap, _ in validation_positions(period, args.data_dir, keep_native=True):
         if name != args.dataset:
             continue
+        if args.inject_seed is not None:
+            data = inject_grad(data, seed=args.inject_seed, columns=cmap)
         fixes = to_fixes(data, cmap)
         _, usable, prepared, _ = det._point_outputs(fixes)
         if len(prepared.points) != len(fixes):
             raise SystemExit("rows were merged or unusable here: point and row numbers differ")
-        k, sl = next(iter(prepared.segment_slices()))
+        k, sl = next(
+            ((k, sl) for k, sl in prepared.segment_slices() if sl.start <= first < sl.stop),
+            next(iter(prepared.segment_slices())),
+        )
         pts = prepared.points.iloc[sl]
         t, lat, lon = (pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon"))
         nan = np.full(len(t), np.nan)
@@ -70,12 +84,13 @@ def main() -> None:
         )
         print("| " + " | ".join(head) + " |")
         print("|" + "---|" * len(head))
-        for i in range(first, min(last, len(t))):
-            cells = [str(i), f"{speed[i]:.1f}"]
+        for row in range(first, min(last, sl.stop)):
+            i = row - sl.start  # the row's place in its segment
+            cells = [str(row), f"{speed[i]:.1f}"]
             cells += [f"{values[i, names.index(f)]:.2f}" for f in wanted]
-            cells.append(str(int(at_once[i])))
+            cells.append(str(int(at_once[row])))
             if late is not None:
-                cells.append(str(int(late[i])))
+                cells.append(str(int(late[row])))
             print("| " + " | ".join(cells) + " |")
 
 

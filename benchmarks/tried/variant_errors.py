@@ -23,7 +23,7 @@ import pandas as pd
 
 from gradgps._data.datasets import load_dataset
 from gradgps._data.inject import inject_grad
-from gradgps._eval.robustness import _variant_columns
+from gradgps._eval.robustness import _variant_columns, decimate
 from gradgps._grad.detector import Detector
 from gradgps._tracks.geo import LocalFrame
 from gradgps._tracks.track import to_fixes
@@ -36,12 +36,17 @@ def main() -> None:
     parser.add_argument("--model", default=None)
     parser.add_argument("--inject-seed", type=int, default=0)
     parser.add_argument("--rows", default=None, help="A:B, rows to show")
+    parser.add_argument(
+        "--period", type=float, default=0.0, help="decimate to this (s); 0 = native"
+    )
     args = parser.parse_args()
     table = load_dataset(args.dataset, "validation")
     picked = _variant_columns(table, to_fixes(table).attrs["columns"], args.variant)
     if picked is None:
         raise SystemExit(f"{args.dataset} has no {args.variant} columns")
     cols, cmap = picked
+    if args.period > 0:
+        table = decimate(table, cmap, args.period).reset_index(drop=True)
     labelled = inject_grad(table[cols], seed=args.inject_seed, columns=cmap)
     result = Detector(args.model).detect(to_fixes(labelled[cols], cmap))
     hit = result["anomaly"].to_numpy() == 1
