@@ -1,7 +1,8 @@
 """The pipeline's features per segment of a table of fixes, in metres and seconds.
 
 For the scripts that read what the detector's network sees (``tried/error_places.py``,
-``tried/simulated_trace.py``, ``tried/tracker_accuracy.py``, ``tried/latch_members.py``);
+``tried/simulated_trace.py``, ``tried/tracker_accuracy.py``, ``tried/latch_members.py``,
+``tried/tracker_knew.py``);
 never the test splits.
 """
 

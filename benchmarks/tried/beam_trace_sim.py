@@ -23,13 +23,13 @@ from pathlib import Path
 import numpy as np
 
 from gradgps._grad.detector import Detector
-from gradgps._grad.offset import _reference_channel
 from gradgps._tracks.track import to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helpers
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for simulated_trace
 from _segment_features import segment_features
 from simulated_trace import drive_arguments, drives
+from tracker_accuracy import beam_trace
 
 
 def main() -> None:
@@ -50,19 +50,10 @@ def main() -> None:
         if seg[0] <= args.row - rows[0] <= seg[-1]
     )
     seg, pts = segment
-    t = pts["t"].to_numpy(np.float64)
     z = pts[args.channel].to_numpy(np.float64)
     other = pts["north" if args.channel == "east" else "east"].to_numpy(np.float64)
-    repeated = np.r_[False, (np.diff(z) == 0) & (np.diff(other) == 0)]
-    trace: list = []
-    _reference_channel(
-        det.model_.params.offset,
-        np.diff(t, prepend=t[0]),
-        z,
-        np.full(len(z), np.nan),
-        repeated,
-        trace,
-    )
+    repeated = np.r_[False, (np.diff(z) == 0) & (np.diff(other) == 0)]  # shown per fix
+    trace = beam_trace(det.model_.params.offset, pts, args.channel)
     show = {int(r) for r in args.show.split(",")}
     for i, beam in trace:
         row = int(rows[seg[i]])

@@ -23,11 +23,13 @@ import numpy as np
 
 from gradgps._data.inject import inject_grad
 from gradgps._grad.detector import Detector
-from gradgps._grad.offset import _reference_channel
 from gradgps._tracks.track import to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
 from _validation_drives import validation_positions
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # for tracker_accuracy
+from tracker_accuracy import beam_trace
 
 
 def main() -> None:
@@ -52,19 +54,8 @@ def main() -> None:
             raise SystemExit("rows were merged or unusable here: point and row numbers differ")
         k, sl = next((k, sl) for k, sl in prepared.segment_slices() if sl.start <= first < sl.stop)
         pts = prepared.points.iloc[sl]
-        t = pts["t"].to_numpy(np.float64)
-        east, north = pts["east"].to_numpy(np.float64), pts["north"].to_numpy(np.float64)
-        z = north if args.channel == "north" else east
-        repeated = np.r_[False, (np.diff(east) == 0) & (np.diff(north) == 0)]
-        trace: list = []
-        _reference_channel(
-            det.model_.params.offset,
-            np.diff(t, prepend=t[0]),
-            z,
-            np.full(len(t), np.nan),
-            repeated,
-            trace,
-        )
+        z = pts[args.channel].to_numpy(np.float64)
+        trace = beam_trace(det.model_.params.offset, pts, args.channel)
         print(f"{name}, segment {k} (rows {sl.start}-{sl.stop - 1}), {args.channel}")
         for i, beam in trace:
             row = i + sl.start

@@ -24,13 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from gradgps._grad.detector import Detector
-from gradgps._grad.offset import _Hypothesis, _reference_channel
 from gradgps._tracks.track import to_fixes
 from gradgps._train.calibrate import inject_validation_faults
 from gradgps._train.recipe import recipe_faults, recipe_tables
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for tracker_accuracy
-from tracker_accuracy import tracker_settings
+from tracker_accuracy import beam_trace, tracker_settings
 
 
 def main() -> None:
@@ -54,13 +53,10 @@ def main() -> None:
     first, last = args.first - sl.start, args.last - sl.start
     tracker = tracker_settings(det.model_.params.offset, args.set)
     pts = prepared.points.iloc[sl]
-    t = pts["t"].to_numpy(np.float64)
     east, north = pts["east"].to_numpy(np.float64), pts["north"].to_numpy(np.float64)
-    repeated = np.r_[False, (np.diff(east) == 0) & (np.diff(north) == 0)]
-    no_velocity = np.full(len(t), np.nan)
+    repeated = np.r_[False, (np.diff(east) == 0) & (np.diff(north) == 0)]  # shown per fix
     for name, z in (("east", east), ("north", north)):
-        trace: list[tuple[int, list[_Hypothesis]]] = []
-        _reference_channel(tracker, np.diff(t, prepend=t[0]), z, no_velocity, repeated, trace)
+        trace = beam_trace(tracker, pts, name)
         print(f"channel {name}")
         for i, beam in trace:  # from the segment's second fix on
             if not first <= i < last:

@@ -46,7 +46,13 @@ from gradgps._data.simulator import simulate_fleet
 from gradgps._eval.robustness import _variant_columns
 from gradgps._grad.defaults import MIN_STEP_S, grad_points
 from gradgps._grad.detector import Detector
-from gradgps._grad.offset import OFFSET_FEATURES, OffsetParams, offset_features
+from gradgps._grad.offset import (
+    OFFSET_FEATURES,
+    OffsetParams,
+    _Hypothesis,
+    _reference_channel,
+    offset_features,
+)
 from gradgps._grad.pipeline import PipelineParams
 from gradgps._tracks.preprocess import stream_reasons
 from gradgps._tracks.track import ColumnMap, to_fixes
@@ -146,6 +152,27 @@ def phantom_places(labelled: pd.DataFrame, fixes: pd.DataFrame, offset: np.ndarr
     _, after, _ = episode_distances(faulty, fixes["track"].to_numpy())
     counts = np.histogram(after[phantom], bins=[*AFTER_BINS, np.iinfo(np.int64).max])[0]
     return [int(n) for n in counts]
+
+
+def beam_trace(
+    params: OffsetParams, points: pd.DataFrame, channel: str
+) -> list[tuple[int, list[_Hypothesis]]]:
+    """The readable tracker's beam after every fix of one segment's prepared ``points``
+    (``t``, ``east``, ``north``) in ``channel``, positions only: ``(fix, hypotheses best
+    first)``, for the scripts that read why the tracker holds or lets go an offset."""
+    t = points["t"].to_numpy(np.float64)
+    east, north = points["east"].to_numpy(np.float64), points["north"].to_numpy(np.float64)
+    repeated = np.r_[False, (np.diff(east) == 0) & (np.diff(north) == 0)]
+    trace: list[tuple[int, list[_Hypothesis]]] = []
+    _reference_channel(
+        params,
+        np.diff(t, prepend=t[0]),
+        east if channel == "east" else north,
+        np.full(len(t), np.nan),
+        repeated,
+        trace,
+    )
+    return trace
 
 
 def tracker_settings(base: OffsetParams, settings: str) -> OffsetParams:

@@ -26,10 +26,11 @@ import pandas as pd
 
 from gradgps._data.inject import inject_grad
 from gradgps._grad.detector import Detector
-from gradgps._grad.pipeline import grad_features, pipeline_feature_names
+from gradgps._grad.pipeline import pipeline_feature_names
 from gradgps._tracks.track import to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+from _segment_features import segment_features
 from _validation_drives import validation_positions
 
 HELD_M = 8.0
@@ -40,19 +41,9 @@ def held_fixes(det: Detector, fixes: pd.DataFrame, evidence: float) -> np.ndarra
     :data:`HELD_M` with at least ``evidence`` nats for a fault."""
     names = pipeline_feature_names(det.model_.params)
     norm_k, ev_k = names.index("offset_norm"), names.index("fault_evidence")
-    _, usable, prepared, _ = det._point_outputs(fixes)
-    held = np.zeros(len(prepared.points))
-    for k, sl in prepared.segment_slices():
-        pts = prepared.points.iloc[sl]
-        t, lat, lon = (pts[c].to_numpy(np.float64) for c in ("t", "lat", "lon"))
-        nan = np.full(len(t), np.nan)
-        raw = grad_features(
-            det.model_.params, prepared.segment_frames[k], t, lat, lon, nan, nan
-        ).features
-        values = np.sign(raw) * np.expm1(np.abs(raw))  # the pipeline's signed log1p undone
-        held[sl] = (values[:, norm_k] > HELD_M) & (values[:, ev_k] >= evidence)
     out = np.zeros(len(fixes), dtype=bool)
-    out[usable] = prepared.to_rows(held[:, None], fill=0.0)[:, 0] > 0.5
+    for rows, _, values in segment_features(det, fixes):
+        out[rows] = (values[:, norm_k] > HELD_M) & (values[:, ev_k] >= evidence)
     return out
 
 
