@@ -13,6 +13,15 @@ seeds from 30,000 up). Run:
     python benchmarks/tried/hangover_check.py [--model DIR] [--data-dir DIR]
         [--rates 10,5,1,0.5] [--sim-seed N] [--inject-seed K] [--simulated-only]
     python benchmarks/tried/hangover_check.py --longest 10   # the longest run, described
+    python benchmarks/tried/hangover_check.py --rates 0.5 --sim-minutes 60 --by-ended 5
+
+``--sim-minutes`` sets the simulated drives' length (default 15). ``--by-ended N``
+prints, for the simulated drives and each validation drive set (positions only,
+native rate, or decimated to one fix per ``--period`` seconds) and pooled over N fault draws (seeds ``--inject-seed`` on), the false positives by how many fixes after an episode's
+end they sit and by that episode's bias and time type (flagged of normal fixes).
+Why: on drives long enough for protocol ``grad`` to end a permanent fault in
+their middle (about 400 fixes or more), a permanent fault's end is where a
+low-rate detector errs most.
 """
 
 from __future__ import annotations
@@ -62,6 +71,53 @@ def hangover(det: Detector, table: pd.DataFrame, cmap: ColumnMap, inject_seed: i
     )
 
 
+def fixes_since_fault(
+    truth: np.ndarray, track: np.ndarray, bias: np.ndarray, kind: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per fix, how many fixes it sits after the last faulty fix of its track (0 on a
+    faulty fix, -1 before any) and that fix's ``"bias time"`` type ("" before any)."""
+    since = np.full(len(truth), -1)
+    ended = np.full(len(truth), "", dtype=object)
+    count, last = -1, ""
+    for i in range(len(truth)):
+        if i == 0 or track[i] != track[i - 1]:
+            count, last = -1, ""
+        if truth[i]:
+            count, last = 0, f"{bias[i]} {kind[i]}"
+        elif count >= 0:
+            count += 1
+        since[i], ended[i] = count, last
+    return since, ended
+
+
+def by_ended(
+    det: Detector, drives: pd.DataFrame, seeds: range, cmap: ColumnMap = POSITIONS
+) -> pd.DataFrame:
+    """Flagged / normal fixes by fixes since the last faulty fix of the same track (1, 2,
+    3-5, 6-10, 11-30, over 30) and the bias and time type of that fix, over ``seeds``."""
+    parts = []
+    for seed in seeds:
+        labelled = inject_grad(drives, seed=seed, columns=cmap)
+        fixes = to_fixes(labelled, cmap)
+        flag = det.detect(fixes)["anomaly"].to_numpy() == 1
+        truth = labelled["label_anomaly"].to_numpy() == 1
+        since, ended = fixes_since_fault(
+            truth,
+            fixes["track"].to_numpy(),
+            labelled["label_bias"].to_numpy(dtype=object),
+            labelled["label_time"].to_numpy(dtype=object),
+        )
+        keep = ~truth & (since > 0)
+        parts.append(pd.DataFrame({"flag": flag[keep], "since": since[keep], "ended": ended[keep]}))
+    df = pd.concat(parts)
+    df["fixes after"] = pd.cut(
+        df["since"], [0, 1, 2, 5, 10, 30, np.inf], labels=["1", "2", "3-5", "6-10", "11-30", ">30"]
+    )
+    table = df.groupby(["ended", "fixes after"], observed=True)["flag"].agg(["sum", "size"])
+    cells = table["sum"].astype(int).astype(str) + " of " + table["size"].astype(str)
+    return cells.unstack("fixes after").fillna("-")
+
+
 def longest_run(det: Detector, hz: float, sim_seed: int = 4242, inject_seed: int = 0) -> str:
     """The simulated drives' longest hang-over run at ``hz``: the episode before it (its
     fixes, how many of them flagged, the last flagged one) and the run's length."""
@@ -104,6 +160,11 @@ def main() -> None:
     )
     parser.add_argument("--rates", default="10,5,1", help="simulated rates, Hz, comma-separated")
     parser.add_argument("--sim-seed", type=int, default=4242)
+    parser.add_argument("--sim-minutes", type=float, default=15.0)
+    parser.add_argument("--by-ended", type=int, default=0, metavar="N")
+    parser.add_argument(
+        "--period", type=float, default=None, help="--by-ended: validation drives decimated"
+    )
     parser.add_argument("--inject-seed", type=int, default=0)
     parser.add_argument(
         "--simulated-only", action="store_true", help="leave the validation drives out"
@@ -113,10 +174,27 @@ def main() -> None:
     if args.longest is not None:
         print(longest_run(det, args.longest, args.sim_seed, args.inject_seed))
         return
+    if args.by_ended:
+        for hz in (float(r) for r in args.rates.split(",")):
+            drives = simulate_fleet(6, args.sim_minutes, hz, args.sim_seed, imu=False)
+            seeds = range(args.inject_seed, args.inject_seed + args.by_ended)
+            print(f"simulated {hz:g} Hz, 6 x {args.sim_minutes:g} min, fault draws {list(seeds)}")
+            print(by_ended(det, drives[["track", "t", "lat", "lon"]], seeds).to_string())
+            print()
+        if args.simulated_only:
+            return
+        seeds = range(args.inject_seed, args.inject_seed + args.by_ended)
+        drives_at = validation_positions(args.period, args.data_dir, keep_native=True)
+        for name, data, _, cmap, _ in drives_at:
+            rate = "native" if args.period is None else f"one fix per {args.period:g} s"
+            print(f"{name} validation, positions only, {rate}, fault draws {list(seeds)}")
+            print(by_ended(det, data, seeds, cmap).to_string())
+            print()
+        return
     print("| drives | false positives | hang-over runs | fixes in them | longest |")
     print("|---|---|---|---|---|")
     for hz in (float(r) for r in args.rates.split(",")):
-        drives = simulate_fleet(6, 15.0, hz, args.sim_seed, imu=False)
+        drives = simulate_fleet(6, args.sim_minutes, hz, args.sim_seed, imu=False)
         drives = drives[["track", "t", "lat", "lon"]]
         row = hangover(det, drives, POSITIONS, args.inject_seed)
         print(f"| simulated {hz:g} Hz | " + row)

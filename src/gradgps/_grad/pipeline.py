@@ -245,7 +245,10 @@ class PipelineParams:
     model: on the DrivePlotR test drives (phone positions with the phone's own speed
     and heading) its defaults, chosen on the validation drives, flagged 20.5 % of the
     clean fixes as drift (721 of 3,512; `gradgps bench --suite robustness`, cell
-    ``+speed+heading``), where the validation drives gave 0.00 %."""
+    ``+speed+heading``), where the validation drives gave 0.00 %; the train drives give
+    5.05 % (`benchmarks/drift_check.py --threshold-sigmas 15 --split train`): real
+    stretches where the position steps and the reported speed or course disagree for
+    half a minute, which a pull-off along the track resembles (docs/deviations.md)."""
     confirm_threshold: float | None = None
     """Where the network has a confirm head (a second anomaly head that judges the
     previous fix): its threshold, and each fix's verdict *settles* one fix late: the
