@@ -4,17 +4,11 @@ into the bins the table prints."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
-_SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "fault_age_recall.py"
-_spec = importlib.util.spec_from_file_location("fault_age_recall", _SCRIPT)
-assert _spec is not None
-assert _spec.loader is not None
-far = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(far)
+from _script_support import load_script
+
+far = load_script("benchmarks/fault_age_recall.py")
 
 
 def test_age_is_time_since_the_episode_started_the_older_channel_first() -> None:

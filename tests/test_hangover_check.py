@@ -4,17 +4,11 @@ afresh."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
-_SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "tried" / "hangover_check.py"
-_spec = importlib.util.spec_from_file_location("hangover_check", _SCRIPT)
-assert _spec is not None
-assert _spec.loader is not None
-hc = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(hc)
+from _script_support import load_script
+
+hc = load_script("benchmarks/tried/hangover_check.py")
 
 
 def test_fixes_since_the_last_fault_of_the_same_track() -> None:
