@@ -20,23 +20,18 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from gradgps._data.inject import inject_gnss
 from gradgps._grad.detector import Detector
-from gradgps._grad.offset import OFFSET_FEATURES, OffsetParams, offset_features
+from gradgps._grad.offset import OFFSET_FEATURES, offset_features
 from gradgps._tracks.track import to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
 from _validation_drives import validation_positions
-
-
-def _overrides(base: OffsetParams, settings: str) -> OffsetParams:
-    values = {k: float(v) for k, v in (kv.split("=") for kv in settings.split(",") if kv)}
-    return replace(base, **values)
+from tracker_accuracy import tracker_settings
 
 
 def main() -> None:
@@ -53,7 +48,7 @@ def main() -> None:
     det_a = Detector(args.model)
     det_b = Detector(args.model_b or args.model)
     prm_a = det_a.model_.params.offset
-    prm_b = _overrides(det_b.model_.params.offset, args.set)
+    prm_b = tracker_settings(det_b.model_.params.offset, args.set)
     print(f"A: {prm_a}\nB: {prm_b}\n")
     for name, table, cols, cmap, _ in validation_positions(None, keep_native=True):
         if name != args.dataset:
