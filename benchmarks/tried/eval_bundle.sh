@@ -9,7 +9,10 @@
 # one draw hid a 0.5 Hz loss, docs/deviations.md); simulated_check.py;
 # tried/gnss_validation.py; tried/hangover_check.py over the five seed pairs at 10, 5,
 # 1, 0.5 Hz and eight more at 1, 0.5 Hz (the pairs of docs/deviations.md); and
-# tried/variant_errors.py on DrivePlotR with speed and heading.
+# tried/variant_errors.py on DrivePlotR with speed and heading; where the first clean
+# fixes after a fault are flagged (tried/hangover_check.py --by-ended, 1 Hz simulated and
+# the validation drives) and after which protocol gnss episodes the false positives sit
+# (tried/gnss_validation.py --after): a tracker change is judged on gnss before training.
 set -euo pipefail
 model=$1 out=$2 jobs=${3:-2}
 here=$(cd "$(dirname "$0")/.." && pwd)
@@ -22,6 +25,8 @@ mkdir -p "$out"
   echo "simulated python $here/simulated_check.py --model $model"
   echo "gnss python $here/tried/gnss_validation.py --model $model"
   echo "variant_errors python $here/tried/variant_errors.py --model $model"
+  echo "byended python $here/tried/hangover_check.py --model $model --rates 1 --by-ended 5"
+  echo "gnss_after python $here/tried/gnss_validation.py --model $model --after"
   for pair in 4242/0 7/1 555/1 99/1 555/0; do
     echo "hangover_${pair/\//_} python $here/tried/hangover_check.py --model $model --rates 10,5,1,0.5 --sim-seed ${pair%/*} --inject-seed ${pair#*/}"
   done

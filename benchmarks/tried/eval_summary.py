@@ -7,7 +7,8 @@ positions-only mean), the same over five fault draws (``F1x5``, with normal reca
 ``NRx5`` and each variant's mean), clean false alarms where they exceed 0.3 %, simulated F1,
 protocol ``gnss`` normal recall per data set, false positives and hang-over fixes
 summed over the seed pairs per rate (and over the validation drives) with the longest
-hang-over run, and DrivePlotR with speed and
+hang-over run, the first clean fix after a permanent noise or jump run, the ``gnss``
+false positives by the episode before them, and DrivePlotR with speed and
 heading's missed and false fixes. Reads only the bundles' text files.
 """
 
@@ -73,11 +74,41 @@ def figures(out: Path) -> dict[str, str]:
             key = f"longest hang-over {group} {where}"
             sums[key] = max(sums.get(key, 0), int(row[4].split()[0]))
     got.update({k: str(v) for k, v in sums.items()})
+    got.update(ended_figures(out))
     path = out / "variant_errors.txt"
     if path.exists():
         m = re.search(r"missed (\d+) of (\d+) faulty fixes, (\d+) false", path.read_text())
         if m:
             got["DP +speed+heading missed / false"] = f"{m[1]} / {m[3]}"
+    return got
+
+
+def ended_figures(out: Path) -> dict[str, str]:
+    """From ``byended.txt``: the first clean fix after a permanent noise / jump run, flagged
+    of such endings, simulated and summed over the validation drive sets; from
+    ``gnss_after.txt``: the false positives after each kind of ``gnss`` episode, summed."""
+    got: dict[str, str] = {}
+    path = out / "byended.txt"
+    if path.exists():
+        sums: dict[str, list[int]] = {}
+        where = ""
+        for line in path.read_text().splitlines():
+            if line.startswith("simulated"):
+                where = "simulated 1 Hz"
+            elif " validation," in line:
+                where = "validation"
+            m = re.match(r"(noise|jump) permanent\s+(\d+) of (\d+)", line)
+            if m and where:
+                key = f"first clean fix flagged after a permanent {m[1]} run, {where}"
+                a, b = sums.setdefault(key, [0, 0])
+                sums[key] = [a + int(m[2]), b + int(m[3])]
+        got.update({k: f"{a} of {b}" for k, (a, b) in sums.items()})
+    path = out / "gnss_after.txt"
+    if path.exists():
+        fps: dict[str, int] = {}
+        for row in _table_rows(path.read_text())[1:]:
+            fps[row[1]] = fps.get(row[1], 0) + int(row[2])
+        got.update({f"gnss false positives after {k}": str(v) for k, v in sorted(fps.items())})
     return got
 
 
