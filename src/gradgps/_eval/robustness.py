@@ -254,6 +254,19 @@ def evident_holds(fixes: pd.DataFrame) -> np.ndarray:
     return held
 
 
+def _injected(
+    det: Detector, table: pd.DataFrame, cmap: ColumnMap, seed: int
+) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, np.ndarray, np.ndarray]:
+    """Protocol ``grad`` with ``seed`` on ``table``, detected: the labelled table, its
+    fixes, the detector's result, the flags and the injected truth (anomaly per row)."""
+    labelled = inject_grad(table, seed=seed, columns=cmap)
+    fixes = to_fixes(labelled, cmap)
+    res = det.detect(fixes)
+    hit = res["anomaly"].to_numpy(dtype=np.int64) == 1
+    truth = labelled["label_anomaly"].to_numpy(dtype=np.int64) == 1
+    return labelled, fixes, res, hit, truth
+
+
 def _cell(
     det: Detector, table: pd.DataFrame, cols: list[str], cmap: ColumnMap, draws: int = 1
 ) -> dict[str, Any]:
@@ -289,11 +302,7 @@ def _cell(
             "false_alarm_rate_outside_holds": _share(flagged, ordinary & ~holds),
         },
     }
-    labelled = inject_grad(cell_table, seed=SEED, columns=cmap)
-    fixes = to_fixes(labelled, cmap)
-    res = det.detect(fixes)
-    hit = res["anomaly"].to_numpy(dtype=np.int64) == 1
-    truth = labelled["label_anomaly"].to_numpy(dtype=np.int64) == 1
+    labelled, fixes, res, hit, truth = _injected(det, cell_table, cmap, SEED)
     t = fixes["t"].to_numpy(dtype=np.float64)
     episodes = np.r_[
         np.where(ordinary, labelled["label_episode_lat"].to_numpy(), -1),
@@ -317,9 +326,7 @@ def _cell(
     if draws > 1:
         f1s, recalls = [scores["anomaly"]["f1"]], [scores["normal"]["recall"]]
         for seed in range(1, draws):
-            drawn = inject_grad(cell_table, seed=seed, columns=cmap)
-            flags = det.detect(to_fixes(drawn, cmap))["anomaly"].to_numpy(dtype=np.int64) == 1
-            faulty_now = drawn["label_anomaly"].to_numpy(dtype=np.int64) == 1
+            *_, flags, faulty_now = _injected(det, cell_table, cmap, seed)
             drawn_scores = class_scores(faulty_now[ordinary], flags[ordinary])
             f1s.append(drawn_scores["anomaly"]["f1"])
             recalls.append(drawn_scores["normal"]["recall"])
