@@ -32,6 +32,7 @@ import pandas as pd
 
 from gradgps import inject_grad
 from gradgps._data.datasets import load_dataset
+from gradgps._eval.metrics import class_scores
 from gradgps._eval.robustness import _variant_columns, decimate
 from gradgps._grad.detector import Detector
 from gradgps._tracks.track import ColumnMap, to_fixes
@@ -61,12 +62,10 @@ def age_bins(age: np.ndarray) -> np.ndarray:
 
 
 def _scores(hit: np.ndarray, truth: np.ndarray, bins: np.ndarray) -> dict[str, float | int]:
-    tp = int((hit & truth).sum())
-    fp = int((hit & ~truth).sum())
-    fn = int((~hit & truth).sum())
+    scores = class_scores(truth, hit)
     out: dict[str, float | int] = {
-        "f1": 2 * tp / (2 * tp + fp + fn) if tp + fp + fn else float("nan"),
-        "normal_recall": float((~hit[~truth]).mean()) if (~truth).any() else float("nan"),
+        "f1": scores["anomaly"]["f1"],
+        "normal_recall": scores["normal"]["recall"],
     }
     for b in range(len(AGE_EDGES) + 1):
         sel = truth & (bins == b)
