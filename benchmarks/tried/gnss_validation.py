@@ -30,6 +30,9 @@ from gradgps._tracks.track import to_fixes
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
 from _validation_drives import validation_positions
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/tried, for the helper
+from hangover_check import since_last_fault
+
 
 def after_faults(det: Detector, labelled: pd.DataFrame, cols: list[str], cmap) -> pd.DataFrame:
     """One row per false positive: the bias type of the last episode that ended before it
@@ -37,15 +40,11 @@ def after_faults(det: Detector, labelled: pd.DataFrame, cols: list[str], cmap) -
     fixes = to_fixes(labelled[cols], cmap)
     hit = det.detect(fixes)["anomaly"].to_numpy(dtype=np.int64) == 1
     bias = labelled["label_bias"].to_numpy(dtype=object)
-    rows = []
-    for _, idx in fixes.groupby("track", sort=False).indices.items():
-        last_kind, last_end = "none", -1
-        for k, i in enumerate(idx):
-            if bias[i] != "none":
-                last_kind, last_end = str(bias[i]), k
-            elif hit[i]:
-                rows.append({"before": last_kind, "since": k - last_end if last_end >= 0 else -1})
-    return pd.DataFrame(rows, columns=["before", "since"])
+    normal = bias == "none"
+    since, last = since_last_fault(~normal, fixes["track"].to_numpy())
+    before = np.where(last >= 0, bias[last], "none")
+    false = hit & normal
+    return pd.DataFrame({"before": before[false], "since": since[false]})
 
 
 def main() -> None:

@@ -71,22 +71,29 @@ def hangover(det: Detector, table: pd.DataFrame, cmap: ColumnMap, inject_seed: i
     )
 
 
+def since_last_fault(faulty: np.ndarray, track: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per fix, how many fixes it sits after the last faulty fix of its track (0 on a
+    faulty fix, -1 before any) and that fix's row (-1 before any)."""
+    since = np.full(len(faulty), -1)
+    last = np.full(len(faulty), -1)
+    for rows in pd.Series(track).groupby(track, sort=False).indices.values():
+        count, at = -1, -1
+        for i in rows:
+            if faulty[i]:
+                count, at = 0, i
+            elif count >= 0:
+                count += 1
+            since[i], last[i] = count, at
+    return since, last
+
+
 def fixes_since_fault(
     truth: np.ndarray, track: np.ndarray, bias: np.ndarray, kind: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per fix, how many fixes it sits after the last faulty fix of its track (0 on a
     faulty fix, -1 before any) and that fix's ``"bias time"`` type ("" before any)."""
-    since = np.full(len(truth), -1)
-    ended = np.full(len(truth), "", dtype=object)
-    count, last = -1, ""
-    for i in range(len(truth)):
-        if i == 0 or track[i] != track[i - 1]:
-            count, last = -1, ""
-        if truth[i]:
-            count, last = 0, f"{bias[i]} {kind[i]}"
-        elif count >= 0:
-            count += 1
-        since[i], ended[i] = count, last
+    since, last = since_last_fault(truth, track)
+    ended = np.array([f"{bias[j]} {kind[j]}" if j >= 0 else "" for j in last], dtype=object)
     return since, ended
 
 
