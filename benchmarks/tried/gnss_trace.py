@@ -5,7 +5,9 @@ episode; this shows why, for one stretch of rows. It injects protocol ``gnss`` (
 ``--seed``) into a data set's validation split, positions only, and prints every
 ``--step``-th row of ``--rows A:B`` (rows of the whole injected table): the injected
 bias, then for two trackers side by side the offset norm (m), the fault evidence
-(nats) and the fault's age (s), and the verdict of the network paired with each.
+(nats) and the fault's age (s), as the pipeline computes them on the detector's own
+segments (``_segment_features.segment_features``), and the verdict of the network
+paired with each.
 The first pair is the model's own tracker settings and network (the shipped model
 unless ``--model``); the second overrides tracker settings with ``--set K=V,...`` and
 runs ``--model-b``'s network (default: the first). With the sources to judge on
@@ -20,18 +22,34 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from gradgps._data.inject import inject_gnss
 from gradgps._grad.detector import Detector
-from gradgps._grad.offset import OFFSET_FEATURES, offset_features
+from gradgps._grad.pipeline import pipeline_feature_names
 from gradgps._tracks.track import to_fixes
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helpers
+from _segment_features import segment_features
 from _validation_drives import validation_positions
 from tracker_accuracy import tracker_settings
+
+SHOWN = ("offset_norm", "fault_evidence", "fault_age_s")
+
+
+def _tracker_columns(det: Detector, fixes: pd.DataFrame) -> np.ndarray:
+    """Per row of ``fixes``: the :data:`SHOWN` features of ``det``'s pipeline (NaN on
+    rows outside its segments)."""
+    names = pipeline_feature_names(det.model_.params)
+    at = [names.index(k) for k in SHOWN]
+    out = np.full((len(fixes), len(SHOWN)), np.nan)
+    for rows, _, values in segment_features(det, fixes):
+        out[rows] = values[:, at]
+    return out
 
 
 def main() -> None:
@@ -47,39 +65,30 @@ def main() -> None:
     first, last = (int(x) for x in args.rows.split(":"))
     det_a = Detector(args.model)
     det_b = Detector(args.model_b or args.model)
-    prm_a = det_a.model_.params.offset
-    prm_b = tracker_settings(det_b.model_.params.offset, args.set)
-    print(f"A: {prm_a}\nB: {prm_b}\n")
+    params_b = det_b.model_.params
+    offset_b = tracker_settings(params_b.offset, args.set)
+    det_b.model_ = replace(det_b.model_, params=replace(params_b, offset=offset_b))
+    print(f"A: {det_a.model_.params.offset}\nB: {offset_b}\n")
     for name, table, cols, cmap, _ in validation_positions(None, keep_native=True):
         if name != args.dataset:
             continue
         labelled = inject_gnss(table, seed=args.seed)
         fixes = to_fixes(labelled[cols], cmap)
-        hit_a = det_a.detect(fixes)["anomaly"].to_numpy()
-        hit_b = det_b.detect(fixes)["anomaly"].to_numpy()
+        shown = [_tracker_columns(d, fixes) for d in (det_a, det_b)]
+        hits = [d.detect(fixes)["anomaly"].to_numpy() for d in (det_a, det_b)]
         bias = labelled["label_bias"].to_numpy(dtype=object)
-        track = fixes["track"].to_numpy()
-        rows = np.flatnonzero(track == track[first])
-        lat = np.radians(fixes["lat"].to_numpy()[rows])
-        lon = np.radians(fixes["lon"].to_numpy()[rows])
-        t = fixes["t"].to_numpy(dtype=np.float64)[rows]
-        east = (lon - lon[0]) * 6371000.0 * np.cos(lat[0])
-        north = (lat - lat[0]) * 6371000.0
-        dt = np.r_[0.0, np.diff(t)]
-        feats = [offset_features(dt, east, north, None, None, p) for p in (prm_a, prm_b)]
-        cols_at = [
-            OFFSET_FEATURES.index(k) for k in ("offset_norm", "fault_evidence", "fault_age_s")
-        ]
-        print(f"{name}: track {track[first]} (rows {rows[0]}-{rows[-1]}), seed {args.seed}")
         print(
-            "| row | bias | A offset m | A evidence | A age s | A flag | B offset m | B evidence | B age s | B flag |"
+            f"{name}: rows {first}-{last} of track {fixes['track'].iloc[first]}, seed {args.seed}"
+        )
+        print(
+            "| row | bias | A offset m | A evidence | A age s | A flag "
+            "| B offset m | B evidence | B age s | B flag |"
         )
         print("|---|---|---|---|---|---|---|---|---|---|")
-        for row in range(first, min(last, rows[-1]) + 1, args.step):
-            i = row - rows[0]
+        for row in range(first, min(last, len(fixes) - 1) + 1, args.step):
             cells = []
-            for f, hit in zip(feats, (hit_a, hit_b), strict=True):
-                cells += [f"{f[i, c]:.1f}" for c in cols_at] + [str(int(hit[row]))]
+            for values, hit in zip(shown, hits, strict=True):
+                cells += [f"{v:.1f}" for v in values[row]] + [str(int(hit[row]))]
             print(f"| {row} | {bias[row]} | " + " | ".join(cells) + " |")
 
 
