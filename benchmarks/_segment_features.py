@@ -2,7 +2,7 @@
 
 For the scripts that read what the detector's network sees (``tried/error_places.py``,
 ``tried/simulated_trace.py``, ``tried/tracker_accuracy.py``, ``tried/latch_members.py``,
-``tried/tracker_knew.py``);
+``tried/tracker_knew.py``, ``tried/gnss_trace.py``);
 never the test splits.
 """
 
