@@ -1,5 +1,6 @@
 """benchmarks/tried/calibration_groups_at.py: each group's normal recall counts only its
-normal points, below the threshold, and a group without normal points is left out."""
+normal points, below the threshold, a group without normal points and points
+without a score are left out."""
 
 from __future__ import annotations
 
@@ -19,3 +20,10 @@ def test_normal_recall_per_group() -> None:
     assert out["a"] == 0.5  # 0.9 is not below 0.9
     assert out["b"] == 0.5
     assert cg.group_normal_recall(truth, score, group, 0.96)["b"] == 1.0
+
+
+def test_points_without_a_score_are_left_out() -> None:
+    truth = np.array([0, 0, 0])
+    score = np.array([0.1, np.nan, 0.95])
+    group = np.array(["a", "a", "a"], dtype=object)
+    assert cg.group_normal_recall(truth, score, group, 0.9)["a"] == 0.5

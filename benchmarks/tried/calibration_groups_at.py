@@ -35,10 +35,13 @@ def group_normal_recall(
     truth: np.ndarray, score: np.ndarray, group: np.ndarray, threshold: float
 ) -> dict[str, float]:
     """Per group (in order of first appearance), the share of its normal points
-    (``truth`` 0) scored below ``threshold``; groups without normal points are left out."""
+    (``truth`` 0) scored below ``threshold``; groups without normal points are left out.
+    Points without a score (NaN: the confirm head has none at a segment's last point)
+    are left out, as :func:`gradgps._train.calibrate.worst_group_threshold` leaves them."""
     out: dict[str, float] = {}
+    scored = np.isfinite(score)
     for g in dict.fromkeys(group.tolist()):
-        normal = (group == g) & (truth == 0)
+        normal = (group == g) & (truth == 0) & scored
         if normal.any():
             out[str(g)] = float(np.mean(score[normal] < threshold))
     return out
