@@ -27,7 +27,12 @@ import numpy as np
 
 from gradgps._grad.detector import Detector
 from gradgps._grad.model_io import CONFIG_FILE, save_thresholds
-from gradgps._train.calibrate import SLOW_FROM_PERIOD_S, calibration_points, recipe_group
+from gradgps._train.calibrate import (
+    SLOW_FROM_PERIOD_S,
+    calibration_points,
+    recipe_group,
+    scored_normals,
+)
 from gradgps._train.recipe import recipe_faults, recipe_tables
 
 
@@ -35,16 +40,11 @@ def group_normal_recall(
     truth: np.ndarray, score: np.ndarray, group: np.ndarray, threshold: float
 ) -> dict[str, float]:
     """Per group (in order of first appearance), the share of its normal points
-    (``truth`` 0) scored below ``threshold``; groups without normal points are left out.
-    Points without a score (NaN: the confirm head has none at a segment's last point)
-    are left out, as :func:`gradgps._train.calibrate.worst_group_threshold` leaves them."""
-    out: dict[str, float] = {}
-    scored = np.isfinite(score)
-    for g in dict.fromkeys(group.tolist()):
-        normal = (group == g) & (truth == 0) & scored
-        if normal.any():
-            out[str(g)] = float(np.mean(score[normal] < threshold))
-    return out
+    (``truth`` 0) scored below ``threshold``, over the points the calibration counts
+    (:func:`gradgps._train.calibrate.scored_normals`: those without a score left out,
+    groups without normal points too)."""
+    _, scored, normals = scored_normals(truth, score, group)
+    return {g: float(np.mean(scored[normal] < threshold)) for g, normal in normals.items()}
 
 
 def main() -> None:

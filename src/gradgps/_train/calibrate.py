@@ -45,6 +45,7 @@ __all__ = [
     "describe_thresholds",
     "inject_validation_faults",
     "recipe_group",
+    "scored_normals",
     "worst_group_threshold",
 ]
 
@@ -138,6 +139,23 @@ def calibration_points(
     return CalibrationPoints(*(np.concatenate(c) for c in zip(*parts, strict=True)))
 
 
+def scored_normals(
+    truth: np.ndarray, probability: np.ndarray, group: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """The points that have a probability (NaN: the confirm head reads none at a
+    segment's last point), their truth (bool) and probability, and for each group with
+    normal points among them (in order of first appearance) the mask of those points:
+    what a group's normal recall is counted over."""
+    ok = np.isfinite(probability)
+    truth, probability, group = truth[ok].astype(bool), probability[ok], group[ok]
+    normals: dict[str, np.ndarray] = {}
+    for g in dict.fromkeys(group.tolist()):
+        normal = (group == g) & ~truth
+        if normal.any():
+            normals[str(g)] = normal
+    return truth, probability, normals
+
+
 def worst_group_threshold(
     truth: np.ndarray, probability: np.ndarray, group: np.ndarray, floor: float
 ) -> float:
@@ -147,18 +165,17 @@ def worst_group_threshold(
     Candidates: a grid 0.05-0.995 in steps of 0.005 and, per group, its normal
     points' probability quantiles from ``floor`` to 1 (probabilities bunch near 1).
     """
-    ok = np.isfinite(probability)
-    truth, probability, group = truth[ok].astype(bool), probability[ok], group[ok]
-    names = [g for g in dict.fromkeys(group) if (~truth[group == g]).any()]
-    if not names:
+    truth, probability, normals = scored_normals(truth, probability, group)
+    if not normals:
         return 0.5
+    normal_of = list(normals.values())
     candidates = [np.round(np.arange(0.05, 0.9951, 0.005), 3)]
-    for g in names:
-        normal = probability[(group == g) & ~truth]
-        candidates.append(np.nextafter(np.quantile(normal, np.linspace(floor, 1.0, 51)), np.inf))
+    for normal in normal_of:
+        candidates.append(
+            np.nextafter(np.quantile(probability[normal], np.linspace(floor, 1.0, 51)), np.inf)
+        )
     grid = np.unique(np.concatenate(candidates))
     grid = grid[(grid > 0.0) & (grid < 1.0)]
-    normal_of = [(group == g) & ~truth for g in names]
     best: tuple[bool, float, float] | None = None
     best_t = 0.5
     for t in grid:
