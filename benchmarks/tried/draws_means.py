@@ -16,43 +16,51 @@ positions cell. Run:
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import pandas as pd
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # for eval_summary
+from eval_summary import table_rows
 
 
 def read_cells(text: str) -> pd.DataFrame:
     """The rows of one ``fault_age_recall.py`` table: data set, columns, rate, model (the
     directory's last component), anomaly F1, normal recall."""
-    rows = []
-    for line in text.splitlines():
-        if not line.startswith("| ") or line.startswith("| data set"):
-            continue
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        rows.append(
-            {
-                "data_set": cells[0],
-                "columns": cells[1],
-                "rate": cells[2],
-                "model": Path(cells[3]).name,
-                "f1": float(cells[4]),
-                "normal_recall": float(cells[5]),
-            }
-        )
+    rows = [
+        {
+            "data_set": cells[0],
+            "columns": cells[1],
+            "rate": cells[2],
+            "model": Path(cells[3]).name,
+            "f1": float(cells[4]),
+            "normal_recall": float(cells[5]),
+        }
+        for cells in table_rows(text)
+        if cells[0] != "data set"
+    ]
     return pd.DataFrame(rows)
+
+
+def _f1_by_cell(cells: pd.DataFrame) -> pd.DataFrame:
+    """Anomaly F1 with one row per (columns, data set, rate) and one column per model."""
+    wide: pd.DataFrame = cells.pivot_table(
+        index=["columns", "data_set", "rate"], columns="model", values="f1"
+    )
+    return wide
 
 
 def variant_means(cells: pd.DataFrame) -> pd.DataFrame:
     """Mean anomaly F1 per column variant (rows) and model (columns)."""
-    wide = cells.pivot_table(index=["columns", "data_set", "rate"], columns="model", values="f1")
-    means: pd.DataFrame = wide.groupby(level="columns").mean()
+    means: pd.DataFrame = _f1_by_cell(cells).groupby(level="columns").mean()
     return means
 
 
 def paired(cells: pd.DataFrame, base: str, candidate: str) -> tuple[pd.Series, float]:
     """Mean of the cell-by-cell differences candidate - base per column variant (over the
     cells both have), and the lowest such difference among the positions cells."""
-    wide = cells.pivot_table(index=["columns", "data_set", "rate"], columns="model", values="f1")
+    wide = _f1_by_cell(cells)
     diff = (wide[candidate] - wide[base]).dropna()
     by_variant: pd.Series = diff.groupby(level="columns").mean()
     worst = float(diff.loc["positions"].min()) if "positions" in diff.index else float("nan")

@@ -19,7 +19,9 @@ import sys
 from pathlib import Path
 
 
-def _table_rows(text: str) -> list[list[str]]:
+def table_rows(text: str) -> list[list[str]]:
+    """The cells of every markdown table row in ``text`` (the header included, the
+    ``|---|`` rule left out), stripped."""
     return [
         [c.strip() for c in line.strip().strip("|").split("|")]
         for line in text.splitlines()
@@ -34,7 +36,7 @@ def figures(out: Path) -> dict[str, str]:
         if not path.exists():
             continue
         f1s = []
-        for row in _table_rows(path.read_text())[1:]:
+        for row in table_rows(path.read_text())[1:]:
             name, columns, rate, _, fa, f1, nr = row[:7]
             got[f"F1 {name} {columns} {rate}"] = f1
             got[f"NR {name} {columns} {rate}"] = nr
@@ -47,7 +49,7 @@ def figures(out: Path) -> dict[str, str]:
     path = out / "draws5.txt"
     if path.exists():
         means: dict[str, list[float]] = {}
-        for row in _table_rows(path.read_text())[1:]:
+        for row in table_rows(path.read_text())[1:]:
             name, columns, rate, _, f1, nr = row[:6]
             got[f"F1x5 {name} {columns} {rate}"] = f1
             got[f"NRx5 {name} {columns} {rate}"] = nr
@@ -56,17 +58,17 @@ def figures(out: Path) -> dict[str, str]:
             got[f"F1x5 mean {columns}"] = f"{sum(f1s) / len(f1s):.3f}"
     path = out / "simulated.txt"
     if path.exists():
-        for row in _table_rows(path.read_text())[1:]:
+        for row in table_rows(path.read_text())[1:]:
             got[f"sim F1 {row[0]}"] = row[3]
             got[f"sim FA {row[0]}"] = row[2]
     path = out / "gnss.txt"
     if path.exists():
-        for row in _table_rows(path.read_text())[1:]:
+        for row in table_rows(path.read_text())[1:]:
             got[f"gnss NR {row[0]}"] = row[3]
     sums: dict[str, int] = {}
     for path in sorted(out.glob("hangover*_*.txt")):
         group = "5 pairs" if path.name.startswith("hangover_") else "8 pairs"
-        for row in _table_rows(path.read_text())[1:]:
+        for row in table_rows(path.read_text())[1:]:
             where = "validation" if "validation" in row[0] else row[0]
             for what, value in (("false positives", row[1]), ("hang-over fixes", row[3])):
                 key = f"{what} {group} {where}"
@@ -106,7 +108,7 @@ def ended_figures(out: Path) -> dict[str, str]:
     path = out / "gnss_after.txt"
     if path.exists():
         fps: dict[str, int] = {}
-        for row in _table_rows(path.read_text())[1:]:
+        for row in table_rows(path.read_text())[1:]:
             fps[row[1]] = fps.get(row[1], 0) + int(row[2])
         got.update({f"gnss false positives after {k}": str(v) for k, v in sorted(fps.items())})
     return got
