@@ -3,7 +3,7 @@
 Why: a recipe change (more fault draws, longer drives) shows first in how far the
 members' validation loss falls and where it bottoms out, on the same validation
 sequences (the recipe's validation drives, injection seed 7), before any detector
-figure: the shipped members' loss bottomed out at epochs 10-24 while their training
+figure: the shipped members' loss bottomed out at epochs 12-24 while their training
 loss kept falling. Per member: its seed, the epoch it was kept at (the best by the
 training's own rule), the lowest validation loss and its epoch, and the training and
 validation loss at the last epoch. Run:
@@ -17,6 +17,8 @@ import argparse
 import json
 from pathlib import Path
 from typing import Any
+
+from gradgps._grad.model_io import CONFIG_FILE
 
 
 def member_rows(config: dict[str, Any]) -> list[dict[str, float | int]]:
@@ -52,7 +54,7 @@ def main() -> None:
     )
     print("|---|---|---|---|---|---|---|")
     for directory in args.models:
-        config = json.loads((Path(directory) / "config.json").read_text())
+        config = json.loads((Path(directory) / CONFIG_FILE).read_text())
         for r in member_rows(config):
             print(
                 f"| {directory} | {r['seed']} | {r['kept_epoch']} | {r['lowest_val_loss']:.4f} "
