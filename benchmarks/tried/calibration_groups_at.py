@@ -47,6 +47,20 @@ def group_normal_recall(
     return {g: float(np.mean(scored[normal] < threshold)) for g, normal in normals.items()}
 
 
+def as_trained(model: str, scratch: str) -> Detector:
+    """``model`` copied into ``scratch`` with its pooled thresholds at every rate, as
+    :func:`gradgps._train.calibrate.calibrate_model` scores it before choosing per-rate
+    ones; the model's own ``config.json`` is left alone."""
+    copy = Path(scratch) / "model"
+    shutil.copytree(model, copy)
+    thresholds = dict(json.loads((copy / CONFIG_FILE).read_text())["thresholds"])
+    pooled = thresholds.get("pooled") or {
+        k: thresholds[k] for k in ("anomaly", "confirm") if k in thresholds
+    }
+    save_thresholds(copy, {**pooled})
+    return Detector(copy)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("model")
@@ -55,15 +69,11 @@ def main() -> None:
     parser.add_argument("--head", choices=("confirm", "anomaly"), default="confirm")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as scratch:
-        copy = Path(scratch) / "model"
-        shutil.copytree(args.model, copy)
-        thresholds = dict(json.loads((copy / CONFIG_FILE).read_text())["thresholds"])
-        pooled = thresholds.get("pooled") or {
-            k: thresholds[k] for k in ("anomaly", "confirm") if k in thresholds
-        }
-        save_thresholds(copy, {**pooled})
         points = calibration_points(
-            Detector(copy), recipe_tables("validation"), recipe_faults(), recipe_group
+            as_trained(args.model, scratch),
+            recipe_tables("validation"),
+            recipe_faults(),
+            recipe_group,
         )
     slow = points.period >= SLOW_FROM_PERIOD_S
     band = slow if args.band == "slow" else ~slow
