@@ -8,9 +8,12 @@ cell (:func:`gradgps._eval.gnss.gnss_cell`, protocol ``gnss`` seed ``--seed``)
 on every data set's validation split, positions only, with the shipped model or
 ``--model``. ``--after`` says where the false positives sit instead: per bias
 type of the episode before them (same track), how many, and how many fixes after
-its end (1-5, 6-30, later). Run:
+its end (1-5, 6-30, later). ``--draws N`` gives each data set's normal recall
+under seeds 0..N-1 and their mean, for every ``--model`` (repeatable; ``default``
+is the shipped model): one fault draw can hide or invent a change. Run:
 
     python benchmarks/tried/gnss_validation.py [--model DIR] [--seed 0] [--after]
+    python benchmarks/tried/gnss_validation.py --draws 5 --model default --model DIR
 """
 
 from __future__ import annotations
@@ -47,13 +50,41 @@ def after_faults(det: Detector, labelled: pd.DataFrame, cols: list[str], cmap) -
     return pd.DataFrame({"before": before[false], "since": since[false]})
 
 
+def draws_table(recall: dict[str, dict[str, list[float]]]) -> list[str]:
+    """Markdown rows: per data set and model (``recall[model][data set]``, one normal
+    recall per fault draw), the draws' values and their mean."""
+    rows = ["| data set | model | normal recall per draw | mean |", "|---|---|---|---|"]
+    names = list(dict.fromkeys(n for per_set in recall.values() for n in per_set))
+    for name in names:
+        for model, per_set in recall.items():
+            values = per_set[name]
+            shown = " ".join(f"{v:.3f}" for v in values)
+            rows.append(f"| {name} | {model} | {shown} | {np.mean(values):.4f} |")
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", default=None)
+    parser.add_argument("--model", action="append", default=None)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--after", action="store_true", help="where the false positives sit")
+    parser.add_argument("--draws", type=int, default=0, help="normal recall over seeds 0..N-1")
     args = parser.parse_args()
-    det = Detector(args.model)
+    models = args.model or ["default"]
+    if args.draws:
+        recall: dict[str, dict[str, list[float]]] = {}
+        for model in models:
+            det = Detector(None if model == "default" else model)
+            per_set = recall.setdefault(model, {})
+            for name, table, cols, cmap, _ in validation_positions(None, keep_native=True):
+                for seed in range(args.draws):
+                    cell = gnss_cell(det, inject_gnss(table, seed=seed), cols, cmap)
+                    per_set.setdefault(name, []).append(cell["normal"]["recall"])
+        print("\n".join(draws_table(recall)))
+        return
+    if len(models) > 1:
+        parser.error("one --model without --draws")
+    det = Detector(None if models[0] == "default" else models[0])
     if args.after:
         print("| data set | episode before | false positives | 1-5 fixes after | 6-30 | later |")
         print("|---|---|---|---|---|---|")
