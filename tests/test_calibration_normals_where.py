@@ -27,6 +27,9 @@ def test_a_new_track_starts_without_a_fault_and_the_look_back_ends() -> None:
     bias = np.array(["noise"] + ["none"] * (n + 1), dtype=object)
     track = np.array(["a"] * n + ["b", "b"], dtype=object)
     since, last = cw.after_fault(truth, bias, track)
-    assert since[cw._LOOK_BACK] == cw._LOOK_BACK and last[cw._LOOK_BACK] == "noise"
-    assert since[cw._LOOK_BACK + 1] == cw._LOOK_BACK + 1 and last[cw._LOOK_BACK + 1] == "-"
-    assert since[n] == cw._LOOK_BACK + 1 and last[n] == "-"  # track b
+    assert since[cw._LOOK_BACK] == cw._LOOK_BACK
+    assert last[cw._LOOK_BACK] == "noise"
+    assert since[cw._LOOK_BACK + 1] == cw._LOOK_BACK + 1
+    assert last[cw._LOOK_BACK + 1] == "-"
+    assert since[n] == cw._LOOK_BACK + 1
+    assert last[n] == "-"
