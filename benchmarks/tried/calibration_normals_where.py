@@ -33,6 +33,7 @@ from gradgps._train.recipe import recipe_faults, recipe_tables
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from calibration_groups_at import as_trained
 from clean_flag_runs import step_speeds
+from hangover_check import since_last_fault
 
 _LOOK_BACK = 50
 
@@ -40,21 +41,12 @@ _LOOK_BACK = 50
 def after_fault(truth: np.ndarray, bias: np.ndarray, track: np.ndarray) -> tuple[np.ndarray, ...]:
     """Per row: how many rows after its track's last faulty row it sits (1 = the next
     row; 0 on a faulty row; ``_LOOK_BACK + 1`` when there is none within
-    ``_LOOK_BACK`` rows) and that row's bias (``-`` when none)."""
-    since = np.full(len(truth), _LOOK_BACK + 1)
-    last_bias = np.full(len(truth), "-", dtype=object)
-    count, current = _LOOK_BACK + 1, "-"
-    for i in range(len(truth)):
-        if i > 0 and track[i] != track[i - 1]:
-            count, current = _LOOK_BACK + 1, "-"
-        if truth[i]:
-            count, current = 0, str(bias[i])
-        elif count <= _LOOK_BACK:
-            count += 1
-        if count > _LOOK_BACK:
-            current = "-"
-        since[i], last_bias[i] = count, current
-    return since, last_bias
+    ``_LOOK_BACK`` rows) and that row's bias (``-`` when none): hangover_check's
+    :func:`since_last_fault` with a look-back."""
+    since, last = since_last_fault(truth, track)
+    none = (last < 0) | (since > _LOOK_BACK)
+    last_bias = np.where(none, "-", np.asarray(bias, dtype=object)[np.maximum(last, 0)])
+    return np.where(none, _LOOK_BACK + 1, since), last_bias.astype(object)
 
 
 def group_normals(model: str, group: str, band: str) -> pd.DataFrame:
@@ -88,7 +80,9 @@ def group_normals(model: str, group: str, band: str) -> pd.DataFrame:
                 else np.zeros(len(labelled), bool)
             )
             since, last_bias = after_fault(
-                truth, labelled["label_bias"].astype(str).to_numpy(), track[np.maximum(row, 0)]
+                truth,
+                labelled["label_bias"].astype(str).to_numpy(),
+                labelled[cmap.track or "track"].astype(str).to_numpy(),
             )
             speed = step_speeds(pts.assign(track=track))
             slow = period >= SLOW_FROM_PERIOD_S
