@@ -9,7 +9,8 @@ and out of it (m/s, from positions), and how many fixes after the last injected
 faulty fix of its track it sits with that fault's bias (``-`` when none within 50).
 The same validation faults and points as the calibration (stale starts' held fixes
 and points without a score left out), the model calibrated as trained
-(:func:`calibration_groups_at.as_trained`). Never a test split. Run:
+(:func:`calibration_groups_at.as_trained`), read by the calibration's own
+:func:`gradgps._train.calibrate.table_points`. Never a test split. Run:
 
     python benchmarks/tried/calibration_normals_where.py MODEL_DIR 0.936 driveplotr
         [--band slow|fast]
@@ -25,9 +26,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from gradgps._grad.pipeline import O_BIAS, O_CONFIRM, segment_period
-from gradgps._tracks.track import to_fixes
-from gradgps._train.calibrate import SLOW_FROM_PERIOD_S, inject_validation_faults, recipe_group
+from gradgps._grad.pipeline import O_BIAS, O_CONFIRM
+from gradgps._train.calibrate import SLOW_FROM_PERIOD_S, recipe_group, table_points
 from gradgps._train.recipe import recipe_faults, recipe_tables
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -59,40 +59,25 @@ def group_normals(model: str, group: str, band: str) -> pd.DataFrame:
         for table in recipe_tables("validation"):
             if not any(recipe_group(x) == group for x in pd.unique(table["track"].astype(str))):
                 continue
-            cmap = to_fixes(table).attrs["columns"]
-            labelled = inject_validation_faults(table, spec)
-            _, usable, prepared, out = det._point_outputs(to_fixes(labelled, cmap))
-            mapped = prepared.to_rows(
-                np.arange(len(prepared.points), dtype=np.float64)[:, None], fill=-1.0
-            )[:, 0]
-            row = np.full(len(prepared.points), -1, np.int64)
-            row[mapped[mapped >= 0].astype(np.int64)] = usable[mapped >= 0]
-            pts = prepared.points.reset_index(drop=True)
-            t = pts["t"].to_numpy(np.float64)
-            period = np.full(len(t), np.nan)
-            for _, sl in prepared.segment_slices():
-                period[sl] = segment_period(t[sl])
+            tp = table_points(det, table, spec)
+            labelled, out, row, period = tp.labelled, tp.out, tp.row, tp.period
+            pts = tp.points.reset_index(drop=True)
             track = pts["track"].astype(str).to_numpy()
             truth = labelled["label_anomaly"].to_numpy() == 1
-            stale = (
-                labelled["label_stale"].to_numpy() == 1
-                if "label_stale" in labelled
-                else np.zeros(len(labelled), bool)
-            )
             since, last_bias = after_fault(
                 truth,
                 labelled["label_bias"].astype(str).to_numpy(),
-                labelled[cmap.track or "track"].astype(str).to_numpy(),
+                labelled["track"].astype(str).to_numpy(),
             )
             speed = step_speeds(pts.assign(track=track))
             slow = period >= SLOW_FROM_PERIOD_S
             keep = (
-                (row >= 0)
+                tp.counted
                 & np.isfinite(out[:, O_CONFIRM])
                 & (slow if band == "slow" else ~slow)
                 & np.array([recipe_group(x) == group for x in track])
             )
-            keep &= ~truth[np.maximum(row, 0)] & ~stale[np.maximum(row, 0)]
+            keep &= ~truth[np.maximum(row, 0)]
             idx = np.flatnonzero(keep)
             code = out[idx, O_BIAS]
             parts.append(

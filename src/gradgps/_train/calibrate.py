@@ -40,12 +40,14 @@ from .grad import GradTrainingSet
 
 __all__ = [
     "CalibrationPoints",
+    "TablePoints",
     "calibrate_model",
     "calibration_points",
     "describe_thresholds",
     "inject_validation_faults",
     "recipe_group",
     "scored_normals",
+    "table_points",
     "worst_group_threshold",
 ]
 
@@ -90,6 +92,48 @@ class CalibrationPoints:
     group: np.ndarray
 
 
+@dataclass(frozen=True)
+class TablePoints:
+    """One validation table as the calibration reads it: the table with its faults
+    injected, the detector's per-point outputs and points, each point's row of the table
+    (-1: none), its segment's period (s), and which points count (a row, not a stale
+    start's held fix)."""
+
+    labelled: pd.DataFrame
+    out: np.ndarray
+    points: pd.DataFrame
+    row: np.ndarray
+    period: np.ndarray
+    counted: np.ndarray
+
+
+def table_points(detector: Detector, table: pd.DataFrame, spec: GradTrainingSet) -> TablePoints:
+    """Inject the validation faults into ``table`` exactly as training does
+    (:func:`inject_validation_faults`), run ``detector`` on it and map its points back
+    to rows. A stale start's held fixes do not count, as in the training loss
+    (:mod:`gradgps._train.labels`)."""
+    cmap = to_fixes(table).attrs["columns"]
+    labelled = inject_validation_faults(table, spec)
+    _, usable, prepared, out = detector._point_outputs(to_fixes(labelled, cmap))
+    row_of_point = np.full(len(prepared.points), -1, np.int64)
+    mapped = prepared.to_rows(
+        np.arange(len(prepared.points), dtype=np.float64)[:, None], fill=-1.0
+    )[:, 0]
+    placed = mapped >= 0
+    row_of_point[mapped[placed].astype(np.int64)] = usable[placed]
+    stale_rows = (
+        labelled["label_stale"].to_numpy() == 1
+        if "label_stale" in labelled
+        else np.zeros(len(labelled), bool)
+    )
+    period = np.full(len(prepared.points), np.nan)
+    t = prepared.points["t"].to_numpy(np.float64)
+    for _, sl in prepared.segment_slices():
+        period[sl] = segment_period(t[sl])
+    counted = (row_of_point >= 0) & ~stale_rows[np.maximum(row_of_point, 0)]
+    return TablePoints(labelled, out, prepared.points, row_of_point, period, counted)
+
+
 def calibration_points(
     detector: Detector,
     tables: Sequence[pd.DataFrame],
@@ -97,39 +141,20 @@ def calibration_points(
     group: Callable[[str], str] = recipe_group,
 ) -> CalibrationPoints:
     """Inject the validation faults exactly as training does (``spec.val_seed``, frozen
-    fixes and stale starts), run ``detector`` on them and collect its per-point outputs.
-    A stale start's held fixes are left out, as from the training loss
-    (:mod:`gradgps._train.labels`)."""
+    fixes and stale starts), run ``detector`` on them and collect its per-point outputs
+    (:func:`table_points`: a stale start's held fixes left out)."""
     parts: list[tuple[np.ndarray, ...]] = []
     for table in tables:
-        cmap = to_fixes(table).attrs["columns"]
-        labelled = inject_validation_faults(table, spec)
-        fixes = to_fixes(labelled, cmap)
-        _, usable, prepared, out = detector._point_outputs(fixes)
-        row_of_point = np.full(len(prepared.points), -1, np.int64)
-        mapped = prepared.to_rows(
-            np.arange(len(prepared.points), dtype=np.float64)[:, None], fill=-1.0
-        )[:, 0]
-        placed = mapped >= 0
-        row_of_point[mapped[placed].astype(np.int64)] = usable[placed]
-        truth_rows = labelled["label_anomaly"].to_numpy() == 1
-        stale_rows = (
-            labelled["label_stale"].to_numpy() == 1
-            if "label_stale" in labelled
-            else np.zeros(len(labelled), bool)
-        )
-        period = np.full(len(prepared.points), np.nan)
-        t = prepared.points["t"].to_numpy(np.float64)
-        for _, sl in prepared.segment_slices():
-            period[sl] = segment_period(t[sl])
-        keep = (row_of_point >= 0) & ~stale_rows[np.maximum(row_of_point, 0)]
-        tracks = prepared.points["track"].astype(str).to_numpy()
+        tp = table_points(detector, table, spec)
+        keep = tp.counted
+        truth_rows = tp.labelled["label_anomaly"].to_numpy() == 1
+        tracks = tp.points["track"].astype(str).to_numpy()
         parts.append(
             (
-                truth_rows[row_of_point[keep]],
-                out[keep, O_SCORE],
-                out[keep, O_CONFIRM],
-                period[keep],
+                truth_rows[tp.row[keep]],
+                tp.out[keep, O_SCORE],
+                tp.out[keep, O_CONFIRM],
+                tp.period[keep],
                 np.array([group(x) for x in tracks[keep]], dtype=object),
             )
         )
