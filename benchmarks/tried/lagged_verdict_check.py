@@ -3,25 +3,32 @@
 For model choice and experiments, never the test splits. Per real data set
 with a validation split, positions only, native and 0.5 Hz: the share of the
 untouched drive's fixes flagged, and the anomaly F1 and normal recall under
-protocol ``grad`` (seed 0), over the rows without a real ``glitch``. With
-``--lag 1`` the verdict for a fix is the model's flag at the next fix of the
-same track (a model trained by ``lagged_verdict_train.py``; the last fix of a
-track keeps its own flag). With ``--confirm`` (a model trained with
+protocol ``grad`` (seed 0, or ``--inject-seed``'s), over the rows without a real ``glitch``. With
+``--lag k`` the verdict for a fix is the model's flag ``k`` fixes later in the
+same track (a model trained by ``lagged_verdict_train.py`` with that lag; the
+last ``k`` fixes of a track take the flag at its last fix, the nearest there
+is). With ``--confirm`` (a model trained with
 ``gradgps train --confirm-head``) the verdict for a fix is its confirm head's,
 read at the next point of the same segment against ``thresholds.confirm``; a
 segment's last point keeps the at-once verdict, and so does a fix the drift
 witness flagged. ``--simulated`` scores fresh simulated drives instead, drawn
 as ``benchmarks/simulated_check.py`` draws them (seed 4242, 6 drives of 15
-minutes, positions only), at 0.5, 1, 5 and 10 Hz. Run:
+minutes, positions only), at 0.5, 1, 5 and 10 Hz. ``--as-trained`` scores the
+model at the thresholds its training chose on the pooled validation sequences
+(``thresholds.pooled``) at every rate, not the per-rate ones ``gradgps train``
+then calibrates: that calibration reads the network against each point's own
+label, so for a network trained on labels moved later it is not the network's
+rule. Run:
 
-    python benchmarks/tried/lagged_verdict_check.py --model DIR [--lag 0|1 | --confirm] \
-        [--simulated] [--data-dir DIR]
+    python benchmarks/tried/lagged_verdict_check.py --model DIR [--lag K | --confirm] \
+        [--as-trained] [--simulated] [--data-dir DIR]
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
@@ -39,6 +46,9 @@ from gradgps._tracks.track import ColumnMap, to_fixes
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
 from _validation_drives import validation_positions
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/tried/
+from calibration_groups_at import as_trained
+
 
 def at_once(det: Detector) -> Detector:
     """``det`` deciding every fix at once, also where its model has a confirm head (whose
@@ -50,12 +60,20 @@ def at_once(det: Detector) -> Detector:
 
 
 def verdicts(det: Detector, fixes: pd.DataFrame, lag: int) -> np.ndarray:
-    flag = at_once(det).detect(fixes)["anomaly"].to_numpy() == 1
-    if lag == 0:
-        return flag
-    track = fixes["track"].astype(str).to_numpy()
+    """Per row: the at-once flag ``lag`` fixes later in the same track (rows in track order)."""
+    return flags_later(
+        at_once(det).detect(fixes)["anomaly"].to_numpy() == 1,
+        fixes["track"].astype(str).to_numpy(),
+        lag,
+    )
+
+
+def flags_later(flag: np.ndarray, track: np.ndarray, lag: int) -> np.ndarray:
+    """``flag[i + lag]`` where row ``i + lag`` is of row ``i``'s track, else the flag at the
+    track's last row after ``i`` (a track's last ``lag`` rows have no later verdict)."""
     late = flag.copy()
-    late[:-1] = np.where(track[1:] == track[:-1], flag[1:], flag[:-1])
+    for _ in range(lag):  # one row at a time, never across a track's end
+        late[:-1] = np.where(track[1:] == track[:-1], late[1:], late[:-1])
     return late
 
 
@@ -71,18 +89,29 @@ def confirmed(det: Detector, fixes: pd.DataFrame) -> np.ndarray:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", required=True)
-    parser.add_argument("--lag", type=int, choices=(0, 1), default=0)
+    parser.add_argument("--lag", type=int, default=0)
     parser.add_argument("--confirm", action="store_true")
+    parser.add_argument("--as-trained", action="store_true")
+    parser.add_argument("--inject-seed", type=int, default=0, help="protocol grad seed")
     parser.add_argument("--simulated", action="store_true")
     parser.add_argument("--data-dir", default=None)
     args = parser.parse_args()
-    det = Detector(args.model)
+    with tempfile.TemporaryDirectory() as scratch:
+        det = as_trained(args.model, scratch) if args.as_trained else Detector(args.model)
+        report(det, args)
+
+
+def report(det: Detector, args: argparse.Namespace) -> None:
+    """Print the table of :func:`main`'s cells for ``det``."""
     mode = (
         "confirm head, one point late"
         if args.confirm
-        else ("one fix late" if args.lag else "at once")
+        else (f"{args.lag} fix(es) late" if args.lag else "at once")
     )
-    print(f"model {args.model}, verdict {mode}")
+    print(
+        f"model {args.model}, verdict {mode}"
+        + (", thresholds as trained" if args.as_trained else "")
+    )
 
     def judge(fixes: pd.DataFrame) -> np.ndarray:
         return confirmed(det, fixes) if args.confirm else verdicts(det, fixes, args.lag)
@@ -91,7 +120,7 @@ def main() -> None:
     print("|---|---|---|---|---|")
     for name, rate, data, cols, cmap, ordinary in _drives(args.simulated, args.data_dir):
         clean = judge(to_fixes(data, cmap))[ordinary]
-        labelled = inject_grad(data, seed=0, columns=cmap)
+        labelled = inject_grad(data, seed=args.inject_seed, columns=cmap)
         truth = (labelled["label_anomaly"].to_numpy() == 1)[ordinary]
         hit = judge(to_fixes(labelled[cols], cmap))[ordinary]
         scores = class_scores(truth, hit)
