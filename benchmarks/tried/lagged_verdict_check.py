@@ -93,6 +93,9 @@ def main() -> None:
     parser.add_argument("--confirm", action="store_true")
     parser.add_argument("--as-trained", action="store_true")
     parser.add_argument("--inject-seed", type=int, default=0, help="protocol grad seed")
+    parser.add_argument(
+        "--clean-runs", action="store_true", help="list the runs of flagged clean fixes"
+    )
     parser.add_argument("--simulated", action="store_true")
     parser.add_argument("--data-dir", default=None)
     args = parser.parse_args()
@@ -118,14 +121,33 @@ def report(det: Detector, args: argparse.Namespace) -> None:
 
     print("| data set | rate | clean false alarms | anomaly F1 | normal recall |")
     print("|---|---|---|---|---|")
+    runs = []
     for name, rate, data, cols, cmap, ordinary in _drives(args.simulated, args.data_dir):
-        clean = judge(to_fixes(data, cmap))[ordinary]
+        flagged = judge(to_fixes(data, cmap))
+        clean = flagged[ordinary]
+        track = data[cmap.track].astype(str).to_numpy()
+        runs += [(name, rate, *run) for run in flagged_runs(flagged & ordinary, track)]
         labelled = inject_grad(data, seed=args.inject_seed, columns=cmap)
         truth = (labelled["label_anomaly"].to_numpy() == 1)[ordinary]
         hit = judge(to_fixes(labelled[cols], cmap))[ordinary]
         scores = class_scores(truth, hit)
         f1, normal_recall = scores["anomaly"]["f1"], scores["normal"]["recall"]
         print(f"| {name} | {rate} | {100 * clean.mean():.2f} % | {f1:.3f} | {normal_recall:.3f} |")
+    if args.clean_runs:
+        print("\nflagged clean fixes, runs (data set, rate, track, first row, fixes):")
+        for run in runs:
+            print("  " + ", ".join(str(v) for v in run))
+
+
+def flagged_runs(flag: np.ndarray, track: np.ndarray) -> list[tuple[str, int, int]]:
+    """``(track, first row, length)`` of every run of consecutive flagged rows of one track."""
+    out: list[tuple[str, int, int]] = []
+    for i in np.flatnonzero(flag):
+        if out and out[-1][0] == track[i] and out[-1][1] + out[-1][2] == i:
+            out[-1] = (out[-1][0], out[-1][1], out[-1][2] + 1)
+        else:
+            out.append((str(track[i]), int(i), 1))
+    return out
 
 
 def _drives(simulated: bool, data_dir: str | None) -> Iterator[tuple[Any, ...]]:
