@@ -4,6 +4,7 @@ of its pure helpers."""
 from __future__ import annotations
 
 import importlib.util
+import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -17,5 +18,8 @@ def load_script(relative: str) -> ModuleType:
     assert spec is not None
     assert spec.loader is not None
     module = importlib.util.module_from_spec(spec)
+    # Registered before it runs: a dataclass looks its module up by name while the
+    # class is built.
+    sys.modules[spec.name] = module
     spec.loader.exec_module(module)
     return module
