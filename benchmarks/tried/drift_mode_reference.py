@@ -60,40 +60,24 @@ class DriftSettings:
     drift_track_q: float = 1.0
 
 
-@dataclass
-class _H:
-    x: np.ndarray  # track, velocity, acceleration, drift offset, drift rate
-    cov: np.ndarray  # 5 x 5
-    offset: float  # a jump's or an outlier's offset (a drift's is x[3])
-    age: float
-    weight: float
-    mode: float
-    previous: float = 0.0
+_H = om._Hypothesis  # its track state here has five entries: + drift offset, drift rate
 
-    def copy(self) -> _H:
-        return _H(
-            self.x.copy(),
-            self.cov.copy(),
-            self.offset,
-            self.age,
-            self.weight,
-            self.mode,
-            self.previous,
-        )
 
-    def reported(self) -> float:
-        """The offset this hypothesis reports (0 when clean)."""
-        if self.mode == om.CLEAN:
-            return 0.0
-        return float(self.x[3]) if self.mode == DRIFT else self.offset
+def reported(h: _H) -> float:
+    """The offset hypothesis ``h`` reports (0 when clean; a drift's is its state's)."""
+    if h.mode == om.CLEAN:
+        return 0.0
+    return float(h.x[3]) if h.mode == DRIFT else h.offset
 
-    def measure(self, y: float, r: float, h: np.ndarray) -> float:
-        s = float(h @ self.cov @ h) + r
-        gain = self.cov @ h / s
-        nu = y - float(h @ self.x)
-        self.x = self.x + gain * nu
-        self.cov = self.cov - np.outer(gain, gain) * s
-        return -0.5 * math.log(2 * math.pi * s) - 0.5 * nu * nu / s
+
+def measure(h: _H, y: float, r: float, row: np.ndarray) -> float:
+    """Kalman update of ``h`` with ``y`` measuring ``row @ x``; its log-likelihood."""
+    s = float(row @ h.cov @ row) + r
+    gain = h.cov @ row / s
+    nu = y - float(row @ h.x)
+    h.x = h.x + gain * nu
+    h.cov = h.cov - np.outer(gain, gain) * s
+    return -0.5 * math.log(2 * math.pi * s) - 0.5 * nu * nu / s
 
 
 _H_TRACK = np.array([1.0, 0.0, 0.0, 0.0, 0.0])
@@ -151,7 +135,7 @@ def drift_channel(
             h.cov = f @ h.cov @ f.T + (q_drift if h.mode == DRIFT else q)
             if h.mode != DRIFT:
                 _clear_drift(h)
-            h.previous = h.reported()
+            h.previous = reported(h)
             if j == 0:
                 restart = h.copy()
                 restart.x = np.array([z[i], h.x[1], 0.0, 0.0, 0.0])
@@ -168,17 +152,17 @@ def drift_channel(
             age = h.age + d if h.mode != om.CLEAN else d
             clean = h.copy()
             _clear_drift(clean)
-            clean.weight += live + to_clean + clean.measure(float(z[i]), r, _H_TRACK)
+            clean.weight += live + to_clean + measure(clean, float(z[i]), r, _H_TRACK)
             clean.offset, clean.age, clean.mode = 0.0, 0.0, om.CLEAN
             kids.append(clean)
             if h.mode == om.JUMP:
                 keep = h.copy()
-                keep.weight += live + to_keep + keep.measure(float(z[i]) - h.offset, r, _H_TRACK)
+                keep.weight += live + to_keep + measure(keep, float(z[i]) - h.offset, r, _H_TRACK)
                 keep.age = age
                 kids.append(keep)
             if h.mode == DRIFT:
                 keep = h.copy()
-                keep.weight += live + to_keep + keep.measure(float(z[i]), r, _H_DRIFT)
+                keep.weight += live + to_keep + measure(keep, float(z[i]), r, _H_DRIFT)
                 keep.age = age
                 kids.append(keep)
             if h.mode == om.CLEAN and drift_start > 0:
@@ -187,7 +171,7 @@ def drift_channel(
                 drift.x[3] = drift.x[4] = 0.0
                 drift.mode, drift.age = DRIFT, d
                 drift.weight += live + math.log(drift_start)
-                drift.weight += drift.measure(float(z[i]), r, _H_DRIFT)
+                drift.weight += measure(drift, float(z[i]), r, _H_DRIFT)
                 kids.append(drift)
             for m, log_p in ((om.JUMP, to_jump), (om.NOISE, to_noise)):
                 fault = h.copy()
@@ -205,7 +189,7 @@ def drift_channel(
             if any(
                 h.mode == o.mode
                 and abs(h.x[0] - o.x[0]) < om._SAME
-                and abs(h.reported() - o.reported()) < om._SAME
+                and abs(reported(h) - reported(o)) < om._SAME
                 and abs(h.x[1] - o.x[1]) < om._SAME
                 for o in kept
             ):
@@ -221,7 +205,7 @@ def drift_channel(
         for h in kept:
             h.weight -= top
         beam = kept
-        out[i] = (kept[0].reported(), kept[0].mode, kept[0].previous)
+        out[i] = (reported(kept[0]), kept[0].mode, kept[0].previous)
     return out
 
 
