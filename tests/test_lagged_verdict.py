@@ -43,6 +43,7 @@ def test_the_summary_reads_five_draws_and_differences_their_means(tmp_path) -> N
             "| data set | rate | clean false alarms | anomaly F1 | normal recall |\n"
             f"| d | native | 0.10 % | {f1_native:.3f} | 0.990 |\n"
             f"| d | 0.5 Hz | 0.20 % | {f1_slow:.3f} | 0.980 |\n"
+            "| simulated | 10 Hz | 0.01 % | 0.999 | 1.000 |\n"
         )
 
     for seed in range(5):
@@ -50,6 +51,7 @@ def test_the_summary_reads_five_draws_and_differences_their_means(tmp_path) -> N
         (tmp_path / f"cand_seed{seed}.txt").write_text(table(0.92, 0.85))
     base, cand = summary.read_draws(tmp_path, "base"), summary.read_draws(tmp_path, "cand")
     assert base[("d", "0.5 Hz")].shape == (5, 3)
+    assert base[("simulated", "10 Hz")].shape == (5, 3)  # any rate, as --simulated writes
     assert summary.mean_difference(base, cand, "native") == pytest.approx(0.02)
     assert summary.mean_difference(base, cand, "0.5 Hz") == pytest.approx(0.85 - 0.82)
-    assert summary.mean_difference(base, cand) == pytest.approx((0.02 + 0.03) / 2)
+    assert summary.mean_difference(base, cand) == pytest.approx((0.02 + 0.03 + 0.0) / 3)

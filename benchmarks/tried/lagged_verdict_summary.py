@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-_ROW = re.compile(r"\| (\S+) \| (native|0\.5 Hz) \| ([\d.]+) % \| ([\d.]+) \| ([\d.]+) \|")
+_ROW = re.compile(r"\| (\S+) \| (native|[\d.]+ Hz) \| ([\d.]+) % \| ([\d.]+) \| ([\d.]+) \|")
 
 
 def read_draws(folder: Path, tag: str, draws: int = 5) -> dict[tuple[str, str], np.ndarray]:
