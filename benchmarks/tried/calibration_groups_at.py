@@ -18,7 +18,6 @@ does), so its own ``config.json`` is left alone. Never a test split. Run:
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import tempfile
 from pathlib import Path
@@ -26,12 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from gradgps._grad.detector import Detector
-from gradgps._grad.model_io import CONFIG_FILE, save_thresholds
 from gradgps._train.calibrate import (
     SLOW_FROM_PERIOD_S,
     calibration_points,
     recipe_group,
     scored_normals,
+    thresholds_as_trained,
 )
 from gradgps._train.recipe import recipe_faults, recipe_tables
 
@@ -53,11 +52,7 @@ def as_trained(model: str, scratch: str) -> Detector:
     ones; the model's own ``config.json`` is left alone."""
     copy = Path(scratch) / "model"
     shutil.copytree(model, copy)
-    thresholds = dict(json.loads((copy / CONFIG_FILE).read_text())["thresholds"])
-    pooled = thresholds.get("pooled") or {
-        k: thresholds[k] for k in ("anomaly", "confirm") if k in thresholds
-    }
-    save_thresholds(copy, {**pooled})
+    thresholds_as_trained(copy)
     return Detector(copy)
 
 

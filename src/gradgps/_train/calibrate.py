@@ -48,6 +48,7 @@ __all__ = [
     "recipe_group",
     "scored_normals",
     "table_points",
+    "thresholds_as_trained",
     "worst_group_threshold",
 ]
 
@@ -213,6 +214,20 @@ def worst_group_threshold(
     return best_t
 
 
+def thresholds_as_trained(directory: str | Path) -> dict[str, float]:
+    """Write the model's thresholds as its training chose them (``thresholds.pooled``,
+    or the plain pair of a model never calibrated) into its ``config.json``, at every
+    rate, and return them: the network as :func:`calibrate_model` scores it before it
+    chooses per-rate thresholds, and as the diagnostics read it."""
+    path = Path(directory)
+    thresholds = dict(json.loads((path / CONFIG_FILE).read_text())["thresholds"])
+    pooled = thresholds.pop("pooled", None) or {
+        k: thresholds[k] for k in ("anomaly", "confirm") if k in thresholds
+    }
+    save_thresholds(path, {**pooled})
+    return {k: float(v) for k, v in pooled.items()}
+
+
 def calibrate_model(
     directory: str | Path,
     tables: Sequence[pd.DataFrame],
@@ -227,14 +242,7 @@ def calibrate_model(
     than ``from_period_s``, ``thresholds.by_rate`` for the rest. Returns the new
     ``thresholds`` block; the members' pooled choices stay in ``thresholds.pooled``."""
     path = Path(directory)
-    config_path = path / CONFIG_FILE
-    config = json.loads(config_path.read_text())
-    thresholds = dict(config["thresholds"])
-    pooled = thresholds.pop("pooled", None) or {
-        k: thresholds[k] for k in ("anomaly", "confirm") if k in thresholds
-    }
-    # Calibrate the network as trained: its pooled thresholds at every rate.
-    save_thresholds(path, {**pooled})
+    pooled = thresholds_as_trained(path)  # calibrate the network as trained
     points = calibration_points(Detector(path), tables, spec, group)
     slow = points.period >= from_period_s
     chosen: dict[str, float] = {}
