@@ -93,11 +93,12 @@ def consensus(others: list[np.ndarray]) -> np.ndarray:
     return med
 
 
-def deviation_runs(far: np.ndarray, segment: np.ndarray) -> list[tuple[int, int]]:
-    """``(first index, length)`` of every run of consecutive ``far`` fixes of one segment."""
+def runs_of(mask: np.ndarray, group: np.ndarray) -> list[tuple[int, int]]:
+    """``(first index, length)`` of every run of consecutive ``mask`` rows of one ``group``
+    (a segment, a track): a run ends at a False row and where the group changes."""
     runs: list[tuple[int, int]] = []
-    for i in np.flatnonzero(far):
-        if runs and runs[-1][0] + runs[-1][1] == i and segment[i] == segment[i - 1]:
+    for i in np.flatnonzero(mask):
+        if runs and runs[-1][0] + runs[-1][1] == i and group[i] == group[i - 1]:
             runs[-1] = (runs[-1][0], runs[-1][1] + 1)
         else:
             runs.append((int(i), 1))
@@ -171,7 +172,7 @@ def main() -> None:
             flag = det.detect(to_fixes(fixes))["anomaly"].to_numpy() == 1
             far, near = has & (dev > FAR_M), has & (dev <= NEAR_M)
             between = has & ~far & ~near
-            runs = deviation_runs(far, rx.segment)
+            runs = runs_of(far, rx.segment)
             for i in np.flatnonzero(flag) if args.flagged else ():
                 before = ", ".join(f"{d:.0f}" for d in dev[max(i - 3, 0) : i])
                 flagged.append(

@@ -38,4 +38,4 @@ def test_the_consensus_needs_two_others_that_agree() -> None:
 def test_far_runs_stop_at_a_gap_and_at_a_new_segment() -> None:
     far = np.array([1, 1, 0, 1, 1, 1], bool)
     segment = np.array(["a", "a", "a", "a", "b", "b"])
-    assert rc.deviation_runs(far, segment) == [(0, 2), (3, 1), (4, 2)]
+    assert rc.runs_of(far, segment) == [(0, 2), (3, 1), (4, 2)]

@@ -45,6 +45,7 @@ from gradgps._tracks.track import ColumnMap, to_fixes
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/, for the helper
 from _validation_drives import validation_positions
+from receiver_consensus import runs_of
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/tried/
 from calibration_groups_at import as_trained
@@ -141,13 +142,7 @@ def report(det: Detector, args: argparse.Namespace) -> None:
 
 def flagged_runs(flag: np.ndarray, track: np.ndarray) -> list[tuple[str, int, int]]:
     """``(track, first row, length)`` of every run of consecutive flagged rows of one track."""
-    out: list[tuple[str, int, int]] = []
-    for i in np.flatnonzero(flag):
-        if out and out[-1][0] == track[i] and out[-1][1] + out[-1][2] == i:
-            out[-1] = (out[-1][0], out[-1][1], out[-1][2] + 1)
-        else:
-            out.append((str(track[i]), int(i), 1))
-    return out
+    return [(str(track[first]), first, length) for first, length in runs_of(flag, track)]
 
 
 def _drives(simulated: bool, data_dir: str | None) -> Iterator[tuple[Any, ...]]:
