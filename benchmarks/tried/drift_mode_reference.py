@@ -70,16 +70,6 @@ def reported(h: _H) -> float:
     return float(h.x[3]) if h.mode == DRIFT else h.offset
 
 
-def measure(h: _H, y: float, r: float, row: np.ndarray) -> float:
-    """Kalman update of ``h`` with ``y`` measuring ``row @ x``; its log-likelihood."""
-    s = float(row @ h.cov @ row) + r
-    gain = h.cov @ row / s
-    nu = y - float(row @ h.x)
-    h.x = h.x + gain * nu
-    h.cov = h.cov - np.outer(gain, gain) * s
-    return -0.5 * math.log(2 * math.pi * s) - 0.5 * nu * nu / s
-
-
 _H_TRACK = np.array([1.0, 0.0, 0.0, 0.0, 0.0])
 _H_DRIFT = np.array([1.0, 0.0, 0.0, 1.0, 0.0])
 
@@ -152,17 +142,19 @@ def drift_channel(
             age = h.age + d if h.mode != om.CLEAN else d
             clean = h.copy()
             _clear_drift(clean)
-            clean.weight += live + to_clean + measure(clean, float(z[i]), r, _H_TRACK)
+            clean.weight += live + to_clean + clean.measure(float(z[i]), r, row=_H_TRACK)
             clean.offset, clean.age, clean.mode = 0.0, 0.0, om.CLEAN
             kids.append(clean)
             if h.mode == om.JUMP:
                 keep = h.copy()
-                keep.weight += live + to_keep + measure(keep, float(z[i]) - h.offset, r, _H_TRACK)
+                keep.weight += (
+                    live + to_keep + keep.measure(float(z[i]) - h.offset, r, row=_H_TRACK)
+                )
                 keep.age = age
                 kids.append(keep)
             if h.mode == DRIFT:
                 keep = h.copy()
-                keep.weight += live + to_keep + measure(keep, float(z[i]), r, _H_DRIFT)
+                keep.weight += live + to_keep + keep.measure(float(z[i]), r, row=_H_DRIFT)
                 keep.age = age
                 kids.append(keep)
             if h.mode == om.CLEAN and drift_start > 0:
@@ -171,7 +163,7 @@ def drift_channel(
                 drift.x[3] = drift.x[4] = 0.0
                 drift.mode, drift.age = DRIFT, d
                 drift.weight += live + math.log(drift_start)
-                drift.weight += measure(drift, float(z[i]), r, _H_DRIFT)
+                drift.weight += drift.measure(float(z[i]), r, row=_H_DRIFT)
                 kids.append(drift)
             for m, log_p in ((om.JUMP, to_jump), (om.NOISE, to_noise)):
                 fault = h.copy()

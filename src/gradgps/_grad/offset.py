@@ -692,10 +692,17 @@ class _Hypothesis:
         self.x = f @ self.x
         self.cov = f @ self.cov @ f.T + q
 
-    def measure(self, y: float, r: float, of_velocity: bool = False) -> float:
-        """Kalman update with a measurement ``y`` of the track (or the velocity); its
-        log-likelihood."""
-        h = np.array([0.0, 1.0, 0.0]) if of_velocity else np.array([1.0, 0.0, 0.0])
+    def measure(
+        self, y: float, r: float, of_velocity: bool = False, row: FloatArray | None = None
+    ) -> float:
+        """Kalman update with a measurement ``y`` of the track (or the velocity, or
+        ``row @ x`` where ``row`` is given: a state with more entries, as
+        ``benchmarks/tried/drift_mode_reference.py`` keeps); its log-likelihood."""
+        h = (
+            row
+            if row is not None
+            else np.array([0.0, 1.0, 0.0] if of_velocity else [1.0, 0.0, 0.0])
+        )
         s = float(h @ self.cov @ h) + r
         gain = self.cov @ h / s
         nu = y - float(h @ self.x)
