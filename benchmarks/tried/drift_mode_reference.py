@@ -174,29 +174,8 @@ def drift_channel(
                 kids.append(fault)
         assert restart is not None
         kids.append(restart)
-        kids.sort(key=lambda k: -k.weight)
-        kept: list[_H] = []
-        seen: set[float] = set()
-        for h in kids:
-            if any(
-                h.mode == o.mode
-                and abs(h.x[0] - o.x[0]) < om._SAME
-                and abs(reported(h) - reported(o)) < om._SAME
-                and abs(h.x[1] - o.x[1]) < om._SAME
-                for o in kept
-            ):
-                continue
-            if len(kept) < om.BEAM - om._RESERVED - (1 if ds.drift_per_s > 0 else 0) or (
-                h.mode not in seen
-            ):
-                kept.append(h)
-                seen.add(h.mode)
-            if len(kept) >= om.BEAM:
-                break
-        top = kept[0].weight
-        for h in kept:
-            h.weight -= top
-        beam = kept
+        free = om.BEAM - om._RESERVED - (1 if ds.drift_per_s > 0 else 0)
+        beam = kept = om.best_of(kids, free, reported)
         out[i] = (reported(kept[0]), kept[0].mode, kept[0].previous)
     return out
 

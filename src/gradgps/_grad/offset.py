@@ -79,6 +79,7 @@ use, and a test keeps them equal.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numba
@@ -721,6 +722,38 @@ def _singer_matrices(p: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
     return f, q
 
 
+def best_of(
+    kids: list[_Hypothesis],
+    free: int = BEAM - _RESERVED,
+    offset_of: Callable[[_Hypothesis], float] = lambda h: h.offset,
+) -> list[_Hypothesis]:
+    """The beam's next hypotheses from ``kids`` (the readable reference's selection):
+    best first, duplicates (one mode, track, velocity and ``offset_of`` within
+    :data:`_SAME`) merged, at most :data:`BEAM`, of which all but ``free`` are kept
+    for modes the best ones do not hold; weights made relative to the best."""
+    kids.sort(key=lambda h: -h.weight)
+    kept: list[_Hypothesis] = []
+    seen: set[float] = set()
+    for h in kids:
+        if any(
+            h.mode == o.mode
+            and abs(h.track - o.track) < _SAME
+            and abs(offset_of(h) - offset_of(o)) < _SAME
+            and abs(h.velocity - o.velocity) < _SAME
+            for o in kept
+        ):
+            continue
+        if len(kept) < free or h.mode not in seen:
+            kept.append(h)
+            seen.add(h.mode)
+        if len(kept) >= BEAM:
+            break
+    top = kept[0].weight
+    for h in kept:
+        h.weight -= top
+    return kept
+
+
 def _reference_channel(
     prm: OffsetParams,
     dt: FloatArray,
@@ -789,27 +822,7 @@ def _reference_channel(
         if math.isfinite(v[i]):
             for h in kids:
                 h.weight += h.measure(float(v[i]), rv, of_velocity=True)
-        kids.sort(key=lambda h: -h.weight)
-        kept: list[_Hypothesis] = []
-        seen: set[float] = set()
-        for h in kids:
-            if any(
-                h.mode == o.mode
-                and abs(h.track - o.track) < _SAME
-                and abs(h.offset - o.offset) < _SAME
-                and abs(h.velocity - o.velocity) < _SAME
-                for o in kept
-            ):
-                continue
-            if len(kept) < BEAM - _RESERVED or h.mode not in seen:
-                kept.append(h)
-                seen.add(h.mode)
-            if len(kept) >= BEAM:
-                break
-        top = kept[0].weight
-        for h in kept:
-            h.weight -= top
-        beam = kept
+        beam = kept = best_of(kids)
         if trace is not None:
             trace.append((i, kept))  # never changed after: the next fix copies them
         best = beam[0]
