@@ -189,3 +189,211 @@ def test_a_noisy_receiver_is_named_with_its_noise() -> None:
     assert (
         InputChecks().add(_track(np.cumsum(np.tile([1.0, 2.0], 100)))).second_diff_hist.sum() == 0
     )
+
+
+# A reported speed or heading held against the positions (the witness checks).
+
+
+def _winding(
+    period_s: float = 1.0, minutes: float = 10.0, noise_m: float = 0.0, seed: int = 0
+) -> pd.DataFrame:
+    """Canonical fixes of a winding drive (10-30 m/s, the heading swinging through every
+    direction) with its true speed (m/s) and heading (degrees clockwise from north)."""
+    rng = np.random.default_rng(seed)
+    fine = 0.01
+    tt = np.arange(0.0, minutes * 60.0 + fine, fine)
+    speed = 20.0 + 10.0 * np.sin(tt / 37.0)
+    heading = (200.0 * np.sin(tt / 53.0) + 0.5 * tt) % 360.0
+    rad = np.radians(heading)
+    east = np.cumsum(speed * np.sin(rad)) * fine
+    north = np.cumsum(speed * np.cos(rad)) * fine
+    pick = np.arange(0, tt.size, round(period_s / fine))
+    e = east[pick] + rng.normal(0.0, noise_m, pick.size)
+    n = north[pick] + rng.normal(0.0, noise_m, pick.size)
+    lat, lon = LocalFrame(52.0, 4.4).to_geodetic(e, n)
+    return pd.DataFrame(
+        {
+            "track": "a",
+            "t": tt[pick],
+            "lat": lat,
+            "lon": lon,
+            "speed": speed[pick],
+            "heading": heading[pick],
+        }
+    )
+
+
+def _witness_kinds(fixes: pd.DataFrame) -> set[str]:
+    out = set()
+    for w in input_warnings(fixes):
+        if w.startswith("reported speed"):
+            out.add("speed")
+        if w.startswith("reported heading"):
+            out.add("heading")
+    return out
+
+
+@pytest.mark.parametrize("period_s", [0.1, 0.2, 1.0, 2.0])
+def test_a_speed_and_heading_that_agree_with_the_positions_get_no_warning(
+    period_s: float,
+) -> None:
+    fixes = _winding(period_s, noise_m=1.0)
+    assert _witness_kinds(fixes) == set()
+    share, typical, n = InputChecks().add(fixes).speed_agreement()
+    assert n >= 100
+    assert share > 0.9
+    assert typical == pytest.approx(1.0, rel=0.03)
+    heading_share, _ = InputChecks().add(fixes).heading_agreement()
+    assert heading_share > 0.9
+
+
+@pytest.mark.parametrize(("unit", "factor"), [("km/h", 3.6), ("mph", 2.23694), ("knots", 1.94384)])
+def test_a_speed_in_another_unit_is_named_with_the_flag_that_reads_it(
+    unit: str, factor: float
+) -> None:
+    fixes = _winding()
+    fixes["speed"] *= factor  # what reading km/h values as m/s gives
+    assert _witness_kinds(fixes) == {"speed"}
+    (warning,) = input_warnings(fixes)
+    assert f"pass --speed-unit {unit}" in warning
+    typical = float(warning.split("typically ")[1].split(" times")[0])
+    assert typical == pytest.approx(factor, rel=0.02)
+    assert "read in m/s" in warning
+
+
+def test_a_declared_unit_that_is_wrong_is_named_too() -> None:
+    """A column called speed_kmh that holds m/s: read in km/h, it is 0.28 times the chord."""
+    fixes = _winding()
+    fixes["speed"] /= 3.6
+    fixes.attrs["speed_unit"] = "km/h"
+    (warning,) = input_warnings(fixes)
+    assert "read in km/h" in warning
+    assert "pass --speed-unit m/s" in warning
+    # The same values read in m/s match no unit mix-up: the message says what to check.
+    del fixes.attrs["speed_unit"]
+    (warning,) = input_warnings(fixes)
+    assert "check the column and its unit" in warning
+
+
+@pytest.mark.parametrize(
+    ("convert", "reading"),
+    [
+        (lambda h: np.radians(h), "radians"),
+        (lambda h: np.radians((h + 180.0) % 360.0 - 180.0), "radians"),  # -pi..pi
+        (lambda h: (90.0 - h) % 360.0, "counter-clockwise from east"),
+    ],
+)
+def test_a_heading_in_another_convention_is_named(convert: object, reading: str) -> None:
+    fixes = _winding()
+    fixes["heading"] = np.mod(convert(fixes["heading"].to_numpy()), 360.0)  # type: ignore[operator]
+    assert _witness_kinds(fixes) == {"heading"}
+    (warning,) = input_warnings(fixes)
+    assert f"read as {reading} it agrees" in warning
+    assert "--heading-col ''" in warning
+
+
+def test_a_heading_that_fits_no_convention_says_check_the_column() -> None:
+    fixes = _winding()
+    fixes["heading"] = np.random.default_rng(1).uniform(0.0, 360.0, len(fixes))
+    (warning,) = input_warnings(fixes)
+    assert "check the column" in warning
+
+
+def test_faults_in_the_positions_do_not_make_the_witness_look_wrong() -> None:
+    """Protocol ``grad`` (10-50 m noise, 20-200 m jumps): the faults' steps disagree, the
+    clean ones still agree."""
+    from gradgps import inject_grad
+
+    clean = _winding(1.0, minutes=30.0, noise_m=1.0)
+    faulty = inject_grad(clean, seed=0)
+    assert faulty["label_anomaly"].sum() > 0.05 * len(faulty)
+    checks = InputChecks().add(faulty[list(clean.columns)])
+    assert checks.speed_agreement()[0] > 0.6
+    assert checks.heading_agreement()[0] > 0.6
+    assert _witness_kinds(faulty[list(clean.columns)]) == set()
+
+
+def test_a_standing_or_slow_drive_says_nothing_about_its_witness() -> None:
+    """Below 5 m/s, or over fewer than MIN_WITNESS_STEPS steps, a chord's direction and
+    length are mostly the receiver's noise: no comparison, no warning."""
+    fixes = _winding(noise_m=1.0)
+    fixes["heading"] = (fixes["heading"] + 90.0) % 360.0
+    assert _witness_kinds(fixes.iloc[:40]) == set()
+    standing = _track(REGULAR, speed=2.0)
+    standing["speed"] = 20.0
+    standing["heading"] = 90.0
+    assert _witness_kinds(standing) == set()
+    assert InputChecks().add(standing).speed_agreement()[2] == 0
+
+
+def test_witness_checks_in_chunks_equal_the_whole_file() -> None:
+    fixes = pd.concat(
+        [_winding(1.0, noise_m=1.0).assign(track="a"), _winding(0.1, minutes=3.0).assign(track="b")]
+    ).reset_index(drop=True)
+    fixes.loc[fixes["track"] == "b", "speed"] *= 3.6
+    fixes.loc[::7, "speed"] = np.nan  # a fix without a speed takes its neighbour's
+    whole = InputChecks().add(fixes)
+    for size in (1, 97, 1000):
+        chunked = InputChecks()
+        for lo in range(0, len(fixes), size):
+            chunked.add(fixes.iloc[lo : lo + size])
+        assert (whole.speed_ratio_hist == chunked.speed_ratio_hist).all()
+        assert (whole.heading_diff_hist == chunked.heading_diff_hist).all()
+        assert whole.warnings() == chunked.warnings()
+
+
+@pytest.mark.shared
+def test_every_real_drive_s_speed_and_heading_agree_with_its_positions(shared_data: Path) -> None:
+    """On every split of every real data set with a speed or heading, clean and with
+    protocol ``grad`` or ``gnss`` faults injected (seed 0): no witness warning, and at
+    least 90 % (clean) or 60 % (faults) of the moving steps agree."""
+    from gradgps._data.datasets import load_dataset
+    from gradgps._tracks.track import to_fixes
+    from gradgps.inject import inject_gnss, inject_grad
+
+    checked = 0
+    for name in ("driveplotr", "tuc", "nl_motorway_gopro", "nevada", "ublox_f9k"):
+        for split in ("train", "validation", "test"):
+            if name == "ublox_f9k" and split != "test":
+                continue
+            table = load_dataset(name, split, data_dir=shared_data)
+            fixes = to_fixes(table)
+            cmap = fixes.attrs["columns"]
+            for faults, least in ((None, 0.9), (inject_grad, 0.6), (inject_gnss, 0.6)):
+                data = fixes
+                if faults is not None:
+                    data = to_fixes(faults(table, seed=0, columns=cmap)[list(table.columns)], cmap)
+                checks = InputChecks().add(data)
+                where = f"{name} {split} {faults.__name__ if faults else 'clean'}"
+                assert not [w for w in checks.warnings() if w.startswith("reported")], where
+                share, typical, n = checks.speed_agreement()
+                assert n > 100, where
+                assert share >= least, (where, share)
+                assert typical == pytest.approx(1.0, rel=0.03), where
+                if "heading" in data:
+                    share, n = checks.heading_agreement()
+                    assert n > 100, where
+                    assert share >= least, (where, share)
+                checked += 1
+    assert checked == 39
+
+
+def test_detect_names_a_speed_in_km_h_once_and_reads_it_with_the_flag(tmp_path: Path) -> None:
+    from gradgps._cli import main
+
+    fixes = _winding()
+    fixes["speed"] *= 3.6
+    src = tmp_path / "kmh.csv"
+    fixes.drop(columns=["track"]).to_csv(src, index=False)
+    runner = CliRunner()
+    result = runner.invoke(main, ["detect", str(src), "-o", str(tmp_path / "o.csv")])
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.stderr.splitlines() if line.startswith("warning: ")]
+    assert len(lines) == 1
+    assert "reported speed (column 'speed', read in m/s)" in lines[0]
+    assert "--speed-unit km/h" in lines[0]
+    result = runner.invoke(
+        main, ["detect", str(src), "-o", str(tmp_path / "o.csv"), "--speed-unit", "km/h"]
+    )
+    assert result.exit_code == 0, result.output
+    assert "warning" not in result.stderr

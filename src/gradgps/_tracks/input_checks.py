@@ -49,6 +49,20 @@ Warnings (thresholds are module constants):
   ``benchmarks/tried/receiver_noise_check.py``): its answers on such files are
   not backed by any measurement on real data.
 
+* ``reported speed`` / ``reported heading``: a speed or heading column that
+  contradicts the positions. Each is held against the *chords*: the steps
+  between the first fixes of each second of a track (:data:`WITNESS_BASELINE_S`),
+  at most 5 s and at least 5 m long, driven at 5-100 m/s (by the chord and by the
+  reported speed). A step's speed agrees within 15 % of its chord's, its heading
+  within 15 degrees of its chord's bearing; a witness that agrees on fewer than a
+  third of at least 50 such steps is named, with the unit or convention it fits
+  (km/h, mph or knots read as m/s; radians; degrees counter-clockwise from east).
+  On every real drive of ``../shared/data`` with a speed or heading 94-100 % of
+  the steps agree, and 64-89 % with protocol ``grad`` or ``gnss`` faults
+  injected: faults make their own steps disagree, not the clean ones. A speed in
+  km/h read as m/s made the shipped model flag 31.8 % of a clean 0.5 Hz drive's
+  fixes (``benchmarks/witness_units.py``).
+
 A small tolerance (:data:`RATE_TOLERANCE`) keeps a file recorded exactly at
 the validated limit (0.5 Hz) from being warned about.
 """
@@ -63,6 +77,7 @@ import numpy as np
 import pandas as pd
 
 from .geo import EARTH_MEAN_RADIUS_M, haversine_m
+from .track import SPEED_UNITS
 
 __all__ = [
     "IRREGULAR_IQR_RATIO",
@@ -101,6 +116,35 @@ MIN_TRIPLES = 50
 _TRIPLE_TOLERANCE = 0.1
 #: Relative slack on the rate limits (histogram resolution and clock jitter).
 RATE_TOLERANCE = 0.05
+#: A reported speed or heading is held against the step between two fixes (the chord),
+#: fixes taken at most one per this many seconds of the track's time ...
+WITNESS_BASELINE_S = 1.0
+#: ... and only where the chord says something about it: steps of at most this many
+#: seconds ...
+WITNESS_MAX_STEP_S = 5.0
+#: ... covering at least this many metres (a receiver's metre of noise is then a fifth of
+#: the chord at most, and a median over many steps is off by far less) ...
+WITNESS_MIN_CHORD_M = 5.0
+#: ... at a speed between this (m/s: moving, by the chord and by the reported speed where
+#: the fixes have one) and :data:`MAX_SPEED_MPS` (not a glitch).
+WITNESS_MIN_SPEED_MPS = 5.0
+#: Such steps needed before the comparison says anything.
+MIN_WITNESS_STEPS = 50
+#: A reported speed agrees with a step when its ratio to the chord's speed is within
+#: this factor of 1 (a receiver's Doppler speed and its chords agree within a few per
+#: cent; a unit mix-up is a factor of 1.85, knots for km/h, or more) ...
+SPEED_AGREEMENT = 1.15
+#: ... and a reported heading when it is within this many degrees of the chord's bearing.
+HEADING_AGREEMENT_DEG = 15.0
+#: A witness that agrees with fewer than this share of its steps contradicts the
+#: positions. Faults do not make it: their steps disagree at random, and the clean steps
+#: still agree (more than half of the steps of every real drive of ``../shared/data``
+#: with faults injected, ``tests/test_input_checks.py``), where a wrong unit or
+#: convention leaves only the chance agreements of a few per cent.
+MIN_AGREEMENT = 1.0 / 3.0
+#: Relative slack when naming the unit mix-up a speed ratio matches (the mix-ups of one
+#: reading unit are 15 % apart or more).
+SPEED_UNIT_TOLERANCE = 0.05
 
 # Histogram of proper steps: bin k holds steps with round(BINS_PER_DECADE * log10(dt)) == k.
 _BINS_PER_DECADE = 200
@@ -110,6 +154,14 @@ _K_MAX = _BINS_PER_DECADE * 9  # 1e9 s: anything longer lands in the last bin
 # from 1 mm (and below) to 100 km (and above).
 _J_MIN = -3 * _BINS_PER_DECADE
 _J_MAX = 5 * _BINS_PER_DECADE
+# Histogram of reported speed over chord speed: bin r holds round(_BINS_PER_DECADE *
+# log10(ratio)) == r, from 1/1000 (and below, a reported 0 too) to 1000 (and above).
+_R_MIN = -3 * _BINS_PER_DECADE
+_R_MAX = 3 * _BINS_PER_DECADE
+#: Readings of a heading column tried against the chords, in this order: as the model
+#: reads it (degrees clockwise from north), as radians, as degrees counter-clockwise from
+#: east (mathematics' convention).
+HEADING_READINGS = ("degrees", "radians", "counter-clockwise from east")
 
 
 def _log_quantile(hist: np.ndarray, first_bin: int, q: float) -> float:
@@ -152,8 +204,17 @@ class InputChecks:
         self.fast = 0
         self.fastest = 0.0
         self.second_diff_hist = np.zeros(_J_MAX - _J_MIN + 1, dtype=np.int64)
+        self.speed_ratio_hist = np.zeros(_R_MAX - _R_MIN + 1, dtype=np.int64)
+        # Per reading of HEADING_READINGS, |reported heading - chord bearing| in 1-degree bins.
+        self.heading_diff_hist = np.zeros((len(HEADING_READINGS), 181), dtype=np.int64)
+        #: How the speed column was read (``fixes.attrs``): its name and unit.
+        self.speed_column: str | None = None
+        self.speed_unit = "m/s"
+        self.heading_column: str | None = None
         # The last two fixes of each track (t, lat, lon), oldest first.
         self._last: dict[str, list[tuple[float, float, float]]] = {}
+        # Each track's last fix on the witness baseline (t, lat, lon, speed, heading).
+        self._last_kept: dict[str, tuple[float, float, float, float, float]] = {}
         #: What the reader assumed about the columns (``fixes.attrs["notes"]``), once each.
         self.notes: list[str] = []
 
@@ -162,6 +223,12 @@ class InputChecks:
         for note in fixes.attrs.get("notes", ()):
             if note not in self.notes:
                 self.notes.append(note)
+        columns = fixes.attrs.get("columns")
+        if "speed" in fixes.columns and self.speed_column is None:
+            self.speed_column = getattr(columns, "speed", None) or "speed"
+            self.speed_unit = str(fixes.attrs.get("speed_unit", "m/s"))
+        if "heading" in fixes.columns and self.heading_column is None:
+            self.heading_column = getattr(columns, "heading", None) or "heading"
         t = fixes["t"].to_numpy(dtype=np.float64)
         lat = fixes["lat"].to_numpy(dtype=np.float64)
         lon = fixes["lon"].to_numpy(dtype=np.float64)
@@ -173,12 +240,19 @@ class InputChecks:
                 & (np.abs(lat) <= 90.0)
                 & (np.abs(lon) <= 180.0)
             )
+        none = np.full(t.size, np.nan)
         frame = pd.DataFrame(
             {
                 "track": fixes["track"].astype(str).to_numpy(dtype=object)[valid],
                 "t": t[valid],
                 "lat": lat[valid],
                 "lon": lon[valid],
+                "speed": (fixes["speed"].to_numpy(dtype=np.float64) if "speed" in fixes else none)[
+                    valid
+                ],
+                "heading": (
+                    fixes["heading"].to_numpy(dtype=np.float64) if "heading" in fixes else none
+                )[valid],
             }
         ).sort_values(["track", "t"], kind="stable")
         for name, part in frame.groupby("track", sort=False):
@@ -200,7 +274,165 @@ class InputChecks:
                 (float(a), float(b), float(c))
                 for a, b, c in zip(tt[-2:], la[-2:], lo[-2:], strict=True)
             ]
+            self._witness(str(name), part)
         return self
+
+    def _witness(self, track: str, part: pd.DataFrame) -> None:
+        """Histograms of the reported speed over the chord's speed, and of how far the
+        reported heading (each reading of :data:`HEADING_READINGS`) is from the chord's
+        bearing, over the steps that say something about them.
+
+        The steps join the first fix of each :data:`WITNESS_BASELINE_S` of the track's
+        time (so a 10 Hz receiver's chords span a second, like a 1 Hz one's, and its
+        centimetres of noise stay a small part of them) and are used within the
+        ``WITNESS_*`` limits. A step's reported value is the mean of its two fixes' (the
+        circular mean for a heading; the one fix's where the other has none): on an arc of
+        constant speed and curvature that is the chord's own speed and bearing.
+        """
+        columns = ("t", "lat", "lon", "speed", "heading")
+        values = [part[c].to_numpy() for c in columns]
+        if np.isnan(values[3]).all() and np.isnan(values[4]).all():
+            return
+        slot = np.floor(values[0] / WITNESS_BASELINE_S)
+        first = np.r_[True, slot[1:] != slot[:-1]]
+        kept = [v[first] for v in values]
+        last = self._last_kept.get(track)
+        if last is not None and kept[0][0] >= last[0]:
+            # The track goes on from its last kept fix, unless this chunk opens in its slot.
+            if np.floor(kept[0][0] / WITNESS_BASELINE_S) == np.floor(last[0] / WITNESS_BASELINE_S):
+                kept = [v[1:] for v in kept]
+            kept = [np.r_[x, v] for x, v in zip(last, kept, strict=True)]
+        if kept[0].size:
+            self._last_kept[track] = tuple(float(v[-1]) for v in kept)  # type: ignore[assignment]
+        t, lat, lon, speed, heading = kept
+        if t.size < 2:
+            return
+        dt = np.diff(t)
+        chord = haversine_m(lat[:-1], lon[:-1], lat[1:], lon[1:])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v = chord / dt
+            use = (
+                (dt >= REPEAT_S)
+                & (dt <= WITNESS_MAX_STEP_S)
+                & (chord >= WITNESS_MIN_CHORD_M)
+                & (v >= WITNESS_MIN_SPEED_MPS)
+                & (v <= MAX_SPEED_MPS)
+            )
+        if not use.any():
+            return
+        i = np.flatnonzero(use)
+        with np.errstate(invalid="ignore"):
+            reported = np.nanmean(np.c_[speed[i], speed[i + 1]], axis=1)  # nan if both are
+        # Moving by the reported speed too: a fault's chord is fast while the car may stand,
+        # and a step the car drove slowly says little about the witness.
+        with np.errstate(invalid="ignore"):
+            slow = reported < WITNESS_MIN_SPEED_MPS  # False where nan
+        moving = np.isfinite(reported) & ~slow
+        if moving.any():
+            ratio = reported[moving] / v[i][moving]
+            with np.errstate(divide="ignore"):
+                r = np.rint(_BINS_PER_DECADE * np.log10(np.maximum(ratio, 1e-9)))
+            r = np.clip(r.astype(np.int64), _R_MIN, _R_MAX)
+            self.speed_ratio_hist += np.bincount(r - _R_MIN, minlength=self.speed_ratio_hist.size)
+        if np.isnan(heading).all():
+            return
+        i, reported = i[~slow], reported[~slow]
+        # The chord's bearing, degrees clockwise from north (local flat approximation: a
+        # chord is at most MAX_SPEED_MPS * WITNESS_MAX_STEP_S = 500 m long).
+        north = (lat[i + 1] - lat[i]) * math.radians(1.0) * EARTH_MEAN_RADIUS_M
+        east = (
+            ((lon[i + 1] - lon[i] + 540.0) % 360.0 - 180.0)
+            * math.radians(1.0)
+            * EARTH_MEAN_RADIUS_M
+            * np.cos(np.radians(0.5 * (lat[i] + lat[i + 1])))
+        )
+        bearing = np.degrees(np.arctan2(east, north))
+        for k, ends in enumerate(_heading_readings(heading[i], heading[i + 1])):
+            h = _circular_mean_deg(*ends)
+            seen = np.isfinite(h)
+            if not seen.any():
+                continue
+            diff = np.abs((h[seen] - bearing[seen] + 540.0) % 360.0 - 180.0)
+            bins = np.clip(np.rint(diff).astype(np.int64), 0, 180)
+            self.heading_diff_hist[k] += np.bincount(bins, minlength=181)
+
+    def speed_agreement(self) -> tuple[float, float, int]:
+        """``(share, typical, steps)``: the share of steps whose reported speed agrees with
+        the chord's (:data:`SPEED_AGREEMENT`), the typical ratio of reported to chord speed
+        (the centre of the densest 5 % of ratios), and the steps; nan without any."""
+        hist = self.speed_ratio_hist
+        n = int(hist.sum())
+        if n == 0:
+            return float("nan"), float("nan"), 0
+        r = np.arange(_R_MIN, _R_MAX + 1)
+        within = np.abs(r) <= _BINS_PER_DECADE * math.log10(SPEED_AGREEMENT)
+        # The densest 5 % of ratios, then the median of those within 10 % of its centre.
+        half = max(1, round(_BINS_PER_DECADE * math.log10(1.05) / 2))
+        dense = np.convolve(hist, np.ones(2 * half + 1, dtype=np.int64), mode="same")
+        centre = int(np.argmax(dense))
+        reach = round(_BINS_PER_DECADE * math.log10(1.1))
+        lo = max(0, centre - reach)
+        near = hist[lo : centre + reach + 1]
+        k = lo + int(np.searchsorted(np.cumsum(near), max(1, math.ceil(0.5 * near.sum()))))
+        typical = 10.0 ** (r[k] / _BINS_PER_DECADE)
+        return float(hist[within].sum() / n), float(typical), n
+
+    def heading_agreement(self, reading: int = 0) -> tuple[float, int]:
+        """``(share, steps)``: the share of steps whose reported heading, read as
+        :data:`HEADING_READINGS` ``[reading]`` (0: as the model reads it), is within
+        :data:`HEADING_AGREEMENT_DEG` of the chord's bearing; nan without any."""
+        hist = self.heading_diff_hist[reading]
+        n = int(hist.sum())
+        if n == 0:
+            return float("nan"), 0
+        return float(hist[: int(HEADING_AGREEMENT_DEG) + 1].sum() / n), n
+
+    def _witness_warnings(self) -> list[str]:
+        """A reported speed or heading that contradicts the positions: the model would read
+        the contradiction as faults on clean fixes (a speed in km/h read as m/s flagged a
+        third of a clean Nevada drive's fixes)."""
+        out: list[str] = []
+        share, ratio, n = self.speed_agreement()
+        if n >= MIN_WITNESS_STEPS and share < MIN_AGREEMENT:
+            written = _speed_written_in(ratio, self.speed_unit)
+            if written is not None:
+                fix = (
+                    f"the values look like {written}: pass --speed-unit {written} "
+                    f"(Python: speed_unit={written!r})"
+                )
+            else:
+                fix = (
+                    "check the column and its unit (--speed-unit m/s, km/h, mph or knots), "
+                    "or leave it out with --speed-col ''"
+                )
+            out.append(
+                f"reported speed (column {self.speed_column!r}, read in {self.speed_unit}) "
+                f"agrees with the speed between fixes on {100 * share:.0f} % of {n:,} moving "
+                f"steps and is typically {ratio:.2f} times it: {fix}; a speed that contradicts "
+                "the positions can make the model flag clean fixes"
+            )
+        share, n = self.heading_agreement()
+        if n >= MIN_WITNESS_STEPS and share < MIN_AGREEMENT:
+            best, name = max(
+                (self.heading_agreement(k)[0], name)
+                for k, name in enumerate(HEADING_READINGS)
+                if k > 0
+            )
+            if best >= 1.0 - MIN_AGREEMENT:
+                fix = (
+                    f"read as {name} it agrees on {100 * best:.0f} %: convert it to degrees "
+                    "clockwise from north"
+                )
+            else:
+                fix = "check the column"
+            out.append(
+                f"reported heading (column {self.heading_column!r}) agrees with the bearing "
+                f"between fixes (within {HEADING_AGREEMENT_DEG:g} degrees) on "
+                f"{100 * share:.0f} % of {n:,} moving steps; {fix}, or leave it out with "
+                "--heading-col ''; a heading that contradicts the positions can make the model "
+                "flag clean fixes"
+            )
+        return out
 
     def _second_differences(self, t: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
         """Histogram where each fix lands beyond the line its two predecessors draw (m), over
@@ -301,6 +533,7 @@ class InputChecks:
                 "trained and validated on): a noisier receiver than the model has been "
                 "measured on; expect false alarms on its ordinary noise"
             )
+        out.extend(self._witness_warnings())
         q1, q3 = self.step_quantile(0.25), self.step_quantile(0.75)
         if math.isfinite(median) and q3 - q1 > IRREGULAR_IQR_RATIO * median:
             out.append(
@@ -309,6 +542,39 @@ class InputChecks:
                 "sampled drives"
             )
         return out
+
+
+def _heading_readings(a: np.ndarray, b: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Both ends' headings (canonical: the column's values modulo 360) as each reading of
+    :data:`HEADING_READINGS` takes them, in degrees clockwise from north."""
+
+    def radians(h: np.ndarray) -> np.ndarray:
+        # Radians in [-pi, pi) came out of the modulo as 356.9-360: back to negative first.
+        return np.degrees(np.where(h > 180.0, h - 360.0, h)) % 360.0
+
+    return [(a, b), (radians(a), radians(b)), ((90.0 - a) % 360.0, (90.0 - b) % 360.0)]
+
+
+def _circular_mean_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The mean direction of two headings in degrees (one where the other is nan)."""
+    ra, rb = np.radians(a), np.radians(b)
+    with np.errstate(invalid="ignore"):
+        s = np.nansum(np.c_[np.sin(ra), np.sin(rb)], axis=1)
+        c = np.nansum(np.c_[np.cos(ra), np.cos(rb)], axis=1)
+    out: np.ndarray = np.degrees(np.arctan2(s, c))
+    out[np.isnan(a) & np.isnan(b)] = np.nan
+    return out
+
+
+def _speed_written_in(ratio: float, read: str) -> str | None:
+    """The unit whose values, read in unit ``read``, give this ratio of reported to true
+    speed, or None."""
+    for written, f_written in SPEED_UNITS.items():
+        if written != read and abs(math.log(ratio * f_written / SPEED_UNITS[read])) <= math.log1p(
+            SPEED_UNIT_TOLERANCE
+        ):
+            return written
+    return None
 
 
 def input_warnings(

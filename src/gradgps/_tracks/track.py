@@ -467,9 +467,9 @@ def _decimal_commas(as_str: pd.Series, blank: pd.Series) -> pd.Series | None:
     return as_str.str.replace(",", ".", regex=False)
 
 
-#: Speed column names that say their unit, and the factor to m/s (the factors of SPEED_UNITS).
-_SPEED_UNITS = {
-    suffix: SPEED_UNITS[unit]
+#: Speed column name endings that say their unit (``speed_kmh``), and that unit.
+_SPEED_UNIT_OF_SUFFIX = {
+    suffix: unit
     for unit, suffixes in (
         ("km/h", ("kmh", "kph")),
         ("mph", ("mph",)),
@@ -481,11 +481,17 @@ _SPEED_UNITS = {
 
 def speed_factor(name: str) -> float:
     """Factor from the unit a speed column's name says (``speed_kmh``) to m/s; 1 if none."""
+    return SPEED_UNITS[speed_unit_named(name)]
+
+
+def speed_unit_named(name: str) -> str:
+    """The unit (a key of :data:`SPEED_UNITS`) a speed column's name says (``speed_kmh``);
+    ``"m/s"`` if none."""
     norm = _norm(name)
-    for unit, factor in _SPEED_UNITS.items():
-        if norm.endswith(unit) and norm != unit:
-            return factor
-    return 1.0
+    for suffix, unit in _SPEED_UNIT_OF_SUFFIX.items():
+        if norm.endswith(suffix) and norm != suffix:
+            return unit
+    return "m/s"
 
 
 def _numeric(frame: pd.DataFrame, col: str, table: Table, *, what: str) -> np.ndarray:
@@ -732,6 +738,9 @@ def to_fixes(
     )
     n = len(frame)
     out: dict[str, object] = {}
+    # What the reading assumed beyond the column map (``speed_unit``: the unit a speed
+    # column was read in), for the input checks' messages.
+    attrs: dict[str, str] = {}
     if cmap.track is not None:
         tr = frame[cmap.track]
         out["track"] = tr.astype("string").fillna("").astype(object).to_numpy()
@@ -785,7 +794,9 @@ def to_fixes(
             if role == "speed":
                 # The unit the caller names wins over the one the column name says (speed_kmh).
                 unit = table.options.speed_unit
-                values = values * (speed_factor(col) if unit is None else SPEED_UNITS[unit])
+                speed_unit = speed_unit_named(col) if unit is None else unit
+                values = values * SPEED_UNITS[speed_unit]
+                attrs["speed_unit"] = speed_unit
             out[role] = values
     if cmap.fix_quality is not None:
         out["fix_quality"] = _fix_qualities(frame[cmap.fix_quality])
@@ -805,6 +816,7 @@ def to_fixes(
     fixes = pd.DataFrame(out, index=pd.RangeIndex(n))
     fixes.attrs["columns"] = cmap
     fixes.attrs["source"] = table.source
+    fixes.attrs.update(attrs)
     if notes:
         fixes.attrs["notes"] = notes
     return fixes
