@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from gradgps import Detector, LocalFrame
 from gradgps._grad.defaults import MIN_STEP_S, grad_points
 from gradgps._grad.pipeline import PipelineParams
 from gradgps._run.report import ReportInputs, figures
 from gradgps._train.grad import labelled_sequences
+
+# Odd inputs on purpose: the Detector says so (gradgps.InputWarning); what is tested here
+# is the answer it gives all the same.
+pytestmark = pytest.mark.filterwarnings("ignore::gradgps.InputWarning")
 
 
 def _fixes() -> pd.DataFrame:

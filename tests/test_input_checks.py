@@ -397,3 +397,27 @@ def test_detect_names_a_speed_in_km_h_once_and_reads_it_with_the_flag(tmp_path: 
     )
     assert result.exit_code == 0, result.output
     assert "warning" not in result.stderr
+
+
+def test_the_python_api_warns_once_per_problem_and_call(tmp_path: Path) -> None:
+    """Detector.detect / clean and gradgps.detect / clean say what the command line says,
+    as gradgps.InputWarning; an ordinary drive gets none."""
+    import warnings
+
+    import gradgps
+
+    fixes = _winding()
+    kmh = fixes.assign(speed=fixes["speed"] * 3.6)
+    det = gradgps.Detector()
+    for call in (det.detect, det.clean, gradgps.detect, gradgps.clean):
+        with pytest.warns(gradgps.InputWarning, match="pass --speed-unit km/h") as seen:
+            call(kmh)
+        assert len(seen) == 1
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            call(fixes)
+    # Named by the caller's keyword, the unit reads right and nothing is said.
+    table = kmh.rename(columns={"speed": "speed_kmh"})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        gradgps.detect(table, speed="speed_kmh")

@@ -21,6 +21,10 @@ from gradgps._grad.detector import Detector, TrackStreams
 from gradgps._run.follow import follow_lines
 from gradgps._tracks.track import to_fixes
 
+# Odd inputs on purpose: the Detector says so (gradgps.InputWarning); what is tested here
+# is the answer it gives all the same.
+pytestmark = pytest.mark.filterwarnings("ignore::gradgps.InputWarning")
+
 COLUMNS = ["anomaly", "bias_type", "time_type", "alert", "invalid_reason"]
 
 

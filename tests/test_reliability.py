@@ -27,6 +27,10 @@ from gradgps._grad.detector import Detector, MultiTrackDetector
 from gradgps._result import RESULT_DTYPES
 from gradgps._run.chunked import detect_csv_in_chunks
 
+# Odd inputs on purpose: the Detector says so (gradgps.InputWarning); what is tested here
+# is the answer it gives all the same.
+pytestmark = pytest.mark.filterwarnings("ignore::gradgps.InputWarning")
+
 REPO = Path(__file__).resolve().parents[1]
 MIXED = REPO / "tests" / "data" / "mixed_bad_fixes.csv"
 RESULT = list(RESULT_DTYPES)

@@ -21,7 +21,14 @@ from __future__ import annotations
 from . import datasets, inject, metrics, simulate
 from ._baselines.rema_detector import RemaDetector
 from ._baselines.speed_gate import SpeedGate
-from ._exceptions import ConfigError, DataNotFoundError, GradGPSError, InputError, ModelError
+from ._exceptions import (
+    ConfigError,
+    DataNotFoundError,
+    GradGPSError,
+    InputError,
+    InputWarning,
+    ModelError,
+)
 from ._grad.api import clean, detect
 from ._grad.detector import Detector, FleetDetector, MultiTrackDetector
 from ._grad.detector import TrackStreams as TrackStreams  # deprecated name of MultiTrackDetector
@@ -50,6 +57,7 @@ __all__ = [
     "FleetDetector",
     "GradGPSError",
     "InputError",
+    "InputWarning",
     "LocalFrame",
     "ModelError",
     "MultiTrackDetector",

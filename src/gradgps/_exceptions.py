@@ -13,6 +13,7 @@ __all__ = [
     "DataNotFoundError",
     "GradGPSError",
     "InputError",
+    "InputWarning",
     "ModelError",
 ]
 
@@ -76,3 +77,13 @@ class ModelError(GradGPSError):
 
 class DataNotFoundError(GradGPSError, FileNotFoundError):
     """A named dataset or data folder that is not where it was looked for."""
+
+
+class InputWarning(UserWarning):
+    """Input outside what the model was validated on: answers there are not backed by
+    a measurement (a slow rate, repeated timestamps, a noisy receiver, a reported speed
+    in another unit...). Raised as a warning, once per problem and call, by
+    :meth:`gradgps.Detector.detect`, :meth:`gradgps.Detector.clean`,
+    :func:`gradgps.detect` and :func:`gradgps.clean`; the command line prints the same
+    sentences as ``warning:`` lines. ``warnings.simplefilter("error", InputWarning)``
+    turns them into errors, ``"ignore"`` silences them."""

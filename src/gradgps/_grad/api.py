@@ -32,6 +32,7 @@ def detect(
 
     det = Detector(model, threshold=threshold)
     inp = track_input(data, **columns)
+    det._warn_about(inp.fixes)
     return add_columns(inp, det._detect_input(inp))
 
 

@@ -70,7 +70,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from .._exceptions import ConfigError, GradGPSError, ModelError
+from .._exceptions import ConfigError, GradGPSError, InputWarning, ModelError
 from .._result import (
     RESULT_DTYPES,
     STEP_TOLERANCE_S,
@@ -87,6 +87,7 @@ from .._result import (
     usable_point,
 )
 from .._tracks.geo import LocalFrame, far_apart_scalar
+from .._tracks.input_checks import input_warnings, validated_rates
 from .._tracks.preprocess import Prepared, stream_reasons
 from .._tracks.track import ColumnKeywords, ColumnMap, check_keywords, datetime_seconds
 from .core import N_CORE_PARAMS, _layout
@@ -852,10 +853,21 @@ class Detector:
         from .._tracks.objects import add_columns
 
         inp = track_input(data, **columns)
+        self._warn_about(inp.fixes)
         result = self._detect_input(inp, threads=threads)
         if inp.kind == "frame":
             return result
         return add_columns(inp, result)
+
+    def _warn_about(self, fixes: pd.DataFrame) -> None:
+        """An :class:`InputWarning` for each way ``fixes`` lie outside what the model was
+        validated on (:func:`gradgps._tracks.input_checks.input_warnings`): the sentences
+        the command line prints. The caller of the public method is the one warned."""
+        import warnings
+
+        lowest, highest = validated_rates(self.model_.config)
+        for text in input_warnings(fixes, min_rate_hz=lowest, max_rate_hz=highest):
+            warnings.warn(text, InputWarning, stacklevel=3)
 
     def _detect_input(self, inp: TrackInput, *, threads: int = 1) -> pd.DataFrame:
         """The result columns of :meth:`detect` for an input already read by
@@ -928,6 +940,7 @@ class Detector:
         from .._tracks.objects import replace_positions
 
         inp = track_input(data, **columns)
+        self._warn_about(inp.fixes)
         result = self.detect_fixes(inp.fixes)
         keep = (result["invalid_reason"].to_numpy() == "") | keep_invalid
         return replace_positions(

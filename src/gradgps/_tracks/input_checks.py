@@ -321,8 +321,7 @@ class InputChecks:
         if not use.any():
             return
         i = np.flatnonzero(use)
-        with np.errstate(invalid="ignore"):
-            reported = np.nanmean(np.c_[speed[i], speed[i + 1]], axis=1)  # nan if both are
+        reported = _mean_of_two(speed[i], speed[i + 1])
         # Moving by the reported speed too: a fault's chord is fast while the car may stand,
         # and a step the car drove slowly says little about the witness.
         with np.errstate(invalid="ignore"):
@@ -553,6 +552,15 @@ def _heading_readings(a: np.ndarray, b: np.ndarray) -> list[tuple[np.ndarray, np
         return np.degrees(np.where(h > 180.0, h - 360.0, h)) % 360.0
 
     return [(a, b), (radians(a), radians(b)), ((90.0 - a) % 360.0, (90.0 - b) % 360.0)]
+
+
+def _mean_of_two(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The mean of each pair of finite values (the one finite value where the other is
+    not; nan where neither is), without ``np.nanmean``'s warning on all-nan pairs."""
+    fa, fb = np.isfinite(a), np.isfinite(b)
+    a0, b0 = np.where(fa, a, 0.0), np.where(fb, b, 0.0)
+    out: np.ndarray = np.where(fa & fb, 0.5 * (a0 + b0), np.where(fa, a0, np.where(fb, b0, np.nan)))
+    return out
 
 
 def _circular_mean_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
