@@ -57,6 +57,7 @@ from .robustness import (
     report_head,
     suite_tables,
 )
+from .scored import detect_quietly
 
 __all__ = ["GNSS_BIAS", "GNSS_VARIANTS", "gnss_cell", "gnss_markdown", "run_gnss_bench"]
 
@@ -148,7 +149,7 @@ def gnss_cell(
     """Score ``det`` on one variant (``cols`` read by ``cmap``) of a ``gnss``-labelled table."""
     started = time.perf_counter()
     fixes = to_fixes(labelled[cols], cmap)
-    result = det.detect(fixes)
+    result = detect_quietly(det, fixes)
     scored = (
         labelled["glitch"].to_numpy(dtype=np.int64) != 1
         if "glitch" in labelled.columns

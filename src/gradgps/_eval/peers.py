@@ -46,6 +46,7 @@ from .._data.inject import inject_grad
 from .._exceptions import ConfigError
 from .._tracks.track import ColumnMap, to_fixes
 from .metrics import class_scores
+from .scored import detect_quietly
 
 __all__ = [
     "GRIDS",
@@ -266,7 +267,7 @@ def _method_row(
     for mode, (labelled, fixes) in inputs.items():
         vf = _variant_fixes(fixes, variant)
         began = time.perf_counter()
-        result = det.detect(vf)
+        result = detect_quietly(det, vf)
         elapsed = time.perf_counter() - began
         flagged = result["anomaly"].to_numpy(dtype=np.int64) == 1
         scores = class_scores(labelled["label_anomaly"].to_numpy(dtype=np.int64), flagged)
@@ -277,7 +278,7 @@ def _method_row(
             row["batch_us"] = 1e6 * elapsed / max(len(vf), 1)
             row["stream_us"] = None if stream is None else _stream_us(stream, vf)
     cf = _variant_fixes(clean, variant)
-    cres = det.detect(cf)
+    cres = detect_quietly(det, cf)
     usable = cres["invalid_reason"].to_numpy(dtype=object) == ""
     row["clean_false_alarm_pct"] = 100.0 * float(
         np.mean(cres["anomaly"].to_numpy()[usable] == 1) if usable.any() else 0.0
@@ -308,7 +309,7 @@ def peers_table(
     variants = [v for v in VARIANTS if v == "positions" or _has_reported(clean)]
     out: dict[str, Any] = {"points": len(split_f), "variants": {}}
     warm = _variant_fixes(split_f, "positions").iloc[:50]
-    grad.detect(warm)  # compile and load before timing
+    detect_quietly(grad, warm)  # compile and load before timing
     positions_rows: dict[str, Any] = {}
     for variant in variants:
         rows: dict[str, Any] = {}

@@ -79,6 +79,7 @@ from .._tracks.geo import haversine_m
 from .._tracks.thin import thin_mask
 from .._tracks.track import ColumnMap, to_fixes
 from .metrics import class_scores, event_recall, rmse_m
+from .scored import detect_quietly
 
 __all__ = [
     "RATES",
@@ -261,7 +262,7 @@ def _injected(
     fixes, the detector's result, the flags and the injected truth (anomaly per row)."""
     labelled = inject_grad(table, seed=seed, columns=cmap)
     fixes = to_fixes(labelled, cmap)
-    res = det.detect(fixes)
+    res = detect_quietly(det, fixes)
     hit = res["anomaly"].to_numpy(dtype=np.int64) == 1
     truth = labelled["label_anomaly"].to_numpy(dtype=np.int64) == 1
     return labelled, fixes, res, hit, truth
@@ -281,7 +282,7 @@ def _cell(
     cell_table = table[cols]
     clean = to_fixes(cell_table, cmap)
     started = time.perf_counter()
-    result = det.detect(clean)
+    result = detect_quietly(det, clean)
     flagged = result["anomaly"].to_numpy(dtype=np.int64) == 1
     holds = evident_holds(clean) & ordinary
     out: dict[str, Any] = {
