@@ -11,7 +11,9 @@ Input, recognised from the first non-blank line (or named with ``--format``):
 * **CSV**: a header line first (column roles auto-detected or named with the
   ``--*-col`` options, as in batch mode), then one fix per line. Output: the
   input fields (padded or cut to the header's width) plus the result columns.
-  One :class:`~gradgps.Detector` per track id (the track column's value).
+  One :class:`~gradgps.Detector` per track id (the track column's value). A
+  speed column whose name says its unit (``speed_kmh``) is read in that unit, as
+  the batch reader reads it.
 * **NMEA 0183**: GGA and RMC sentences (checksums checked, as in
   :mod:`gradgps._io.nmea`). Output: ``line``, ``sentence``, ``time``, ``lat``,
   ``lon``, ``speed``, ``heading``, ``epoch_line`` plus the result columns.
@@ -73,7 +75,7 @@ from .._grad.detector import Detector, MultiTrackDetector
 from .._io.nmea import STALE_DATE_S, Malformed, parse_gga, parse_rmc, split_sentence
 from .._io.times import iso_utc_one, time_of_day_utc
 from .._result import RESULT_COLUMNS, PointResult
-from .._tracks.track import ColumnMap, resolve_columns, rolled_over
+from .._tracks.track import ColumnMap, resolve_columns, rolled_over, speed_factor
 
 __all__ = [
     "HOLD_LINES",
@@ -285,6 +287,8 @@ class _CsvFollower:
         }
         self.streams = streams
         self.output = output
+        # A speed column's name may say its unit (speed_kmh), as the batch reader reads it.
+        self.speed_factor = 1.0 if roles.speed is None else speed_factor(roles.speed)
 
     def out_header(self) -> list[str]:
         return [*self.header, *RESULT_FIELDS]
@@ -314,6 +318,8 @@ class _CsvFollower:
             lon = float(self._value(fields, "lon") or "nan")
             role = "speed"
             speed = self._optional(fields, "speed")
+            if speed is not None:
+                speed *= self.speed_factor
             role = "heading"
             heading = self._optional(fields, "heading")
         except ValueError:
