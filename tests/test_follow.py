@@ -11,6 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from click.testing import CliRunner
 
@@ -419,3 +420,60 @@ def test_nmea_with_a_settling_model_repeats_the_settled_verdict_on_the_second_se
     assert [_result_of(r) for r in repeated] == [_result_of(r) for r in scored]
     assert counts.fixes == 30
     assert counts.anomalies == sum(int(r["anomaly"]) for r in scored)
+
+
+def _winding_csv(
+    speed_factor: float = 1.0, minutes: float = 30.0, period_s: float = 1.0
+) -> list[str]:
+    """CSV lines of a simulated drive with its speed (times ``speed_factor``) and heading."""
+    from gradgps._data.simulator import simulate_fleet
+
+    drive = simulate_fleet(1, minutes, 1.0 / period_s, seed=21, imu=False)
+    frame = drive[["t", "lat", "lon", "speed", "heading"]].copy()
+    frame["speed"] *= speed_factor
+    return frame.to_csv(index=False).splitlines()
+
+
+def test_a_stream_says_each_input_warning_once_as_batch_would() -> None:
+    """A km/h speed read as m/s: the checks batch runs on a whole file run on the stream
+    too, and say so once, however many looks the stream gets; the same stream in m/s
+    gets none."""
+    from gradgps._run.follow import CHECK_EVERY
+
+    lines = _winding_csv(3.6, minutes=80.0)
+    assert len(lines) > 4 * CHECK_EVERY  # three looks before the end
+    warned: list[str] = []
+    out: list[str] = []
+    follow_lines(lines, out.append, warn=warned.append)
+    assert len(warned) == 1
+    assert warned[0].startswith("reported speed (column 'speed', read in m/s)")
+    assert "--speed-unit km/h" in warned[0]
+    assert len(out) == len(lines)  # the lines themselves are what they were
+    warned.clear()
+    follow_lines(_winding_csv(1.0, minutes=80.0), [].append, warn=warned.append)
+    assert warned == []
+
+
+def test_a_short_stream_is_checked_at_its_end() -> None:
+    """Fewer fixes than CHECK_EVERY: the checks look once, at the end of the input."""
+    warned: list[str] = []
+    lines = _winding_csv(1.0, minutes=8.0, period_s=5.0)
+    follow_lines(lines, [].append, warn=warned.append)
+    assert any("slower than the slowest rate the model was validated on" in w for w in warned)
+    # What batch says of the same fixes, in the same words.
+    from gradgps._tracks.input_checks import input_warnings
+    from gradgps._tracks.track import to_fixes
+
+    frame = pd.read_csv(io.StringIO("\n".join(lines)))
+    assert warned == input_warnings(to_fixes(frame))
+
+
+def test_follow_on_the_command_line_warns_on_stderr(tmp_path: Path) -> None:
+    src = tmp_path / "kmh.csv"
+    src.write_text("\n".join(_winding_csv(3.6, minutes=12.0)) + "\n")
+    result = CliRunner().invoke(main, ["detect", "--follow", str(src)])
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.stderr.splitlines() if line.startswith("warning: ")]
+    assert len(lines) == 1
+    assert "--speed-unit km/h" in lines[0]
+    assert "warning" not in result.stdout

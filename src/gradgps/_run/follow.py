@@ -50,6 +50,14 @@ is one the receiver reports as no fix (GGA quality 0, RMC status ``V``, a
 CSV fix-quality column saying 0/``V``/``none``, 0 satellites), with
 ``invalid_reason`` ``receiver reports no fix``, as in batch.
 
+Honest inputs: the checks batch ``gradgps detect`` runs over a whole file
+(:class:`gradgps._tracks.input_checks.InputChecks`: a slow rate, repeated
+timestamps, a noisy receiver, a reported speed in another unit...) run over the
+stream too, after :data:`CHECK_EVERY` scored fixes, then after twice as many
+each time, and at the end of the input;
+``warn`` gets each kind of warning once, the first time its evidence is in (a
+stream has no end to wait for).
+
 Banner lines: loggers often start a file with a line of their own (``#
 GPSLogger 3.2 started 2026-11-23``, a count, a title). Until the first NMEA
 sentence or CSV header, lines that are neither are skipped, and ``warn`` is
@@ -70,14 +78,25 @@ import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
+import numpy as np
+import pandas as pd
+
 from .._exceptions import ConfigError, InputError
-from .._grad.detector import Detector, MultiTrackDetector
+from .._grad.detector import Detector, MultiTrackDetector, load_grad_model
 from .._io.nmea import STALE_DATE_S, Malformed, parse_gga, parse_rmc, split_sentence
 from .._io.times import iso_utc_one, time_of_day_utc
 from .._result import RESULT_COLUMNS, PointResult
-from .._tracks.track import ColumnMap, resolve_columns, rolled_over, speed_factor
+from .._tracks.input_checks import InputChecks, validated_rates
+from .._tracks.track import (
+    ColumnMap,
+    resolve_columns,
+    rolled_over,
+    speed_factor,
+    speed_unit_named,
+)
 
 __all__ = [
+    "CHECK_EVERY",
     "HOLD_LINES",
     "MAX_BANNER_LINES",
     "NMEA_FIELDS",
@@ -95,6 +114,10 @@ MAX_BANNER_LINES = 100
 #: Lines that may wait behind a line whose verdict has not settled (a model whose verdicts
 #: settle one fix late) before it goes out with its verdict at once.
 HOLD_LINES = 10_000
+#: Scored fixes before the first look of the input checks (ten minutes at 1 Hz: the checks
+#: need a few hundred steps to say anything); each later look waits twice as many fixes
+#: as the one before, so a day-long stream pays for a dozen looks of a few milliseconds.
+CHECK_EVERY = 600
 
 
 @dataclass
@@ -269,6 +292,73 @@ def _satellites(text: str | None) -> float | None:
         return None
 
 
+class _Watch:
+    """The stream's fixes through the input checks, :data:`CHECK_EVERY` of them first and
+    twice as many as the last time after that; each kind of warning goes to ``warn``
+    once, when the checks first find it."""
+
+    def __init__(
+        self,
+        warn: Callable[[str], None] | None,
+        checks: InputChecks,
+        columns: ColumnMap | None = None,
+        speed_unit: str = "m/s",
+    ) -> None:
+        self.warn = warn
+        self.checks = checks
+        self.columns = columns
+        self.speed_unit = speed_unit
+        self.rows: list[tuple[str, float, float, float, float, float]] = []
+        self.said: set[str] = set()
+        self.next_look = CHECK_EVERY
+
+    def fix(
+        self,
+        track: str,
+        t: float,
+        lat: float,
+        lon: float,
+        speed: float | None,
+        heading: float | None,
+    ) -> None:
+        """One scored fix (speed in m/s, heading in degrees, as the Detector took them)."""
+        if self.warn is None:
+            return
+        nan = math.nan
+        self.rows.append(
+            (
+                track,
+                t,
+                lat,
+                lon,
+                nan if speed is None else speed,
+                nan if heading is None else heading,
+            )
+        )
+        if len(self.rows) >= self.next_look:
+            self.next_look *= 2
+            self.look()
+
+    def look(self) -> None:
+        """Feed the fixes gathered so far to the checks and say what is new."""
+        if self.warn is None or not self.rows:
+            return
+        frame = pd.DataFrame(self.rows, columns=["track", "t", "lat", "lon", "speed", "heading"])
+        self.rows = []
+        for role in ("speed", "heading"):
+            if frame[role].isna().all():
+                frame = frame.drop(columns=role)
+        if "heading" in frame:
+            frame["heading"] = np.mod(frame["heading"], 360.0)
+        if self.columns is not None:
+            frame.attrs["columns"] = self.columns
+        frame.attrs["speed_unit"] = self.speed_unit
+        for kind, text in self.checks.add(frame).findings():
+            if kind not in self.said:
+                self.said.add(kind)
+                self.warn(text)
+
+
 class _CsvFollower:
     """One CSV stream: the header fixes the columns, then one fix per line."""
 
@@ -278,6 +368,7 @@ class _CsvFollower:
         roles: ColumnMap,
         streams: MultiTrackDetector,
         output: _Output,
+        watch: _Watch,
     ) -> None:
         """``roles``: the header's columns as :meth:`_Start.header` resolved them."""
         self.header = header
@@ -289,6 +380,9 @@ class _CsvFollower:
         self.output = output
         # A speed column's name may say its unit (speed_kmh), as the batch reader reads it.
         self.speed_factor = 1.0 if roles.speed is None else speed_factor(roles.speed)
+        self.watch = watch
+        watch.columns = roles
+        watch.speed_unit = "m/s" if roles.speed is None else speed_unit_named(roles.speed)
 
     def out_header(self) -> list[str]:
         return [*self.header, *RESULT_FIELDS]
@@ -342,6 +436,8 @@ class _CsvFollower:
             fix_quality=self._value(fields, "fix_quality"),
             satellites=_satellites(self._value(fields, "satellites")),
         )
+        if not result.invalid_reason:
+            self.watch.fix(track, t, lat, lon, speed, heading)
         return self.output.verdict(track, det, result)
 
     def line(self, text: str) -> _Line:
@@ -357,6 +453,7 @@ class _NmeaFollower:
 
     detector: Detector
     output: _Output
+    watch: _Watch
     line_number: int = 0
     day_offset: float = 0.0
     last_tod: float = math.nan
@@ -426,6 +523,8 @@ class _NmeaFollower:
                 fix_quality=0 if epoch.no_fix else epoch.quality,
                 satellites=epoch.satellites,
             )
+            if not result.invalid_reason:
+                self.watch.fix("", tod + self.day_offset, lat, lon, epoch.speed, epoch.course)
             verdict = self.output.verdict(None, self.detector, result)
             scored = True
             self.last_epoch = (tod, n, verdict)
@@ -514,8 +613,9 @@ def follow_lines(
     ``write`` is called with one CSV line (no newline) at a time and should
     flush; ``fmt`` is ``"csv"``, ``"nmea"`` or ``None`` (from the first line).
     ``warn`` gets one message (no ``warning:`` prefix) when banner lines were
-    skipped before the first sentence or header; they are counted in
-    ``FollowCounts.skipped`` either way. Raises only for a CSV header without
+    skipped before the first sentence or header (they are counted in
+    ``FollowCounts.skipped`` either way), and one per kind of input warning, when
+    the checks first find it (see the module docstring). Raises only for a CSV header without
     time/latitude/longitude columns (or no header at all), or an unsupported
     ``fmt``. A model whose verdicts settle one fix late writes each fix's line once
     the next fix of its track has come (see the module docstring).
@@ -523,6 +623,7 @@ def follow_lines(
     if fmt is not None and fmt not in ("csv", "nmea"):
         raise ConfigError(f"follow mode reads CSV or NMEA lines, not {fmt!r}")
     counts = FollowCounts()
+    watch: _Watch | None = None
     follower: _CsvFollower | _NmeaFollower | None = None
     output: _Output | None = None
     start = _Start(fmt, columns)
@@ -541,17 +642,21 @@ def follow_lines(
             if header is not None:
                 streams = MultiTrackDetector(model, threshold=threshold)
                 output = _Output(write, counts, streams.settles)
-                follower = _CsvFollower(*header, streams, output)
+                watch = _Watch(warn, InputChecks(*validated_rates(load_grad_model(model).config)))
+                follower = _CsvFollower(*header, streams, output, watch)
                 write(_csv_text(follower.out_header()))
                 continue
             single = Detector(model, threshold=threshold)
             output = _Output(write, counts, single.model_.params.settles(single.model_.dims))
-            follower = _NmeaFollower(single, output)
+            watch = _Watch(warn, InputChecks(*validated_rates(single.model_.config)))
+            follower = _NmeaFollower(single, output, watch)
             write(_csv_text(follower.out_header()))
         assert output is not None
         output.add(follower.line(text))
     if output is not None:
         output.finish()
+    if watch is not None:
+        watch.look()
     if follower is None and start.skipped:
         start.give_up()
     return counts

@@ -395,11 +395,11 @@ class InputChecks:
             return float("nan"), 0
         return float(hist[: int(HEADING_AGREEMENT_DEG) + 1].sum() / n), n
 
-    def _witness_warnings(self) -> list[str]:
+    def _witness_warnings(self) -> list[tuple[str, str]]:
         """A reported speed or heading that contradicts the positions: the model would read
         the contradiction as faults on clean fixes (a speed in km/h read as m/s flagged a
         third of a clean Nevada drive's fixes)."""
-        out: list[str] = []
+        out: list[tuple[str, str]] = []
         share, ratio, n = self.speed_agreement()
         if n >= MIN_WITNESS_STEPS and share < MIN_AGREEMENT:
             written = _speed_written_in(ratio, self.speed_unit)
@@ -413,12 +413,13 @@ class InputChecks:
                     "check the column and its unit (--speed-unit m/s, km/h, mph or knots), "
                     "or leave it out with --speed-col ''"
                 )
-            out.append(
+            text = (
                 f"reported speed (column {self.speed_column!r}, read in {self.speed_unit}) "
                 f"agrees with the speed between fixes on {100 * share:.0f} % of {n:,} moving "
                 f"steps and is typically {ratio:.2f} times it: {fix}; a speed that contradicts "
                 "the positions can make the model flag clean fixes"
             )
+            out.append(("reported speed", text))
         share, n = self.heading_agreement()
         if n >= MIN_WITNESS_STEPS and share < MIN_AGREEMENT:
             best, name = max(
@@ -433,13 +434,14 @@ class InputChecks:
                 )
             else:
                 fix = "check the column"
-            out.append(
+            text = (
                 f"reported heading (column {self.heading_column!r}) agrees with the bearing "
                 f"between fixes (within {HEADING_AGREEMENT_DEG:g} degrees) on "
                 f"{100 * share:.0f} % of {n:,} moving steps; {fix}, or leave it out with "
                 "--heading-col ''; a heading that contradicts the positions can make the model "
                 "flag clean fixes"
             )
+            out.append(("reported heading", text))
         return out
 
     def _second_differences(self, t: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
@@ -506,55 +508,68 @@ class InputChecks:
 
     def warnings(self) -> list[str]:
         """One sentence per way the input is outside what the model was validated on."""
-        out: list[str] = list(self.notes)
+        return [text for _, text in self.findings()]
+
+    def findings(self) -> list[tuple[str, str]]:
+        """``(kind, sentence)`` per way the input is outside what the model was validated
+        on: the sentences of :meth:`warnings`, each with its kind (``"slow rate"``,
+        ``"reported speed"``...; a reader's note is its own kind), so that a stream can
+        say each kind once, as the evidence for it comes in."""
+        out: list[tuple[str, str]] = [(note, note) for note in self.notes]
         if self.steps == 0:
             return out
         median = self.step_quantile(0.5)
         slowest = 1.0 / self.min_rate_hz
         fastest = 1.0 / self.max_rate_hz
         if math.isfinite(median) and median > slowest * (1.0 + RATE_TOLERANCE):
-            out.append(
+            text = (
                 f"median time step {median:.2g} s ({1.0 / median:.2g} Hz) is slower than the "
                 f"slowest rate the model was validated on ({self.min_rate_hz:g} Hz, one fix every "
                 f"{slowest:g} s): expect more false alarms and missed faults"
             )
+            out.append(("slow rate", text))
         if math.isfinite(median) and median < fastest / (1.0 + RATE_TOLERANCE):
-            out.append(
+            text = (
                 f"median time step {median:.2g} s ({1.0 / median:.2g} Hz) is faster than the "
                 f"fastest rate the model was validated on ({self.max_rate_hz:g} Hz): results "
                 "there are not measured"
             )
+            out.append(("fast rate", text))
         if self.repeats > MAX_REPEAT_SHARE * self.steps:
-            out.append(
+            text = (
                 f"{self.repeats:,} of {self.steps:,} time steps "
                 f"({100.0 * self.repeats / self.steps:.1f} %) repeat the previous fix's timestamp "
                 "(within 1 ms): check the time column's resolution; repeated fixes are merged "
                 "(whole file) or flagged invalid (chunks, --follow)"
             )
+            out.append(("repeated timestamps", text))
         proper = int(self.hist.sum())
         if self.fast > MAX_FAST_STEPS and self.fast > MAX_FAST_SHARE * proper:
-            out.append(
+            text = (
                 f"{self.fast:,} of {proper:,} time steps ({100.0 * self.fast / proper:.0f} %) "
                 f"imply speeds above {MAX_SPEED_MPS:g} m/s (fastest {self.fastest:,.0f} m/s): "
                 "check the time unit and the latitude/longitude columns; so many are not "
                 "glitches of a car's receiver"
             )
+            out.append(("implausible speeds", text))
         noise, triples = self.second_difference_quartile()
         if triples >= MIN_TRIPLES and noise > NOISY_QUARTILE_M:
-            out.append(
+            text = (
                 f"noisy fixes: three in four fixes land more than {noise:.2g} m off the line "
                 "their two predecessors draw (at most 1.3 m on every real drive the model "
                 "was trained and validated on): a noisier receiver than the model has been "
                 "measured on; expect false alarms on its ordinary noise"
             )
+            out.append(("noisy fixes", text))
         out.extend(self._witness_warnings())
         q1, q3 = self.step_quantile(0.25), self.step_quantile(0.75)
         if math.isfinite(median) and q3 - q1 > IRREGULAR_IQR_RATIO * median:
-            out.append(
+            text = (
                 f"irregular sampling: time steps between {q1:.2g} s and {q3:.2g} s (quartiles) "
                 f"around a median of {median:.2g} s; the model was validated on evenly "
                 "sampled drives"
             )
+            out.append(("irregular sampling", text))
         return out
 
 
