@@ -477,3 +477,14 @@ def test_follow_on_the_command_line_warns_on_stderr(tmp_path: Path) -> None:
     assert len(lines) == 1
     assert "--speed-unit km/h" in lines[0]
     assert "warning" not in result.stdout
+
+
+def test_an_infinite_heading_in_a_stream_is_no_direction_to_the_checks_either() -> None:
+    """The checks read a stream's headings as the batch reader does (modulo 360, an
+    infinite one none), without a RuntimeWarning from the modulo."""
+    lines = _winding_csv(1.0, minutes=12.0)
+    header, *rows = lines
+    rows[5] = ",".join([*rows[5].split(",")[:4], "inf"])
+    warned: list[str] = []
+    follow_lines([header, *rows], [].append, warn=warned.append)
+    assert warned == []

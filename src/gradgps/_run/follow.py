@@ -78,7 +78,6 @@ import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
@@ -88,10 +87,11 @@ from .._io.times import iso_utc_one, time_of_day_utc
 from .._result import RESULT_COLUMNS, PointResult
 from .._tracks.input_checks import InputChecks, validated_rates
 from .._tracks.track import (
+    SPEED_UNITS,
     ColumnMap,
+    canonical_heading,
     resolve_columns,
     rolled_over,
-    speed_factor,
     speed_unit_named,
 )
 
@@ -349,7 +349,7 @@ class _Watch:
             if frame[role].isna().all():
                 frame = frame.drop(columns=role)
         if "heading" in frame:
-            frame["heading"] = np.mod(frame["heading"], 360.0)
+            frame["heading"] = canonical_heading(frame["heading"].to_numpy())
         if self.columns is not None:
             frame.attrs["columns"] = self.columns
         frame.attrs["speed_unit"] = self.speed_unit
@@ -369,8 +369,10 @@ class _CsvFollower:
         streams: MultiTrackDetector,
         output: _Output,
         watch: _Watch,
+        speed_unit: str,
     ) -> None:
-        """``roles``: the header's columns as :meth:`_Start.header` resolved them."""
+        """``roles``: the header's columns as :meth:`_Start.header` resolved them;
+        ``speed_unit``: the unit the speed column's name says (:func:`speed_unit_named`)."""
         self.header = header
         self.index = {
             role: (None if name is None else header.index(name))
@@ -379,10 +381,8 @@ class _CsvFollower:
         self.streams = streams
         self.output = output
         # A speed column's name may say its unit (speed_kmh), as the batch reader reads it.
-        self.speed_factor = 1.0 if roles.speed is None else speed_factor(roles.speed)
+        self.speed_factor = SPEED_UNITS[speed_unit]
         self.watch = watch
-        watch.columns = roles
-        watch.speed_unit = "m/s" if roles.speed is None else speed_unit_named(roles.speed)
 
     def out_header(self) -> list[str]:
         return [*self.header, *RESULT_FIELDS]
@@ -642,8 +642,11 @@ def follow_lines(
             if header is not None:
                 streams = MultiTrackDetector(model, threshold=threshold)
                 output = _Output(write, counts, streams.settles)
-                watch = _Watch(warn, InputChecks(*validated_rates(load_grad_model(model).config)))
-                follower = _CsvFollower(*header, streams, output, watch)
+                roles = header[1]
+                unit = "m/s" if roles.speed is None else speed_unit_named(roles.speed)
+                checks = InputChecks(*validated_rates(load_grad_model(model).config))
+                watch = _Watch(warn, checks, roles, unit)
+                follower = _CsvFollower(*header, streams, output, watch, unit)
                 write(_csv_text(follower.out_header()))
                 continue
             single = Detector(model, threshold=threshold)

@@ -382,10 +382,8 @@ class InputChecks:
         centre = int(np.argmax(dense))
         reach = round(_BINS_PER_DECADE * math.log10(1.1))
         lo = max(0, centre - reach)
-        near = hist[lo : centre + reach + 1]
-        k = lo + int(np.searchsorted(np.cumsum(near), max(1, math.ceil(0.5 * near.sum()))))
-        typical = 10.0 ** (r[k] / _BINS_PER_DECADE)
-        return float(hist[within].sum() / n), float(typical), n
+        typical = _log_quantile(hist[lo : centre + reach + 1], _R_MIN + lo, 0.5)
+        return float(hist[within].sum() / n), typical, n
 
     def heading_agreement(self, reading: int = 0) -> tuple[float, int]:
         """``(share, steps)``: the share of steps whose reported heading, read as

@@ -479,9 +479,11 @@ _SPEED_UNIT_OF_SUFFIX = {
 }
 
 
-def speed_factor(name: str) -> float:
-    """Factor from the unit a speed column's name says (``speed_kmh``) to m/s; 1 if none."""
-    return SPEED_UNITS[speed_unit_named(name)]
+def canonical_heading(values: np.ndarray) -> np.ndarray:
+    """Headings in degrees as the fixes frame holds them: modulo 360, an infinite one NaN
+    (it has no direction), quietly (no RuntimeWarning)."""
+    out: np.ndarray = np.mod(np.where(np.isinf(values), np.nan, values), 360.0)
+    return out
 
 
 def speed_unit_named(name: str) -> str:
@@ -789,8 +791,7 @@ def to_fixes(
         if col is not None:
             values = _numeric(frame, col, table, what=role)
             if role == "heading":
-                # An infinite heading has no direction: NaN, quietly (no RuntimeWarning).
-                values = np.mod(np.where(np.isinf(values), np.nan, values), 360.0)
+                values = canonical_heading(values)
             if role == "speed":
                 # The unit the caller names wins over the one the column name says (speed_kmh).
                 unit = table.options.speed_unit
