@@ -9,10 +9,14 @@ contradicts the positions looks like a fault on every clean fix. This takes one 
 drive with a Doppler speed and course (the Nevada Garmin's training drive, 0.5 Hz; a
 training split, never a test one), writes it as a user's CSV file (t, lat, lon, speed,
 heading) once as it is and once per mix-up, runs ``gradgps detect`` on each with the
-shipped model (or ``--model``), and prints the share of fixes flagged and the warning
-line, if any. Run:
+shipped model (or ``--model``), in batch and with ``--follow``, and prints the share of
+fixes flagged by each and batch's warning line, if any. Run:
 
     python benchmarks/witness_units.py [--model DIR] [--data-dir DIR]
+
+``benchmarks/results/witness_units_before_follow_fix.txt`` is this script run on the
+sources of commit 437ec95 (``git worktree add ../old 437ec95`` and
+``PYTHONPATH=../old/src``), before ``--follow`` read a ``speed_kmh`` column in km/h.
 """
 
 from __future__ import annotations
@@ -39,6 +43,11 @@ VARIANTS: tuple[tuple[str, Callable[[pd.DataFrame], pd.DataFrame], bool], ...] =
     ("speed in mph", lambda d: d.assign(speed=d["speed"] / 0.44704), True),
     ("speed in knots", lambda d: d.assign(speed=d["speed"] / 0.514444), True),
     ("speed in km/h, no heading column", lambda d: d.assign(speed=d["speed"] * 3.6), False),
+    (
+        "speed in km/h in a column named speed_kmh",
+        lambda d: d.assign(speed=d["speed"] * 3.6).rename(columns={"speed": "speed_kmh"}),
+        True,
+    ),
     ("heading in radians", lambda d: d.assign(heading=np.radians(d["heading"])), True),
     (
         "heading counter-clockwise from east",
@@ -63,9 +72,14 @@ def user_file(data_dir: str | None) -> pd.DataFrame:
     )
 
 
-def detect(path: Path, out: Path, model: str | None) -> tuple[float, list[str]]:
-    """Share of rows flagged by ``gradgps detect``, and its warning lines."""
+def detect(
+    path: Path, out: Path, model: str | None, *, follow: bool = False
+) -> tuple[float, list[str]]:
+    """Share of rows flagged by ``gradgps detect`` (``--follow``: reading ``path`` as a
+    stream), and its warning lines."""
     cmd = [sys.executable, "-m", "gradgps", "detect", str(path), "-o", str(out)]
+    if follow:
+        cmd.append("--follow")
     if model is not None:
         cmd += ["--model", model]
     run = subprocess.run(cmd, capture_output=True, text=True, check=True)
@@ -80,8 +94,8 @@ def main() -> None:
     args = parser.parse_args()
     base = user_file(args.data_dir)
     print(f"nevada train drive {TRACK}: {len(base):,} fixes, 0.5 Hz, written as a user's CSV")
-    print("| the file's speed and heading | fixes flagged | warning |")
-    print("|---|---|---|")
+    print("| the file's speed and heading | fixes flagged | with --follow | warning |")
+    print("|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for name, change, keep_heading in VARIANTS:
             data = change(base)
@@ -90,8 +104,9 @@ def main() -> None:
             src, out = Path(tmp) / "in.csv", Path(tmp) / "out.csv"
             data.to_csv(src, index=False)
             flagged, warnings = detect(src, out, args.model)
+            streamed, _ = detect(src, out, args.model, follow=True)
             said = "; ".join(w.removeprefix("warning: ") for w in warnings) or "none"
-            print(f"| {name} | {100 * flagged:.1f} % | {said} |")
+            print(f"| {name} | {100 * flagged:.1f} % | {100 * streamed:.1f} % | {said} |")
 
 
 if __name__ == "__main__":

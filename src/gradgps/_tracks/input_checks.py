@@ -67,7 +67,8 @@ Warnings (thresholds are module constants):
   (km/h, mph or knots read as m/s; radians; degrees counter-clockwise from east).
   On every real drive of ``../shared/data`` with a speed or heading 94-100 % of
   the steps agree, and 64-89 % with protocol ``grad`` or ``gnss`` faults
-  injected: faults make their own steps disagree, not the clean ones. A speed in
+  injected (``benchmarks/witness_agreement.py``): faults make their own steps
+  disagree, not the clean ones. A speed in
   km/h read as m/s made the shipped model flag 31.8 % of a clean 0.5 Hz drive's
   fixes (``benchmarks/witness_units.py``).
 
