@@ -259,3 +259,51 @@ def test_detect_fleet_chunk_size_0_asks_for_the_largest_bounded_chunks(
         done = CliRunner().invoke(main, args)
         assert done.exit_code == 0, done.output
         assert asked.pop() == rows
+
+
+def test_detect_fleet_says_what_detect_says_of_each_file(client: Any, tmp_path: Path) -> None:
+    """A fleet run is as honest as a one-file run: a vehicle logged at one fix every 5 s
+    (below the slowest validated rate) gets `detect`'s warning, led by its file's path, on
+    standard error; a vehicle at 1 Hz gets none."""
+    frame = simulate_fleet(2, 6.0, 1.0, seed=5)
+    source = tmp_path / "in"
+    source.mkdir()
+    for vehicle, rows in frame.groupby("track"):
+        rows = rows.drop(columns="track")
+        if int(vehicle) == 1:
+            rows = rows.iloc[::5]
+        rows.to_csv(source / f"car{vehicle}.csv", index=False)
+    alone = CliRunner().invoke(
+        main, ["detect", str(source / "car1.csv"), "-o", str(tmp_path / "alone.csv")]
+    )
+    assert alone.exit_code == 0, alone.output
+    said = [line for line in alone.stderr.splitlines() if line.startswith("warning: ")]
+    assert any("slower than the slowest rate" in line for line in said), alone.stderr
+
+    args = ["detect-fleet", str(source), "-o", str(tmp_path / "out")]
+    done = CliRunner().invoke(main, [*args, "--scheduler", client.scheduler.address])
+    assert done.exit_code == 0, done.output
+    fleet_said = [line for line in done.stderr.splitlines() if line.startswith("warning: ")]
+    assert fleet_said == [line.replace("warning: ", "warning: car1.csv: ", 1) for line in said]
+
+
+def test_detect_fleet_cuts_a_long_warning_list_and_says_by_how_much(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import contextlib
+
+    from gradgps._cli.detect_fleet import MAX_WARNINGS_SHOWN
+    from gradgps._run import fleet_dask
+
+    many = tuple(f"car{i}.csv: median time step 5 s" for i in range(MAX_WARNINGS_SHOWN + 7))
+
+    def run(*_: object, **__: object) -> fleet_dask.FleetSummary:
+        return fleet_dask.FleetSummary(27, 0, 0, 0, 0, 1.0, many)
+
+    monkeypatch.setattr(fleet_dask, "dask_client", lambda *_: contextlib.nullcontext())
+    monkeypatch.setattr(fleet_dask, "detect_fleet", run)
+    done = CliRunner().invoke(main, ["detect-fleet", str(tmp_path), "-o", str(tmp_path / "o")])
+    assert done.exit_code == 0, done.output
+    lines = [line for line in done.stderr.splitlines() if line.startswith("warning: ")]
+    assert lines[:-1] == [f"warning: {w}" for w in many[:MAX_WARNINGS_SHOWN]]
+    assert lines[-1].startswith("warning: ... and 7 more input warnings")

@@ -16,7 +16,10 @@ import click
 
 from .options import column_map, column_options, model_options, option, read_options
 
-__all__ = ["detect_fleet"]
+__all__ = ["MAX_WARNINGS_SHOWN", "detect_fleet"]
+
+#: Input warnings printed at the end of a run at most (a fleet may have thousands).
+MAX_WARNINGS_SHOWN = 20
 
 
 @click.command("detect-fleet")
@@ -106,3 +109,14 @@ def detect_fleet(
         f"{summary.anomalies:,} anomalies ({summary.invalid:,} invalid fixes), "
         f"{summary.alerts:,} alerts; {rate:,.0f} fixes/s"
     )
+    # On standard error, as `detect` says them: each file outside what the model was
+    # validated on, by its path under INPUT_DIR; a long list is cut, with its length.
+    shown = summary.warnings[:MAX_WARNINGS_SHOWN]
+    for warning in shown:
+        click.echo(f"warning: {warning}", err=True)
+    if len(summary.warnings) > len(shown):
+        click.echo(
+            f"warning: ... and {len(summary.warnings) - len(shown):,} more input warnings "
+            "(run `gradgps detect` on a file to see its own)",
+            err=True,
+        )

@@ -307,6 +307,11 @@ def detect_partition(
         sum(d.anomalies for d in done),
         sum(d.invalid for d in done),
         sum(d.alerts for d in done),
+        tuple(
+            f"{relative}: {warning}"
+            for relative, d in zip(partition.outputs, done, strict=True)
+            for warning in d.warnings
+        ),
     )
 
 

@@ -77,18 +77,28 @@ class VehiclePartition:
 
 @dataclass(frozen=True)
 class PartitionSummary:
-    """What one vehicle's task did: rows written, anomalies (invalid fixes included), alerts."""
+    """What one vehicle's task did: rows written, anomalies (invalid fixes included), alerts.
+
+    ``warnings``: what ``gradgps detect`` would say of each of its files (a rate below
+    the lowest validated, repeated timestamps, implausible speeds...), each text led
+    by the file's relative path, so that a fleet run is as honest as a one-file run.
+    """
 
     vehicle: str
     rows: int
     anomalies: int
     invalid: int
     alerts: int
+    warnings: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
 class FleetSummary:
-    """Totals over every vehicle of a :func:`detect_fleet` run."""
+    """Totals over every vehicle of a :func:`detect_fleet` run.
+
+    ``warnings``: every vehicle's input warnings (:attr:`PartitionSummary.warnings`),
+    in vehicle order.
+    """
 
     vehicles: int
     rows: int
@@ -96,6 +106,7 @@ class FleetSummary:
     invalid: int
     alerts: int
     seconds: float
+    warnings: tuple[str, ...] = ()
 
 
 def _data_suffix(name: str) -> str | None:
@@ -256,7 +267,7 @@ def detect_fleet(
 
 
 def _total(summaries: Iterable[PartitionSummary], seconds: float) -> FleetSummary:
-    items = list(summaries)
+    items = sorted(summaries, key=lambda s: s.vehicle)
 
     def total(attr: str) -> int:
         return sum(int(getattr(s, attr)) for s in items)
@@ -268,6 +279,7 @@ def _total(summaries: Iterable[PartitionSummary], seconds: float) -> FleetSummar
         invalid=total("invalid"),
         alerts=total("alerts"),
         seconds=seconds,
+        warnings=tuple(w for s in items for w in s.warnings),
     )
 
 
