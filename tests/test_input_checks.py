@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+import json
 from pathlib import Path
 
 import numpy as np
@@ -438,3 +440,31 @@ def test_faults_do_not_make_a_clean_receiver_noisy() -> None:
     assert "noisy" not in _kinds(faulty)
     noisy = _noisy(3.0, t=np.arange(1200.0))
     assert "noisy" in _kinds(inject_grad(noisy, seed=0)[list(noisy.columns)])
+
+
+def test_add_track_in_pieces_finds_what_add_finds_of_the_whole_table() -> None:
+    """The stream workers' array path: one track's fixes fed a few at a time (some
+    unusable, a timestamp repeated, speed in the wrong unit, heading half the time)
+    gather the same facts as :meth:`InputChecks.add` of the whole table at once."""
+    rng = np.random.default_rng(3)
+    n = 900
+    t = np.arange(n, dtype=np.float64)
+    t[100] = t[99]  # a repeated timestamp
+    lat, lon = LocalFrame(48.1, 11.5).to_geodetic(
+        20.0 * t + rng.normal(0, 2, n), 30.0 * np.sin(t / 40) + rng.normal(0, 2, n)
+    )
+    lat[200] = np.nan  # an unusable fix
+    speed = np.full(n, 20.0 * 3.6)  # km/h where m/s is read
+    heading = np.where(np.arange(n) % 2 == 0, 88.0, np.nan)
+    whole = InputChecks().add(
+        pd.DataFrame(
+            {"track": "", "t": t, "lat": lat, "lon": lon, "speed": speed, "heading": heading}
+        )
+    )
+    pieces = InputChecks()
+    cuts = np.r_[0, np.sort(rng.choice(np.arange(1, n), 80, replace=False)), n]
+    for a, b in itertools.pairwise(cuts):
+        pieces.add_track("", t[a:b], lat[a:b], lon[a:b], speed[a:b], heading[a:b])
+    assert json.dumps(pieces.to_state()) == json.dumps(whole.to_state())  # NaN as NaN
+    assert pieces.findings() == whole.findings()
+    assert any(kind == "reported speed" for kind, _ in whole.findings()), whole.findings()

@@ -42,6 +42,12 @@ _STATUS_EVERY_S = 10.0
     "(default: S_OUT:revisions)",
 )
 @option(
+    "--warning-stream",
+    metavar="S_WARN",
+    help="where each vehicle's input warnings go, once each (a slow rate, repeated "
+    "timestamps, implausible speeds; default: S_OUT:warnings)",
+)
+@option(
     "--group",
     required=True,
     metavar="G",
@@ -84,6 +90,7 @@ def serve_redis(
     input_stream: str,
     output_stream: str,
     revision_stream: str | None,
+    warning_stream: str | None,
     group: str,
     consumer: str,
     model_dir: Path | None,
@@ -114,6 +121,7 @@ def serve_redis(
         batch_size=batch_size,
         lease_ms=lease_ms,
         revision_stream=revision_stream,
+        warning_stream=warning_stream,
     )
     stop_requested = False
 
@@ -147,6 +155,10 @@ def serve_redis(
             f"once, and {worker.revision_stream} revises those a vehicle's next fix changes",
             err=True,
         )
+    click.echo(
+        f"{consumer}: input warnings (once per vehicle and kind) go to {worker.warning_stream}",
+        err=True,
+    )
     total = worker.run(
         lambda: stop_requested, block_ms=block_ms, exit_when_idle_s=exit_when_idle_s, on_step=status
     )

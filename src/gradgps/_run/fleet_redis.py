@@ -56,6 +56,13 @@ output of the fix that settled it: exactly once too. Outputs with the
 revisions applied (the later one wins) are the verdicts of batch detection;
 a fix whose verdict nothing revised keeps the one of its output.
 
+**Input warnings.** Each vehicle's usable fixes go through follow mode's input
+checks (:class:`_Watch`: a look after :data:`CHECK_EVERY` fixes, then after
+twice as many as the time before); each kind of warning goes once per vehicle to
+:attr:`RedisStreamWorker.warning_stream` (``vehicle_id``, ``source_id``: the fix at
+which it was found, ``warning``), in the transaction of that fix's output. The
+checks' histograms live in the vehicle's state record (``checks``).
+
 **Hostile messages and states.** Nothing a producer writes stops a worker.
 Pages are read through :data:`READ_SCRIPT`, which hands every field over as
 hex, so the worker sees the exact bytes whatever the client's decoding: a
@@ -86,6 +93,7 @@ from typing import TYPE_CHECKING, Any
 
 from .._exceptions import ConfigError, GradGPSError
 from .._result import RESULT_COLUMNS, PointResult
+from .._tracks.input_checks import CHECK_EVERY, InputChecks, validated_rates
 
 if TYPE_CHECKING:
     import redis
@@ -245,13 +253,71 @@ class _Message:
 
 
 @dataclass
+class _Watch:
+    """A vehicle's input checks (:class:`~gradgps._tracks.input_checks.InputChecks`) as
+    follow mode runs them: they look after :data:`CHECK_EVERY` usable fixes, then after
+    twice as many as the time before, and say each kind of warning once."""
+
+    checks: InputChecks
+    said: list[str] = field(default_factory=list)
+    since: int = 0  # usable fixes since the last look
+    next_look: int = CHECK_EVERY
+
+    def to_state(self) -> dict[str, Any]:
+        return {
+            "checks": self.checks.to_state(),
+            "said": list(self.said),
+            "since": self.since,
+            "next_look": self.next_look,
+        }
+
+    @classmethod
+    def from_state(cls, state: Mapping[str, Any]) -> _Watch:
+        said = [str(kind) for kind in state["said"]]
+        since, next_look = int(state["since"]), int(state["next_look"])
+        if not 0 <= since < next_look:
+            raise ValueError("'since' is not below 'next_look'")
+        return cls(InputChecks.from_state(state["checks"]), said, since, next_look)
+
+    def add(
+        self, fixes: list[tuple[str, float, float, float, float, float]]
+    ) -> list[tuple[int, str]]:
+        """Take in usable fixes (source id, t, lat, lon, speed m/s, heading degrees; NaN:
+        none), in order; returns each new warning with the index of the fix at which the
+        checks found it."""
+        found: list[tuple[int, str]] = []
+        start = 0
+        while start < len(fixes):
+            end = min(len(fixes), start + self.next_look - self.since)
+            self._feed(fixes[start:end])
+            self.since += end - start
+            if self.since == self.next_look:
+                self.since, self.next_look = 0, 2 * self.next_look
+                for kind, text in self.checks.findings():
+                    if kind not in self.said:
+                        self.said.append(kind)
+                        found.append((end - 1, text))
+            start = end
+        return found
+
+    def _feed(self, fixes: list[tuple[str, float, float, float, float, float]]) -> None:
+        import numpy as np
+
+        from .._tracks.track import canonical_heading
+
+        t, lat, lon, speed, heading = np.array([f[1:] for f in fixes], dtype=np.float64).T
+        self.checks.add_track("", t, lat, lon, speed, canonical_heading(heading))
+
+
+@dataclass
 class _Track:
     """What a vehicle's stored state says besides its detector: the id of the last message
-    processed, and the output of its fix whose verdict may still be revised (a model
-    whose verdicts settle one fix late; ``None``: none)."""
+    processed, the output of its fix whose verdict may still be revised (a model
+    whose verdicts settle one fix late; ``None``: none), and its input checks."""
 
     last_id: str
     pending: dict[str, str] | None = None
+    watch: _Watch | None = None
 
 
 def _decode_message(message_id: str, hex_fields: list[str]) -> _Message:
@@ -381,7 +447,8 @@ class RedisStreamWorker:
     ``<key_prefix>alive:<consumer>``; the default prefix is
     ``gradgps:<input_stream>:<group>:``. ``revision_stream``: where the revisions of
     a model whose verdicts settle one fix late go (see the module docstring);
-    default ``<output_stream>:revisions``.
+    default ``<output_stream>:revisions``. ``warning_stream``: where each vehicle's
+    input warnings go, once each; default ``<output_stream>:warnings``.
     """
 
     client: redis.Redis
@@ -397,7 +464,9 @@ class RedisStreamWorker:
     cache_size: int = 10_000
     key_prefix: str | None = None
     revision_stream: str | None = None
+    warning_stream: str | None = None
     _fleet: FleetDetector = field(init=False, repr=False)
+    _rates: tuple[float, float] = field(init=False, repr=False)
     _settles: bool = field(init=False, repr=False)
     # Vehicles whose state in self._fleet is current, with the id of the last message
     # it has seen (least recently used first).
@@ -411,10 +480,13 @@ class RedisStreamWorker:
             self.key_prefix = f"gradgps:{self.input_stream}:{self.group}:"
         if self.revision_stream is None:
             self.revision_stream = f"{self.output_stream}:revisions"
+        if self.warning_stream is None:
+            self.warning_stream = f"{self.output_stream}:warnings"
         self._check()
         from .._grad.detector import FleetDetector
 
         self._fleet = FleetDetector(self.model, threshold=self.threshold)
+        self._rates = validated_rates(self._fleet.model_.config)
         self._settles = self._fleet.model_.params.settles(self._fleet.model_.dims)
         self._tracks = OrderedDict()
         self._route = self.client.register_script(ROUTE_SCRIPT)
@@ -428,9 +500,14 @@ class RedisStreamWorker:
         for name in ("input_stream", "output_stream", "group", "consumer"):
             if not getattr(self, name):
                 raise ConfigError(f"{name} must not be empty")
-        streams = (self.input_stream, self.output_stream, self.revision_stream)
+        streams = (
+            self.input_stream,
+            self.output_stream,
+            self.revision_stream,
+            self.warning_stream,
+        )
         if len(set(streams)) < len(streams):
-            raise ConfigError("input, output and revision streams must differ")
+            raise ConfigError("input, output, revision and warning streams must differ")
         if self.batch_size < 1 or self.lease_ms < 1 or self.cache_size < 1:
             raise ConfigError("batch_size, lease_ms and cache_size must be >= 1")
 
@@ -569,6 +646,7 @@ class RedisStreamWorker:
         message id when that is readable), reported on the dead-letter stream.
         """
         last_id, saved, problem, pending = "0-0", None, "", None
+        watch = None
         if stored is not None:
             try:
                 record = json.loads(stored)
@@ -578,12 +656,16 @@ class RedisStreamWorker:
                     last_id = "0-0"
                     raise ValueError("'last_id' is not a stream message id")
                 pending = _pending_output(record.get("pending"))
+                if record.get("checks") is not None:
+                    watch = _Watch.from_state(record["checks"])
             except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as exc:
                 problem = f"stored state is not readable ({type(exc).__name__}: {exc})"
-                saved = pending = None
+                saved = pending = watch = None
+        if watch is None:
+            watch = _Watch(InputChecks(*self._rates))
         if not problem and self._tracks.get(vehicle) == last_id:
             self._tracks.move_to_end(vehicle)
-            return _Track(last_id, pending)
+            return _Track(last_id, pending, watch)
         self._forget([vehicle])
         if saved is not None:
             try:
@@ -598,7 +680,7 @@ class RedisStreamWorker:
                     "problem": problem[:2000] + ": the vehicle restarts with a fresh detector",
                 }
             )
-        return _Track(last_id, pending)
+        return _Track(last_id, pending, watch)
 
     def _forget(self, vehicles: Any) -> None:
         """Drop these vehicles' in-memory states: the stored ones are read again when needed."""
@@ -631,11 +713,14 @@ class RedisStreamWorker:
                     )
                     tracks = {v: self._restore(v, s) for v, s in zip(vehicles, stored, strict=True)}
                     outputs, revisions, changed = self._run_detectors(messages, tracks, per_message)
+                    warnings = self._look(messages, outputs, tracks)
                     pipe.multi()
                     for fields in outputs:
                         pipe.xadd(self.output_stream, fields)  # type: ignore[arg-type]
                     for fields in revisions:
                         pipe.xadd(self.revision_stream, fields)  # type: ignore[arg-type]
+                    for fields in warnings:
+                        pipe.xadd(self.warning_stream, fields)  # type: ignore[arg-type]
                     for entry in self._dead:
                         pipe.xadd(self.dead_letter_stream, entry)  # type: ignore[arg-type]
                     for vehicle in changed:
@@ -645,6 +730,9 @@ class RedisStreamWorker:
                         }
                         if tracks[vehicle].pending is not None:
                             record["pending"] = tracks[vehicle].pending
+                        watch = tracks[vehicle].watch
+                        if watch is not None:
+                            record["checks"] = watch.to_state()
                         pipe.set(self._state_key(vehicle), json.dumps(record))
                     pipe.xack(self.input_stream, self.group, *[m.id for m in messages])
                     pipe.execute()
@@ -675,6 +763,48 @@ class RedisStreamWorker:
             f"{len(messages)} messages starting at {messages[0].id}: their vehicles' "
             f"states changed under {_MAX_CONFLICTS} transactions in a row"
         )
+
+    def _look(
+        self,
+        messages: list[_Message],
+        outputs: list[dict[str, str]],
+        tracks: dict[bytes, _Track],
+    ) -> list[dict[str, str]]:
+        """The page's usable fixes through their vehicles' input checks; returns the
+        warning messages to write (``vehicle_id``, ``source_id``: the fix at which the
+        checks found it, ``warning``)."""
+        fields_of = {m.id: m.fields for m in messages}
+        usable: dict[bytes, list[tuple[str, float, float, float, float, float]]] = {}
+        by_id = {o["source_id"]: o for o in outputs}
+        for message in messages:
+            output = by_id.get(message.id)
+            if output is None or output["invalid_reason"] != "":
+                continue
+            f = fields_of[message.id]
+            usable.setdefault(message.vehicle, []).append(
+                (
+                    message.id,
+                    _number(f.get("t")),
+                    _number(f.get("lat")),
+                    _number(f.get("lon")),
+                    _number(f.get("speed")),
+                    _number(f.get("heading")),
+                )
+            )
+        warnings: list[dict[str, str]] = []
+        for vehicle, fixes in usable.items():
+            watch = tracks[vehicle].watch
+            if watch is None:
+                continue
+            for at, text in watch.add(fixes):
+                warnings.append(
+                    {
+                        "vehicle_id": vehicle.decode("utf-8", "backslashreplace"),
+                        "source_id": fixes[at][0],
+                        "warning": text,
+                    }
+                )
+        return warnings
 
     def _run_detectors(
         self,

@@ -85,7 +85,7 @@ from .._grad.detector import Detector, MultiTrackDetector, load_grad_model
 from .._io.nmea import STALE_DATE_S, Malformed, parse_gga, parse_rmc, split_sentence
 from .._io.times import iso_utc_one, time_of_day_utc
 from .._result import RESULT_COLUMNS, PointResult
-from .._tracks.input_checks import InputChecks, validated_rates
+from .._tracks.input_checks import CHECK_EVERY, InputChecks, validated_rates
 from .._tracks.track import (
     SPEED_UNITS,
     ColumnMap,
@@ -114,10 +114,6 @@ MAX_BANNER_LINES = 100
 #: Lines that may wait behind a line whose verdict has not settled (a model whose verdicts
 #: settle one fix late) before it goes out with its verdict at once.
 HOLD_LINES = 10_000
-#: Scored fixes before the first look of the input checks (ten minutes at 1 Hz: the checks
-#: need a few hundred steps to say anything); each later look waits twice as many fixes
-#: as the one before, so a day-long stream pays for a dozen looks of a few milliseconds.
-CHECK_EVERY = 600
 
 
 @dataclass

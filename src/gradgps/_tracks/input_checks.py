@@ -89,6 +89,7 @@ from .geo import EARTH_MEAN_RADIUS_M, haversine_m
 from .track import SPEED_UNITS
 
 __all__ = [
+    "CHECK_EVERY",
     "IRREGULAR_IQR_RATIO",
     "MAX_FAST_SHARE",
     "MAX_FAST_STEPS",
@@ -103,6 +104,12 @@ __all__ = [
     "input_warnings",
     "validated_rates",
 ]
+
+#: Scored fixes before the first look of the input checks on a stream (follow mode, the
+#: Redis worker; ten minutes at 1 Hz: the checks need a few hundred steps to say
+#: anything); each later look waits twice as many fixes as the one before, so a day-long
+#: stream pays for a dozen looks of a few milliseconds.
+CHECK_EVERY = 600
 
 #: Rates the model was validated on when its config.json has no ``validated`` block.
 VALIDATED_DEFAULT = {"min_rate_hz": 0.5, "max_rate_hz": 10.0}
@@ -228,6 +235,70 @@ class InputChecks:
         #: What the reader assumed about the columns (``fixes.attrs["notes"]``), once each.
         self.notes: list[str] = []
 
+    def to_state(self) -> dict[str, Any]:
+        """What the checks have gathered, as plain JSON values (histograms as their non-zero
+        bins): a stream worker stores it with a vehicle's detector and goes on from it
+        with :meth:`from_state`, on any worker, as if it had seen every fix itself."""
+
+        def bins(hist: np.ndarray) -> list[list[int]]:
+            flat = hist.reshape(-1)
+            return [[int(i), int(flat[i])] for i in np.flatnonzero(flat)]
+
+        return {
+            "rates": [self.min_rate_hz, self.max_rate_hz],
+            "hist": bins(self.hist),
+            "repeats": self.repeats,
+            "fast": self.fast,
+            "fastest": self.fastest,
+            "second_diff_hist": bins(self.second_diff_hist),
+            "speed_ratio_hist": bins(self.speed_ratio_hist),
+            "heading_diff_hist": bins(self.heading_diff_hist),
+            "speed_column": self.speed_column,
+            "speed_unit": self.speed_unit,
+            "heading_column": self.heading_column,
+            "last": {k: [list(f) for f in v] for k, v in self._last.items()},
+            "last_kept": {k: list(v) for k, v in self._last_kept.items()},
+            "notes": list(self.notes),
+        }
+
+    @classmethod
+    def from_state(cls, state: Mapping[str, Any]) -> InputChecks:
+        """The checks :meth:`to_state` wrote. A state that is not one (a missing key, a bin
+        out of range, a wrong type) raises ``ValueError``, ``KeyError`` or ``TypeError``."""
+        low, high = (float(r) for r in state["rates"])
+        checks = cls(low, high)
+
+        def fill(hist: np.ndarray, given: Any) -> None:
+            flat = hist.reshape(-1)
+            for i, n in given:
+                if not 0 <= int(i) < flat.size or int(n) < 0:
+                    raise ValueError(f"histogram bin {i!r} of {n!r} is out of range")
+                flat[int(i)] = int(n)
+
+        fill(checks.hist, state["hist"])
+        fill(checks.second_diff_hist, state["second_diff_hist"])
+        fill(checks.speed_ratio_hist, state["speed_ratio_hist"])
+        fill(checks.heading_diff_hist, state["heading_diff_hist"])
+        checks.repeats = int(state["repeats"])
+        checks.fast = int(state["fast"])
+        checks.fastest = float(state["fastest"])
+        for name in ("speed_column", "heading_column"):
+            value = state[name]
+            if value is not None and not isinstance(value, str):
+                raise TypeError(f"{name} is not a string: {value!r}")
+            setattr(checks, name, value)
+        checks.speed_unit = str(state["speed_unit"])
+        checks._last = {
+            str(k): [(float(a), float(b), float(c)) for a, b, c in v]
+            for k, v in state["last"].items()
+        }
+        checks._last_kept = {
+            str(k): (float(a), float(b), float(c), float(d), float(e))
+            for k, (a, b, c, d, e) in state["last_kept"].items()
+        }
+        checks.notes = [str(n) for n in state["notes"]]
+        return checks
+
     def add(self, fixes: pd.DataFrame) -> InputChecks:
         """Take in canonical fixes (columns ``track``, ``t``, ``lat``, ``lon``); returns ``self``."""
         for note in fixes.attrs.get("notes", ()):
@@ -266,28 +337,74 @@ class InputChecks:
             }
         ).sort_values(["track", "t"], kind="stable")
         for name, part in frame.groupby("track", sort=False):
-            tt = part["t"].to_numpy()
-            la = part["lat"].to_numpy()
-            lo = part["lon"].to_numpy()
-            last = self._last.get(str(name), [])
-            if last and tt[0] >= last[-1][0]:
-                # The track goes on: its last fixes (in time order) lead this chunk's;
-                # their own step was counted with the chunk before.
-                tt = np.r_[[f[0] for f in last], tt]
-                la = np.r_[[f[1] for f in last], la]
-                lo = np.r_[[f[2] for f in last], lo]
-                self._steps(tt[len(last) - 1 :], la[len(last) - 1 :], lo[len(last) - 1 :])
-            else:
-                self._steps(tt, la, lo)
-            self._second_differences(tt, la, lo)
-            self._last[str(name)] = [
-                (float(a), float(b), float(c))
-                for a, b, c in zip(tt[-2:], la[-2:], lo[-2:], strict=True)
-            ]
-            self._witness(str(name), part)
+            self._add_track(
+                str(name),
+                *(part[c].to_numpy() for c in ("t", "lat", "lon", "speed", "heading")),
+            )
         return self
 
-    def _witness(self, track: str, part: pd.DataFrame) -> None:
+    def add_track(
+        self,
+        track: str,
+        t: np.ndarray,
+        lat: np.ndarray,
+        lon: np.ndarray,
+        speed: np.ndarray,
+        heading: np.ndarray,
+    ) -> InputChecks:
+        """:meth:`add` for one track's fixes given as arrays (speed in m/s, heading in
+        degrees modulo 360, NaN: none), without a table: what a stream worker feeds a
+        few fixes at a time, where building a table would cost a hundred times the
+        detector. The same facts as :meth:`add` of the same fixes; returns ``self``."""
+        t, lat, lon, speed, heading = (
+            np.asarray(v, dtype=np.float64) for v in (t, lat, lon, speed, heading)
+        )
+        if self.speed_column is None and not np.isnan(speed).all():
+            self.speed_column, self.speed_unit = "speed", "m/s"
+        if self.heading_column is None and not np.isnan(heading).all():
+            self.heading_column = "heading"
+        with np.errstate(invalid="ignore"):
+            valid = (
+                np.isfinite(t)
+                & np.isfinite(lat)
+                & np.isfinite(lon)
+                & (np.abs(lat) <= 90.0)
+                & (np.abs(lon) <= 180.0)
+            )
+        order = np.flatnonzero(valid)[np.argsort(t[valid], kind="stable")]
+        if order.size:
+            self._add_track(track, t[order], lat[order], lon[order], speed[order], heading[order])
+        return self
+
+    def _add_track(
+        self,
+        track: str,
+        tt: np.ndarray,
+        la: np.ndarray,
+        lo: np.ndarray,
+        speed: np.ndarray,
+        heading: np.ndarray,
+    ) -> None:
+        """One track's valid fixes, in time order, into the histograms."""
+        part = (tt, la, lo, speed, heading)
+        last = self._last.get(track, [])
+        if last and tt[0] >= last[-1][0]:
+            # The track goes on: its last fixes (in time order) lead this chunk's;
+            # their own step was counted with the chunk before.
+            tt = np.r_[[f[0] for f in last], tt]
+            la = np.r_[[f[1] for f in last], la]
+            lo = np.r_[[f[2] for f in last], lo]
+            self._steps(tt[len(last) - 1 :], la[len(last) - 1 :], lo[len(last) - 1 :])
+        else:
+            self._steps(tt, la, lo)
+        self._second_differences(tt, la, lo)
+        self._last[track] = [
+            (float(a), float(b), float(c))
+            for a, b, c in zip(tt[-2:], la[-2:], lo[-2:], strict=True)
+        ]
+        self._witness(track, part)
+
+    def _witness(self, track: str, part: tuple[np.ndarray, ...]) -> None:
         """Histograms of the reported speed over the chord's speed, and of how far the
         reported heading (each reading of :data:`HEADING_READINGS`) is from the chord's
         bearing, over the steps that say something about them.
@@ -299,8 +416,7 @@ class InputChecks:
         circular mean for a heading; the one fix's where the other has none): on an arc of
         constant speed and curvature that is the chord's own speed and bearing.
         """
-        columns = ("t", "lat", "lon", "speed", "heading")
-        values = [part[c].to_numpy() for c in columns]
+        values = list(part)
         if np.isnan(values[3]).all() and np.isnan(values[4]).all():
             return
         slot = np.floor(values[0] / WITNESS_BASELINE_S)
