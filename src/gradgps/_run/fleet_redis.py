@@ -317,7 +317,7 @@ class _Track:
 
     last_id: str
     pending: dict[str, str] | None = None
-    watch: _Watch | None = None
+    watch: _Watch | None = None  # None: no input checks (a page scored on its own)
 
 
 def _decode_message(message_id: str, hex_fields: list[str]) -> _Message:
@@ -773,14 +773,13 @@ class RedisStreamWorker:
         """The page's usable fixes through their vehicles' input checks; returns the
         warning messages to write (``vehicle_id``, ``source_id``: the fix at which the
         checks found it, ``warning``)."""
-        fields_of = {m.id: m.fields for m in messages}
         usable: dict[bytes, list[tuple[str, float, float, float, float, float]]] = {}
         by_id = {o["source_id"]: o for o in outputs}
         for message in messages:
             output = by_id.get(message.id)
             if output is None or output["invalid_reason"] != "":
                 continue
-            f = fields_of[message.id]
+            f = message.fields
             usable.setdefault(message.vehicle, []).append(
                 (
                     message.id,

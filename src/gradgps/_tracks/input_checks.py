@@ -310,37 +310,14 @@ class InputChecks:
             self.speed_unit = str(fixes.attrs.get("speed_unit", "m/s"))
         if "heading" in fixes.columns and self.heading_column is None:
             self.heading_column = getattr(columns, "heading", None) or "heading"
-        t = fixes["t"].to_numpy(dtype=np.float64)
-        lat = fixes["lat"].to_numpy(dtype=np.float64)
-        lon = fixes["lon"].to_numpy(dtype=np.float64)
-        with np.errstate(invalid="ignore"):
-            valid = (
-                np.isfinite(t)
-                & np.isfinite(lat)
-                & np.isfinite(lon)
-                & (np.abs(lat) <= 90.0)
-                & (np.abs(lon) <= 180.0)
-            )
-        none = np.full(t.size, np.nan)
-        frame = pd.DataFrame(
-            {
-                "track": fixes["track"].astype(str).to_numpy(dtype=object)[valid],
-                "t": t[valid],
-                "lat": lat[valid],
-                "lon": lon[valid],
-                "speed": (fixes["speed"].to_numpy(dtype=np.float64) if "speed" in fixes else none)[
-                    valid
-                ],
-                "heading": (
-                    fixes["heading"].to_numpy(dtype=np.float64) if "heading" in fixes else none
-                )[valid],
-            }
-        ).sort_values(["track", "t"], kind="stable")
-        for name, part in frame.groupby("track", sort=False):
-            self._add_track(
-                str(name),
-                *(part[c].to_numpy() for c in ("t", "lat", "lon", "speed", "heading")),
-            )
+        none = np.full(len(fixes), np.nan)
+        values = [
+            fixes[c].to_numpy(dtype=np.float64) if c in fixes else none
+            for c in ("t", "lat", "lon", "speed", "heading")
+        ]
+        tracks = fixes["track"].astype(str).to_numpy(dtype=object)
+        for name, rows in pd.Series(tracks).groupby(tracks, sort=False).indices.items():
+            self.add_track(str(name), *(v[rows] for v in values))
         return self
 
     def add_track(
