@@ -37,7 +37,9 @@ def calibrate(model_dir: Path, data_dir: Path | None, floor: float) -> None:
     Per band (fixes faster than every 1.5 s, and that or slower): the best
     validation F1 that keeps normal recall at --floor on every group of drives
     (each real data set, the simulated drives at each rate), not only on their
-    pool. MODEL must have been trained with `gradgps train --dataset recipe`.
+    pool; the faults are injected three times, and a group's normal recall is
+    the median of its three. MODEL must have been trained with `gradgps train
+    --dataset recipe`.
     """
     import json
 
