@@ -468,3 +468,113 @@ def test_add_track_in_pieces_finds_what_add_finds_of_the_whole_table() -> None:
     assert json.dumps(pieces.to_state()) == json.dumps(whole.to_state())  # NaN as NaN
     assert pieces.findings() == whole.findings()
     assert any(kind == "reported speed" for kind, _ in whole.findings()), whole.findings()
+
+
+# Fixes re-sampled onto a faster clock (the ``repeated fixes`` check).
+
+
+def _repeated(fixes: pd.DataFrame, k: int) -> pd.DataFrame:
+    """Each step of ``fixes`` (one track) cut into ``k`` rows that repeat its first fix:
+    a logger sampling the receiver's last fix ``k`` times as often as it solves."""
+    t, lat, lon = (fixes[c].to_numpy(dtype=np.float64) for c in ("t", "lat", "lon"))
+    tt = np.r_[(t[:-1, None] + np.diff(t)[:, None] * (np.arange(k) / k)).ravel(), t[-1:]]
+    i = np.r_[np.repeat(np.arange(len(t) - 1), k), len(t) - 1]
+    return pd.DataFrame({"track": fixes["track"].iloc[0], "t": tt, "lat": lat[i], "lon": lon[i]})
+
+
+def test_fixes_repeated_onto_a_faster_clock_are_named_instead_of_noise() -> None:
+    """A 1 Hz drive logged at 2, 5 and 10 Hz, each fix repeated: named with the update
+    period and the share of repeats, and not called a noisy receiver (its triples measure
+    the leaps between updates); the drive itself, and the same drive with a straight line
+    between the fixes, say nothing."""
+    drive = _winding()
+    assert InputChecks().add(drive).findings() == []
+    for k in (2, 5, 10):
+        findings = InputChecks().add(_repeated(drive, k)).findings()
+        assert [kind for kind, _ in findings] == ["repeated fixes"], (k, findings)
+        ((_, text),) = findings
+        assert "change every 1 s" in text, text
+        assert f"fixes come every {1 / k:.2g} s" in text, text
+        assert f"({100 * (k - 1) / k:.0f} %)" in text, text
+    t = drive["t"].to_numpy()
+    tt = np.linspace(t[0], t[-1], 5 * (len(t) - 1) + 1)
+    line = pd.DataFrame(
+        {
+            "track": "a",
+            "t": tt,
+            "lat": np.interp(tt, t, drive["lat"].to_numpy()),
+            "lon": np.interp(tt, t, drive["lon"].to_numpy()),
+        }
+    )
+    assert "repeated fixes" not in [kind for kind, _ in InputChecks().add(line).findings()]
+
+
+def test_a_drive_with_long_stops_is_not_a_repeated_clock() -> None:
+    """Stops repeat the position for minutes (a logger pinning a standing car), yet while
+    the car moves every fix is new: one long interval between updates per stop, not many."""
+    t = np.arange(1200.0)
+    moving = (t % 400) < 150  # 150 s driving, 250 s standing, three times
+    north = np.cumsum(np.where(moving, 15.0, 0.0))
+    lat, lon = LocalFrame(52.0, 4.4).to_geodetic(np.zeros_like(north), north)
+    fixes = pd.DataFrame({"track": "a", "t": t, "lat": lat, "lon": lon})
+    checks = InputChecks().add(fixes)
+    ratio, updates = checks.padded()
+    assert ratio == pytest.approx(1.0, rel=0.02)
+    assert updates > 400
+    assert checks.position_repeats > 700
+    assert checks.findings() == []
+
+
+def test_repeated_fixes_in_chunks_and_through_a_stream_state_equal_the_whole_file() -> None:
+    """Chunks cut anywhere (inside a run of copies too), and a state written and read back
+    between them, gather the same position updates as the whole table."""
+    fixes = pd.concat(
+        [_repeated(_winding(), 5), _repeated(_winding(seed=1).assign(track="b"), 5)]
+    ).reset_index(drop=True)
+    whole = InputChecks().add(fixes)
+    chunked = InputChecks()
+    for lo in range(0, len(fixes), 333):
+        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
+        chunked.add(fixes.iloc[lo : lo + 333])
+    assert (whole.update_hist == chunked.update_hist).all()
+    assert whole.position_repeats == chunked.position_repeats
+    assert whole.findings() == chunked.findings()
+    assert [kind for kind, _ in whole.findings()] == ["repeated fixes"]
+
+
+def test_a_stream_state_from_before_the_check_still_loads() -> None:
+    """A Redis worker's stored checks written before the position-update facts existed
+    load, and the check starts from nothing there."""
+    state = InputChecks().add(_repeated(_winding(), 5)).to_state()
+    for key in ("update_hist", "position_repeats", "last_update"):
+        del state[key]
+    old = InputChecks.from_state(state)
+    assert old.update_hist.sum() == 0
+    assert old.position_repeats == 0
+    assert "repeated fixes" not in [kind for kind, _ in old.findings()]
+
+
+def test_no_real_drive_is_a_repeated_clock(shared_data: Path) -> None:
+    """Every split of every real data set, at its own rate and decimated to 0.5 Hz: the
+    positions change at the rate the fixes come (ratio 1), so the check says nothing."""
+    from gradgps._data.datasets import DATASETS, TEST_ONLY, load_dataset
+    from gradgps._eval.robustness import decimate
+    from gradgps._tracks.track import to_fixes
+
+    checked = 0
+    for name in DATASETS:
+        if name == "simulated":
+            continue
+        for split in ("test",) if name in TEST_ONLY else ("train", "validation", "test"):
+            table = load_dataset(name, split, data_dir=shared_data)
+            if table.empty:
+                continue
+            cmap = to_fixes(table).attrs["columns"]
+            for data in (table, decimate(table, cmap, 2.0)):
+                checks = InputChecks().add(to_fixes(data, cmap))
+                ratio, updates = checks.padded()
+                assert updates >= 300, (name, split)
+                assert ratio < 1.1, (name, split, ratio)
+                assert "repeated fixes" not in [k for k, _ in checks.findings()], (name, split)
+                checked += 1
+    assert checked >= 36
