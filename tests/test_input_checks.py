@@ -554,9 +554,10 @@ def test_a_stream_state_from_before_the_check_still_loads() -> None:
     assert "repeated fixes" not in [kind for kind, _ in old.findings()]
 
 
-def test_no_real_drive_is_a_repeated_clock(shared_data: Path) -> None:
+def test_no_real_drive_is_a_repeated_clock_or_coarse(shared_data: Path) -> None:
     """Every split of every real data set, at its own rate and decimated to 0.5 Hz: the
-    positions change at the rate the fixes come (ratio 1), so the check says nothing."""
+    positions change at the rate the fixes come (ratio 1) and are written finer than any
+    coarse grid, so neither check says anything."""
     from gradgps._data.datasets import DATASETS, TEST_ONLY, load_dataset
     from gradgps._eval.robustness import decimate
     from gradgps._tracks.track import to_fixes
@@ -575,6 +576,68 @@ def test_no_real_drive_is_a_repeated_clock(shared_data: Path) -> None:
                 ratio, updates = checks.padded()
                 assert updates >= 300, (name, split)
                 assert ratio < 1.1, (name, split, ratio)
-                assert "repeated fixes" not in [k for k, _ in checks.findings()], (name, split)
+                kinds = [k for k, _ in checks.findings()]
+                assert "repeated fixes" not in kinds, (name, split)
+                assert "coarse coordinates" not in kinds, (name, split)
+                assert checks.coarse_grid() is None, (name, split)
                 checked += 1
     assert checked >= 36
+
+
+# Coordinates rounded on export (the ``coarse coordinates`` check).
+
+
+@pytest.mark.parametrize(
+    ("rounding", "name"),
+    [
+        (lambda x: np.round(x, 4), "4 decimals of a degree"),
+        (lambda x: np.round(x, 3), "3 decimals of a degree"),
+        (
+            lambda x: np.trunc(x) + np.round((x - np.trunc(x)) * 60.0, 2) / 60.0,
+            "hundredths of a minute",
+        ),
+    ],
+)
+def test_coordinates_rounded_on_export_are_named_with_their_grid(
+    rounding: object, name: str
+) -> None:
+    """A drive whose positions were written with few digits is named once, with the grid
+    and the metres it moves a fix, and not also called noisy or a faster clock (the
+    rounding makes both); written in full, or to 5 decimals, it says nothing (positions
+    only: a witness column would be held against the rounded chords too)."""
+    drive = _winding()[["track", "t", "lat", "lon"]]
+    assert callable(rounding)
+    coarse = drive.assign(lat=rounding(drive["lat"]), lon=rounding(drive["lon"]))
+    findings = InputChecks().add(coarse).findings()
+    assert [kind for kind, _ in findings] == ["coarse coordinates"], findings
+    assert name in findings[0][1]
+    five = drive.assign(lat=drive["lat"].round(5), lon=drive["lon"].round(5))
+    assert InputChecks().add(five).findings() == []
+    assert InputChecks().add(drive).findings() == []
+
+
+def test_coarse_coordinates_in_chunks_and_stream_states_equal_the_whole_file() -> None:
+    drive = _winding()
+    coarse = drive.assign(lat=drive["lat"].round(4), lon=drive["lon"].round(4))
+    whole = InputChecks().add(coarse)
+    chunked = InputChecks()
+    for lo in range(0, len(coarse), 97):
+        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
+        chunked.add(coarse.iloc[lo : lo + 97])
+    assert whole.fixes_seen == chunked.fixes_seen == len(coarse)
+    assert (whole.on_grid == chunked.on_grid).all()
+    assert whole.findings() == chunked.findings()
+    state = whole.to_state()
+    state["on_grid"] = [1, 2]
+    with pytest.raises(ValueError, match="one count per grid"):
+        InputChecks.from_state(state)
+
+
+def test_a_few_fixes_on_a_grid_by_chance_say_nothing() -> None:
+    """Under the share: a drive in full precision with a tenth of its fixes rounded."""
+    drive = _winding()
+    some = drive.index % 10 == 0
+    mixed = drive.copy()
+    mixed.loc[some, "lat"] = mixed.loc[some, "lat"].round(4)
+    mixed.loc[some, "lon"] = mixed.loc[some, "lon"].round(4)
+    assert InputChecks().add(mixed).findings() == []

@@ -51,6 +51,17 @@ Warnings (thresholds are module constants):
   many (every real drive of ``../shared/data``, every split, at its own rate and
   decimated to 0.5 Hz: ratio 1). Where it is found, ``noisy fixes`` is not said:
   the triples behind it then measure the leaps, not the receiver's noise;
+* ``coarse coordinates``: at least :data:`COARSE_SHARE` of the fixes (and at
+  least :data:`MIN_TRIPLES`) have a latitude and longitude on one grid of
+  :data:`COARSE_GRIDS_DEG` (4 decimals of a degree or fewer, or whole hundredths
+  or tenths of a minute): each fix is then rounded by up to half a cell, 5.6 m
+  or more north-south, where the model was trained on fixes to a metre or
+  better. On the real validation drives rounded to 4 decimals the shipped model
+  flagged 2.0-9.8 % of clean fixes, to hundredths of a minute 4.2-27.0 %, at 5
+  decimals or thousandths of a minute what it flags unrounded
+  (``benchmarks/coarse_coordinates.py``). Full-precision coordinates land on
+  such a grid by chance about once in a million. Where it is found, ``repeated
+  fixes`` and ``noisy fixes`` are not said: the rounding makes both;
 * ``noisy fixes``: the lower quartile of the *second differences* of the
   positions (over three fixes with steps within 10 % of each other: where the
   third fix lands beyond the line the first two draw, in metres; exact repeats,
@@ -106,6 +117,8 @@ from .track import SPEED_UNITS
 
 __all__ = [
     "CHECK_EVERY",
+    "COARSE_GRIDS_DEG",
+    "COARSE_SHARE",
     "IRREGULAR_IQR_RATIO",
     "MAX_FAST_SHARE",
     "MAX_FAST_STEPS",
@@ -153,6 +166,20 @@ MIN_TRIPLES = 50
 PADDED_RATIO = 1.8
 #: ... over at least this many position updates.
 MIN_UPDATES = 50
+#: Grids (degrees, coarsest first) a coordinate column may be rounded to, with their
+#: names: cells of 5 m or more north-south (a degree of latitude is 111.2 km).
+COARSE_GRIDS_DEG = (
+    (1e-2, "2 decimals of a degree"),
+    (1.0 / 600.0, "tenths of a minute"),
+    (1e-3, "3 decimals of a degree"),
+    (1.0 / 6000.0, "hundredths of a minute"),
+    (1e-4, "4 decimals of a degree"),
+)
+#: Share of the fixes on one grid that makes the file's coordinates that coarse.
+COARSE_SHARE = 0.99
+#: A value is on a grid when it is within this share of a cell of a grid line (the
+#: decimal text of a rounded value, parsed, lands within 1e-10 of a cell).
+_GRID_TOLERANCE = 1e-6
 #: Steps of a triple whose durations differ by more than this share are not used.
 _TRIPLE_TOLERANCE = 0.1
 #: Relative slack on the rate limits (histogram resolution and clock jitter).
@@ -250,6 +277,10 @@ class InputChecks:
         # binned as ``hist``; and proper steps that repeat the position before exactly.
         self.update_hist = np.zeros(_K_MAX - _K_MIN + 1, dtype=np.int64)
         self.position_repeats = 0
+        # Fixes seen, and of them those whose latitude and longitude both lie on each grid
+        # of COARSE_GRIDS_DEG.
+        self.fixes_seen = 0
+        self.on_grid = np.zeros(len(COARSE_GRIDS_DEG), dtype=np.int64)
         # Per reading of HEADING_READINGS, |reported heading - chord bearing| in 1-degree bins.
         self.heading_diff_hist = np.zeros((len(HEADING_READINGS), 181), dtype=np.int64)
         #: How the speed column was read (``fixes.attrs``): its name and unit.
@@ -286,6 +317,8 @@ class InputChecks:
             "update_hist": bins(self.update_hist),
             "position_repeats": self.position_repeats,
             "last_update": dict(self._last_update),
+            "fixes_seen": self.fixes_seen,
+            "on_grid": [int(n) for n in self.on_grid],
             "speed_column": self.speed_column,
             "speed_unit": self.speed_unit,
             "heading_column": self.heading_column,
@@ -316,6 +349,11 @@ class InputChecks:
         # starts afresh from them.
         fill(checks.update_hist, state.get("update_hist", ()))
         checks.position_repeats = int(state.get("position_repeats", 0))
+        checks.fixes_seen = int(state.get("fixes_seen", 0))
+        on_grid = [int(n) for n in state.get("on_grid", [0] * len(COARSE_GRIDS_DEG))]
+        if len(on_grid) != len(COARSE_GRIDS_DEG) or min(on_grid) < 0:
+            raise ValueError(f"on_grid {on_grid!r} is not one count per grid")
+        checks.on_grid[:] = on_grid
         checks._last_update = {
             str(k): float(v) for k, v in dict(state.get("last_update", {})).items()
         }
@@ -404,6 +442,7 @@ class InputChecks:
     ) -> None:
         """One track's valid fixes, in time order, into the histograms."""
         part = (tt, la, lo, speed, heading)
+        self._grids(la, lo)
         last = self._last.get(track, [])
         if last and tt[0] >= last[-1][0]:
             # The track goes on: its last fixes (in time order) lead this chunk's;
@@ -638,6 +677,26 @@ class InputChecks:
             self.update_hist += np.bincount(k - _K_MIN, minlength=self.update_hist.size)
         self._last_update[track] = float(times[-1])
 
+    def _grids(self, lat: np.ndarray, lon: np.ndarray) -> None:
+        """Count the fixes whose latitude and longitude both lie on each coarse grid."""
+        self.fixes_seen += int(lat.size)
+        for i, (cell, _) in enumerate(COARSE_GRIDS_DEG):
+            on = np.ones(lat.size, dtype=bool)
+            for x in (lat, lon):
+                q = x / cell
+                on &= np.abs(q - np.rint(q)) <= _GRID_TOLERANCE
+            self.on_grid[i] += int(on.sum())
+
+    def coarse_grid(self) -> tuple[float, str] | None:
+        """The coarsest grid (degrees, name) that holds :data:`COARSE_SHARE` of the fixes,
+        over at least :data:`MIN_TRIPLES` of them; None if none does."""
+        if self.fixes_seen < MIN_TRIPLES:
+            return None
+        for (cell, name), n in zip(COARSE_GRIDS_DEG, self.on_grid, strict=True):
+            if n >= COARSE_SHARE * self.fixes_seen:
+                return cell, name
+        return None
+
     def padded(self) -> tuple[float, int]:
         """Median time between position updates over the median step (nan where either is
         unknown) and how many updates it is over: see ``repeated fixes``."""
@@ -718,8 +777,20 @@ class InputChecks:
                 "glitches of a car's receiver"
             )
             out.append(("implausible speeds", text))
+        coarse = self.coarse_grid()
+        if coarse is not None:
+            cell, name = coarse
+            half_m = 0.5 * cell * math.radians(1.0) * EARTH_MEAN_RADIUS_M
+            text = (
+                f"coarse coordinates: the latitudes and longitudes are rounded to {name} "
+                f"({cell:.2g} degrees), which moves each fix by up to {half_m:.2g} m "
+                "north-south; the model was trained on fixes to a metre or better and reads "
+                "the rounding as noise or faults: expect false alarms; export the positions "
+                "with more decimals (6 decimals of a degree are 0.1 m)"
+            )
+            out.append(("coarse coordinates", text))
         ratio, updates = self.padded()
-        padded = updates >= MIN_UPDATES and ratio >= PADDED_RATIO
+        padded = coarse is None and updates >= MIN_UPDATES and ratio >= PADDED_RATIO
         if padded:
             update_s = ratio * median
             text = (
@@ -733,7 +804,7 @@ class InputChecks:
             )
             out.append(("repeated fixes", text))
         noise, triples = self.second_difference_quartile()
-        if not padded and triples >= MIN_TRIPLES and noise > NOISY_QUARTILE_M:
+        if coarse is None and not padded and triples >= MIN_TRIPLES and noise > NOISY_QUARTILE_M:
             text = (
                 f"noisy fixes: three in four fixes land more than {noise:.2g} m off the line "
                 "their two predecessors draw (at most 1.3 m on every real drive the model "
