@@ -641,3 +641,26 @@ def test_a_few_fixes_on_a_grid_by_chance_say_nothing() -> None:
     mixed.loc[some, "lat"] = mixed.loc[some, "lat"].round(4)
     mixed.loc[some, "lon"] = mixed.loc[some, "lon"].round(4)
     assert InputChecks().add(mixed).findings() == []
+
+
+def test_a_drive_that_lost_fixes_at_random_is_not_a_repeated_clock() -> None:
+    """Half or more of the fixes lost at random leave steps of one, two, three periods,
+    and the times between updates the same: no faster clock, however the medians of the
+    two fall (they sat either side of one period before the check used quartiles); a
+    padded drive that lost a tenth of its rows still is one."""
+    drive = _winding(minutes=30.0)
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        pinned = drive.copy()  # 2 % of the fixes repeat the one before (a standing car)
+        pin = np.flatnonzero(rng.random(len(drive)) < 0.02)
+        pin = pin[pin > 0]
+        for c in ("lat", "lon"):
+            pinned.iloc[pin, pinned.columns.get_loc(c)] = drive[c].to_numpy()[pin - 1]
+        for lost in (0.3, 0.5, 0.7):
+            kept = pinned[rng.random(len(drive)) > lost]
+            kinds = [kind for kind, _ in InputChecks().add(kept).findings()]
+            assert "repeated fixes" not in kinds, (seed, lost, kinds)
+    rng = np.random.default_rng(0)
+    padded = _repeated(drive, 2)
+    padded = padded[rng.random(len(padded)) > 0.1]
+    assert "repeated fixes" in [kind for kind, _ in InputChecks().add(padded).findings()]

@@ -36,10 +36,12 @@ Warnings (thresholds are module constants):
 * ``irregular sampling``: the proper steps' interquartile range is more than
   half their median;
 * ``repeated fixes``: the positions change less often than the fixes come:
-  the median time between *position updates* (fixes whose latitude or longitude
-  differs from the fix before, over proper steps) is at least
-  :data:`PADDED_RATIO` times the median step, over at least
-  :data:`MIN_UPDATES` updates. A receiver's fixes re-sampled onto a faster
+  the lower quartile of the time between *position updates* (fixes whose
+  latitude or longitude differs from the fix before, over proper steps) is at
+  least :data:`PADDED_RATIO` times the upper quartile of the steps, over at
+  least :data:`MIN_UPDATES` updates (quartiles, not medians: a drive that lost
+  half its fixes at random has half its steps one period long, and its medians
+  of steps and of updates fall either side of that by a count or two). A receiver's fixes re-sampled onto a faster
   clock (a data logger or vehicle bus that samples the last fix at 5-10 Hz, a
   topic republished faster than the receiver solves) look so: each new fix is
   followed by exact copies of itself. The detector reads every row as a new fix,
@@ -697,14 +699,20 @@ class InputChecks:
                 return cell, name
         return None
 
+    def update_quantile(self, q: float) -> float:
+        """The ``q`` quantile of the times between position updates in seconds (histogram
+        bin centre); nan if none."""
+        return _log_quantile(self.update_hist, _K_MIN, q)
+
     def padded(self) -> tuple[float, int]:
-        """Median time between position updates over the median step (nan where either is
-        unknown) and how many updates it is over: see ``repeated fixes``."""
+        """Lower quartile of the times between position updates over the steps' upper
+        quartile (nan where either is unknown) and how many updates it is over: see
+        ``repeated fixes``."""
         updates = int(self.update_hist.sum())
-        step = self.step_quantile(0.5)
+        step = self.step_quantile(0.75)
         if updates == 0 or not math.isfinite(step):
             return float("nan"), updates
-        return _log_quantile(self.update_hist, _K_MIN, 0.5) / step, updates
+        return self.update_quantile(0.25) / step, updates
 
     def _steps(self, t: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
         dt = np.diff(t)
@@ -792,7 +800,7 @@ class InputChecks:
         ratio, updates = self.padded()
         padded = coarse is None and updates >= MIN_UPDATES and ratio >= PADDED_RATIO
         if padded:
-            update_s = ratio * median
+            update_s = self.update_quantile(0.5)
             text = (
                 f"repeated fixes: the positions change every {update_s:.2g} s (median) while "
                 f"fixes come every {median:.2g} s, and {self.position_repeats:,} of "
