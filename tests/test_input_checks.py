@@ -579,6 +579,7 @@ def test_no_real_drive_is_a_repeated_clock_or_coarse(shared_data: Path) -> None:
                 kinds = [k for k, _ in checks.findings()]
                 assert "repeated fixes" not in kinds, (name, split)
                 assert "coarse coordinates" not in kinds, (name, split)
+                assert "one-fix tracks" not in kinds, (name, split)
                 assert checks.coarse_grid() is None, (name, split)
                 checked += 1
     assert checked >= 36
@@ -664,3 +665,53 @@ def test_a_drive_that_lost_fixes_at_random_is_not_a_repeated_clock() -> None:
     padded = _repeated(drive, 2)
     padded = padded[rng.random(len(padded)) > 0.1]
     assert "repeated fixes" in [kind for kind, _ in InputChecks().add(padded).findings()]
+
+
+# A track column that numbers the rows (the ``one-fix tracks`` check).
+
+
+@pytest.mark.parametrize("chunk_size", ["0", "37"])
+def test_an_id_column_that_numbers_the_rows_is_named(tmp_path: Path, chunk_size: str) -> None:
+    """A drive written with a row number in a column ``id`` (which the reader takes for a
+    track column) is read as one track per fix, and nothing can be flagged: ``detect``
+    says so once, naming the column and the flag that reads it as one track, in one pass
+    and in chunks; with ``--track-col ''`` it is one track and the warning is gone."""
+    from gradgps._cli import main
+
+    drive = _winding()[["t", "lat", "lon"]]
+    drive.insert(0, "id", np.arange(len(drive)))
+    src = tmp_path / "with_id.csv"
+    drive.to_csv(src, index=False)
+    runner = CliRunner()
+    out = tmp_path / "out.csv"
+    result = runner.invoke(main, ["detect", str(src), "-o", str(out), "--chunk-size", chunk_size])
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.stderr.splitlines() if line.startswith("warning: ")]
+    assert len(lines) == 1, lines
+    assert "one-fix tracks" in lines[0]
+    assert f"{len(drive):,} of {len(drive):,} fixes" in lines[0]
+    assert "(column 'id')" in lines[0]
+    assert "--track-col ''" in lines[0]
+    result = runner.invoke(
+        main,
+        ["detect", str(src), "-o", str(out), "--chunk-size", chunk_size, "--track-col", ""],
+    )
+    assert result.exit_code == 0, result.output
+    assert "warning" not in result.output
+
+
+def test_a_fleet_of_short_tracks_is_not_one_fix_tracks() -> None:
+    """Many vehicles with a few fixes each, a few with one: no warning; the same fixes fed
+    in chunks and through a stream state count the same fixes per track."""
+    parts = [_track(np.arange(3.0) + 10 * i, name=f"v{i}") for i in range(40)]
+    parts += [_track(np.array([500.0 + i]), name=f"w{i}") for i in range(30)]
+    fleet = pd.concat(parts).sort_values("t", kind="stable").reset_index(drop=True)
+    whole = InputChecks().add(fleet)
+    assert "one-fix tracks" not in [kind for kind, _ in whole.findings()]
+    chunked = InputChecks()
+    for lo in range(0, len(fleet), 11):
+        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
+        chunked.add(fleet.iloc[lo : lo + 11])
+    assert chunked.fixes_per_track == whole.fixes_per_track
+    lone = pd.concat([_track(np.array([float(i)]), name=f"r{i}") for i in range(60)])
+    assert [kind for kind, _ in InputChecks().add(lone).findings()] == ["one-fix tracks"]

@@ -64,6 +64,12 @@ Warnings (thresholds are module constants):
   (``benchmarks/coarse_coordinates.py``). Full-precision coordinates land on
   such a grid by chance about once in a million. Where it is found, ``repeated
   fixes`` and ``noisy fixes`` are not said: the rounding makes both;
+* ``one-fix tracks``: at least half of the fixes (and at least
+  :data:`MIN_TRIPLES`) are alone in their track. The detector judges a fix
+  against the fixes before it in its track, so it flags none of them: a file
+  whose ``id`` column numbers the rows (a database export, a point id) is
+  read as one track per row, and would otherwise be passed as clean whatever
+  it holds;
 * ``noisy fixes``: the lower quartile of the *second differences* of the
   positions (over three fixes with steps within 10 % of each other: where the
   third fix lands beyond the line the first two draw, in metres; exact repeats,
@@ -279,6 +285,9 @@ class InputChecks:
         # binned as ``hist``; and proper steps that repeat the position before exactly.
         self.update_hist = np.zeros(_K_MAX - _K_MIN + 1, dtype=np.int64)
         self.position_repeats = 0
+        # Valid fixes per track, and the name of the column the tracks come from.
+        self.fixes_per_track: dict[str, int] = {}
+        self.track_column: str | None = None
         # Fixes seen, and of them those whose latitude and longitude both lie on each grid
         # of COARSE_GRIDS_DEG.
         self.fixes_seen = 0
@@ -320,6 +329,8 @@ class InputChecks:
             "position_repeats": self.position_repeats,
             "last_update": dict(self._last_update),
             "fixes_seen": self.fixes_seen,
+            "fixes_per_track": dict(self.fixes_per_track),
+            "track_column": self.track_column,
             "on_grid": [int(n) for n in self.on_grid],
             "speed_column": self.speed_column,
             "speed_unit": self.speed_unit,
@@ -352,6 +363,13 @@ class InputChecks:
         fill(checks.update_hist, state.get("update_hist", ()))
         checks.position_repeats = int(state.get("position_repeats", 0))
         checks.fixes_seen = int(state.get("fixes_seen", 0))
+        checks.fixes_per_track = {
+            str(k): int(v) for k, v in dict(state.get("fixes_per_track", {})).items()
+        }
+        column = state.get("track_column")
+        if column is not None and not isinstance(column, str):
+            raise TypeError(f"track_column is not a string: {column!r}")
+        checks.track_column = column
         on_grid = [int(n) for n in state.get("on_grid", [0] * len(COARSE_GRIDS_DEG))]
         if len(on_grid) != len(COARSE_GRIDS_DEG) or min(on_grid) < 0:
             raise ValueError(f"on_grid {on_grid!r} is not one count per grid")
@@ -390,6 +408,9 @@ class InputChecks:
             self.speed_unit = str(fixes.attrs.get("speed_unit", "m/s"))
         if "heading" in fixes.columns and self.heading_column is None:
             self.heading_column = getattr(columns, "heading", None) or "heading"
+        track_column = getattr(columns, "track", None)
+        if self.track_column is None and track_column:
+            self.track_column = str(track_column)
         none = np.full(len(fixes), np.nan)
         values = [
             fixes[c].to_numpy(dtype=np.float64) if c in fixes else none
@@ -445,6 +466,7 @@ class InputChecks:
         """One track's valid fixes, in time order, into the histograms."""
         part = (tt, la, lo, speed, heading)
         self._grids(la, lo)
+        self.fixes_per_track[track] = self.fixes_per_track.get(track, 0) + int(tt.size)
         last = self._last.get(track, [])
         if last and tt[0] >= last[-1][0]:
             # The track goes on: its last fixes (in time order) lead this chunk's;
@@ -749,6 +771,18 @@ class InputChecks:
         ``"reported speed"``...; a reader's note is its own kind), so that a stream can
         say each kind once, as the evidence for it comes in."""
         out: list[tuple[str, str]] = [(note, note) for note in self.notes]
+        lone = sum(1 for n in self.fixes_per_track.values() if n == 1)
+        if self.fixes_seen >= MIN_TRIPLES and lone >= 0.5 * self.fixes_seen:
+            column = f" (column {self.track_column!r})" if self.track_column else ""
+            named = repr(self.track_column) if self.track_column else "the track column"
+            text = (
+                f"one-fix tracks: {lone:,} of {self.fixes_seen:,} fixes are alone in their "
+                f"track{column}; the detector judges a fix against the fixes before it in its "
+                f"track, so it flags none of them. If {named} numbers the rows or points rather "
+                "than the vehicles or trips, name the track column with --track-col "
+                "(--track-col '' reads the file as one track)"
+            )
+            out.append(("one-fix tracks", text))
         if self.steps == 0:
             return out
         median = self.step_quantile(0.5)
