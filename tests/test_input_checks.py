@@ -580,6 +580,7 @@ def test_no_real_drive_is_a_repeated_clock_or_coarse(shared_data: Path) -> None:
                 assert "repeated fixes" not in kinds, (name, split)
                 assert "coarse coordinates" not in kinds, (name, split)
                 assert "one-fix tracks" not in kinds, (name, split)
+                assert "time runs backwards" not in kinds, (name, split)
                 assert checks.coarse_grid() is None, (name, split)
                 checked += 1
     assert checked >= 36
@@ -715,3 +716,37 @@ def test_a_fleet_of_short_tracks_is_not_one_fix_tracks() -> None:
     assert chunked.fixes_per_track == whole.fixes_per_track
     lone = pd.concat([_track(np.array([float(i)]), name=f"r{i}") for i in range(60)])
     assert [kind for kind, _ in InputChecks().add(lone).findings()] == ["one-fix tracks"]
+
+
+# A file not in time order (the ``time runs backwards`` check).
+
+
+def test_a_file_written_newest_first_is_named() -> None:
+    """Newest first, every fix but the first comes before the one above it (each is then
+    flagged invalid): named, with the count; shuffled rows too; a drive in time order with
+    a few clock steps back says nothing."""
+    drive = _winding()[["track", "t", "lat", "lon"]]
+    findings = InputChecks().add(drive.iloc[::-1]).findings()
+    assert [kind for kind, _ in findings] == ["time runs backwards"], findings
+    assert f"{len(drive) - 1:,} of {len(drive):,} fixes" in findings[0][1]
+    shuffled = drive.sample(frac=1.0, random_state=0)
+    assert "time runs backwards" in [kind for kind, _ in InputChecks().add(shuffled).findings()]
+    glitches = drive.copy()
+    glitches.iloc[[100, 300, 500], glitches.columns.get_loc("t")] -= 5.0
+    assert "time runs backwards" not in [k for k, _ in InputChecks().add(glitches).findings()]
+
+
+def test_time_order_in_chunks_and_stream_states_equals_the_whole_file() -> None:
+    """Two tracks written newest first, interleaved, fed in chunks through stored states:
+    the same count as the whole table (a chunk's first fix is held against its track's
+    latest time from the chunks before)."""
+    a = _winding()[["track", "t", "lat", "lon"]].iloc[::-1].reset_index(drop=True)
+    b = _winding(seed=1)[["track", "t", "lat", "lon"]].assign(track="b")
+    both = pd.concat([a, b]).sort_index(kind="stable").reset_index(drop=True)
+    whole = InputChecks().add(both)
+    chunked = InputChecks()
+    for lo in range(0, len(both), 41):
+        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
+        chunked.add(both.iloc[lo : lo + 41])
+    assert whole.backward == chunked.backward == len(a) - 1
+    assert whole.findings() == chunked.findings()

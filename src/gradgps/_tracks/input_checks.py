@@ -64,6 +64,11 @@ Warnings (thresholds are module constants):
   (``benchmarks/coarse_coordinates.py``). Full-precision coordinates land on
   such a grid by chance about once in a million. Where it is found, ``repeated
   fixes`` and ``noisy fixes`` are not said: the rounding makes both;
+* ``time runs backwards``: at least :data:`MIN_TRIPLES` valid fixes, and a
+  quarter of them, come (in file order) before a fix above them in their
+  track. Each track is read in row order and such a fix is flagged invalid
+  (``invalid_reason``), so a file written newest first had every fix but its
+  first flagged, with no word on why;
 * ``one-fix tracks``: at least half of the fixes (and at least
   :data:`MIN_TRIPLES`) are alone in their track. The detector judges a fix
   against the fixes before it in its track, so it flags none of them: a file
@@ -285,6 +290,10 @@ class InputChecks:
         # binned as ``hist``; and proper steps that repeat the position before exactly.
         self.update_hist = np.zeros(_K_MAX - _K_MIN + 1, dtype=np.int64)
         self.position_repeats = 0
+        # Valid fixes that come, in file order, before a fix above them in their track;
+        # and each track's latest time so far (file order).
+        self.backward = 0
+        self._latest: dict[str, float] = {}
         # Valid fixes per track, and the name of the column the tracks come from.
         self.fixes_per_track: dict[str, int] = {}
         self.track_column: str | None = None
@@ -329,6 +338,8 @@ class InputChecks:
             "position_repeats": self.position_repeats,
             "last_update": dict(self._last_update),
             "fixes_seen": self.fixes_seen,
+            "backward": self.backward,
+            "latest": dict(self._latest),
             "fixes_per_track": dict(self.fixes_per_track),
             "track_column": self.track_column,
             "on_grid": [int(n) for n in self.on_grid],
@@ -363,6 +374,8 @@ class InputChecks:
         fill(checks.update_hist, state.get("update_hist", ()))
         checks.position_repeats = int(state.get("position_repeats", 0))
         checks.fixes_seen = int(state.get("fixes_seen", 0))
+        checks.backward = int(state.get("backward", 0))
+        checks._latest = {str(k): float(v) for k, v in dict(state.get("latest", {})).items()}
         checks.fixes_per_track = {
             str(k): int(v) for k, v in dict(state.get("fixes_per_track", {})).items()
         }
@@ -449,6 +462,12 @@ class InputChecks:
                 & (np.abs(lat) <= 90.0)
                 & (np.abs(lon) <= 180.0)
             )
+        in_file = t[valid]
+        if in_file.size:
+            before = self._latest.get(track, -math.inf)
+            latest = np.maximum.accumulate(np.r_[before, in_file])
+            self.backward += int((in_file < latest[:-1]).sum())
+            self._latest[track] = float(latest[-1])
         order = np.flatnonzero(valid)[np.argsort(t[valid], kind="stable")]
         if order.size:
             self._add_track(track, t[order], lat[order], lon[order], speed[order], heading[order])
@@ -771,6 +790,15 @@ class InputChecks:
         ``"reported speed"``...; a reader's note is its own kind), so that a stream can
         say each kind once, as the evidence for it comes in."""
         out: list[tuple[str, str]] = [(note, note) for note in self.notes]
+        if self.backward >= MIN_TRIPLES and self.backward >= 0.25 * self.fixes_seen:
+            text = (
+                f"time runs backwards: {self.backward:,} of {self.fixes_seen:,} fixes "
+                f"({100.0 * self.backward / self.fixes_seen:.0f} %) come before a fix above "
+                "them in their track; each track is read in row order, so these are flagged "
+                "invalid (invalid_reason). If the file is sorted newest first, or not by time, "
+                "sort its rows by time"
+            )
+            out.append(("time runs backwards", text))
         lone = sum(1 for n in self.fixes_per_track.values() if n == 1)
         if self.fixes_seen >= MIN_TRIPLES and lone >= 0.5 * self.fixes_seen:
             column = f" (column {self.track_column!r})" if self.track_column else ""
