@@ -1,4 +1,4 @@
-"""Receivers' fixes re-sampled onto a faster clock: what the detector does, and what the input checks say.
+"""Receivers' fixes re-sampled onto a faster clock: what the detector does, what the checks say.
 
 A data logger or vehicle bus that samples a 1 Hz receiver's last fix at 5-10 Hz
 writes each fix followed by exact copies of itself ("repeat"); some tools fill

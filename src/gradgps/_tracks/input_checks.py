@@ -41,18 +41,19 @@ Warnings (thresholds are module constants):
   least :data:`PADDED_RATIO` times the upper quartile of the steps, over at
   least :data:`MIN_UPDATES` updates (quartiles, not medians: a drive that lost
   half its fixes at random has half its steps one period long, and its medians
-  of steps and of updates fall either side of that by a count or two). A receiver's fixes re-sampled onto a faster
-  clock (a data logger or vehicle bus that samples the last fix at 5-10 Hz, a
-  topic republished faster than the receiver solves) look so: each new fix is
-  followed by exact copies of itself. The detector reads every row as a new fix,
-  so the car seems to stand still and then leap, and on the real validation
-  drives re-sampled so (every 1 Hz fix repeated 5 or 10 times) the shipped model
-  flagged 0.5-38 % of clean fixes (``benchmarks/padded_streams.py``). An
-  ordinary drive's stops do not make it: while the car moves the position
-  changes at every fix, and a stop adds one long interval between updates, not
-  many (every real drive of ``../shared/data``, every split, at its own rate and
-  decimated to 0.5 Hz: ratio 1). Where it is found, ``noisy fixes`` is not said:
-  the triples behind it then measure the leaps, not the receiver's noise;
+  of steps and of updates fall either side of that by a count or two). A
+  receiver's fixes re-sampled onto a faster clock (a data logger or vehicle bus
+  that samples the last fix at 5-10 Hz, a topic republished faster than the
+  receiver solves) look so: each new fix is followed by exact copies of
+  itself. The detector reads every row as a new fix, so the car seems to stand
+  still and then leap, and on the real validation drives re-sampled so (every
+  fix repeated 2, 5 or 10 times) the shipped model flagged 0.5-38 % of clean
+  fixes (``benchmarks/padded_streams.py``). An ordinary drive's stops do not
+  make it: while the car moves the position changes at every fix, and a stop
+  adds one long interval between updates, not many (every real drive of
+  ``../shared/data``, every split, at its own rate and decimated to 0.5 Hz:
+  ratio 1 or less). Where it is found, ``noisy fixes`` is not said: the
+  triples behind it then measure the leaps, not the receiver's noise;
 * ``coarse coordinates``: at least :data:`COARSE_SHARE` of the fixes (and at
   least :data:`MIN_TRIPLES`) have a latitude and longitude on one grid of
   :data:`COARSE_GRIDS_DEG` (4 decimals of a degree or fewer, or whole hundredths
