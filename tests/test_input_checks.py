@@ -750,3 +750,24 @@ def test_time_order_in_chunks_and_stream_states_equals_the_whole_file() -> None:
         chunked.add(both.iloc[lo : lo + 41])
     assert whole.backward == chunked.backward == len(a) - 1
     assert whole.findings() == chunked.findings()
+
+
+def test_a_speed_column_of_zeros_is_named() -> None:
+    """An export that fills the speed column with zeros: the steps it calls standing are
+    left out of the agreement (a fault's fast chord while the car stands must not count),
+    so before this check nothing was said; now it is named, with the flag that leaves it
+    out. A real stop (speed 0 where the positions stand too) says nothing."""
+    drive = _winding()
+    zeros = drive.assign(speed=0.0)
+    findings = InputChecks().add(zeros).findings()
+    assert [kind for kind, _ in findings] == ["reported speed"], findings
+    assert "placeholder" in findings[0][1]
+    assert "--speed-col ''" in findings[0][1]
+    # Three stops of 60 s on a straight drive at 15 m/s: the reported speed reads 0 where
+    # the positions stand too.
+    t = np.arange(900.0)
+    v = np.where(t % 300 < 60, 0.0, 15.0)
+    north = np.cumsum(v)
+    lat, lon = LocalFrame(52.0, 4.4).to_geodetic(np.zeros_like(north), north)
+    stopping = pd.DataFrame({"track": "a", "t": t, "lat": lat, "lon": lon, "speed": v})
+    assert InputChecks().add(stopping).findings() == []
