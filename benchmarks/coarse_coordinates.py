@@ -13,17 +13,10 @@ flag is a false alarm. Never the test splits. Run:
 
 from __future__ import annotations
 
-import argparse
-import warnings
 from collections.abc import Callable
 
 import numpy as np
-import pandas as pd
-from _validation_drives import validation_positions
-
-from gradgps._grad.detector import Detector
-from gradgps._tracks.input_checks import InputChecks
-from gradgps._tracks.track import to_fixes
+from _clean_variants import Rewrite, print_table
 
 
 def minutes(decimals: int) -> Callable[[np.ndarray], np.ndarray]:
@@ -46,29 +39,10 @@ ROUNDINGS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
 }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", default=None)
-    parser.add_argument("--data-dir", default=None)
-    args = parser.parse_args()
-    det = Detector(args.model) if args.model else Detector()
-    print("| drive | fixes | " + " | ".join(ROUNDINGS) + " |")
-    print("|---|---|" + "---|" * len(ROUNDINGS))
-    for name, table, cols, cmap, _ in validation_positions(None, args.data_dir, keep_native=True):
-        fixes = to_fixes(table[cols], cmap)
-        base = pd.DataFrame({c: fixes[c].to_numpy() for c in ("track", "t", "lat", "lon")})
-        cells = []
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            for rounded in ROUNDINGS.values():
-                table_now = base.assign(
-                    lat=rounded(base["lat"].to_numpy()), lon=rounded(base["lon"].to_numpy())
-                )
-                share = det.detect(table_now)["anomaly"].mean()
-                kinds = [k for k, _ in InputChecks().add(to_fixes(table_now)).findings()]
-                cells.append(f"{100 * share:.2f} % ({', '.join(kinds) or '-'})")
-        print(f"| {name} | {len(base):,} | " + " | ".join(cells) + " |", flush=True)
+def _rounding(rounded: Callable[[np.ndarray], np.ndarray]) -> Rewrite:
+    """The fixes with their latitudes and longitudes written by ``rounded``."""
+    return lambda t: t.assign(lat=rounded(t["lat"].to_numpy()), lon=rounded(t["lon"].to_numpy()))
 
 
 if __name__ == "__main__":
-    main()
+    print_table(__doc__.splitlines()[0], {name: _rounding(r) for name, r in ROUNDINGS.items()})
