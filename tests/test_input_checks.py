@@ -771,3 +771,29 @@ def test_a_speed_column_of_zeros_is_named() -> None:
     lat, lon = LocalFrame(52.0, 4.4).to_geodetic(np.zeros_like(north), north)
     stopping = pd.DataFrame({"track": "a", "t": t, "lat": lat, "lon": lon, "speed": v})
     assert InputChecks().add(stopping).findings() == []
+
+
+def test_injected_faults_do_not_make_the_file_checks_fire(shared_data: Path) -> None:
+    """Faults are what the detector is for, not a file problem: protocol ``grad`` and
+    ``gnss`` (frozen fixes, outages, drift, multipath) on every validation drive leave the
+    repeated-fixes, coarse-coordinates, one-fix-tracks, time-order and placeholder-speed
+    checks silent."""
+    from gradgps._data.datasets import load_dataset
+    from gradgps._tracks.track import to_fixes
+    from gradgps.inject import inject_gnss, inject_grad
+
+    file_kinds = {
+        "repeated fixes",
+        "coarse coordinates",
+        "one-fix tracks",
+        "time runs backwards",
+    }
+    for name in ("driveplotr", "tuc", "nl_motorway", "nl_motorway_gopro", "austin2006", "nevada"):
+        table = load_dataset(name, "validation", data_dir=shared_data)
+        cmap = to_fixes(table).attrs["columns"]
+        for faults in (inject_grad, inject_gnss):
+            labelled = faults(table, seed=0, columns=cmap)[list(table.columns)]
+            findings = InputChecks().add(to_fixes(labelled, cmap)).findings()
+            where = (name, faults.__name__, findings)
+            assert not file_kinds & {kind for kind, _ in findings}, where
+            assert not [text for _, text in findings if "placeholder" in text], where
