@@ -107,3 +107,20 @@ def test_iso_year_outside_nanosecond_range_is_an_input_error() -> None:
     )
     with pytest.raises(InputError, match=r"row 1 \(line 2\), column 't': time out of range"):
         to_fixes(Table(frame, source="x.csv", first_line=2))
+
+
+@pytest.mark.parametrize(
+    ("names", "track"),
+    [
+        (["device_id", "time", "lat", "lon"], "device_id"),
+        (["IMEI", "timestamp", "latitude", "longitude"], "IMEI"),
+        (["taxi_id", "t", "lat", "lon"], "taxi_id"),
+        (["id", "asset_id", "t", "lat", "lon"], "asset_id"),
+        (["trip", "vehicle", "t", "lat", "lon"], "trip"),
+    ],
+)
+def test_fleet_exports_name_the_vehicle_by_device_or_asset(names: list[str], track: str) -> None:
+    """A fleet export's vehicle column under its usual names is the track (each vehicle
+    read on its own, not merged into one path that leaps between them); a device or asset
+    id wins over a bare ``id`` (often a row number), a trip over a vehicle."""
+    assert resolve_columns(names).track == track

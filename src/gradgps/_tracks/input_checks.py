@@ -875,8 +875,9 @@ class InputChecks:
             text = (
                 f"{self.fast:,} of {proper:,} time steps ({100.0 * self.fast / proper:.0f} %) "
                 f"imply speeds above {MAX_SPEED_MPS:g} m/s (fastest {self.fastest:,.0f} m/s): "
-                "check the time unit and the latitude/longitude columns; so many are not "
-                "glitches of a car's receiver"
+                "check the time unit and the latitude/longitude columns, and whether the file "
+                "holds several vehicles without a track column (--track-col); so many are "
+                "not glitches of a car's receiver"
             )
             out.append(("implausible speeds", text))
         coarse = self.coarse_grid()

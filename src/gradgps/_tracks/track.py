@@ -140,6 +140,18 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "trace",
         "traceid",
         "segment",
+        # fleet exports name the vehicle by its device or asset
+        "deviceid",
+        "device",
+        "imei",
+        "unitid",
+        "assetid",
+        "carid",
+        "taxiid",
+        "busid",
+        "userid",
+        "objectid",
+        "vin",
         "id",
     ),
     "speed": (
