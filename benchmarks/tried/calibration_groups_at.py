@@ -42,11 +42,8 @@ def group_normal_recall(
     (``truth`` 0) scored below ``threshold``, over the points the calibration counts
     (:func:`gradgps._train.calibrate.scored_normals`: those without a score left out,
     groups without normal points too)."""
-    _, scored, normals = scored_normals(truth, score, group)
-    return {
-        g: float(np.mean(scored[np.logical_or.reduce(masks)] < threshold))
-        for g, masks in normals.items()
-    }
+    _, scored, normals, _ = scored_normals(truth, score, group)
+    return {g: float(np.mean(scored[normal] < threshold)) for g, normal in normals.items()}
 
 
 def as_trained(model: str, scratch: str) -> Detector:

@@ -185,21 +185,21 @@ def scored_normals(
     probability: np.ndarray,
     group: np.ndarray,
     draw: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, dict[str, list[np.ndarray]]]:
+) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
     """The points that have a probability (NaN: the confirm head reads none at a
-    segment's last point), their truth (bool) and probability, and for each group with
-    normal points among them (in order of first appearance) the masks of those points,
-    one per draw of the faults that has any (``draw``: each point's draw; one mask when
-    it is None): what a group's normal recall is counted over."""
+    segment's last point), their truth (bool) and probability, for each group with
+    normal points among them (in order of first appearance) the mask of those points
+    (what a group's normal recall is counted over), and each of those points' draw of
+    the faults (``draw``; all 0 when it is None)."""
     ok = np.isfinite(probability)
     truth, probability, group = truth[ok].astype(bool), probability[ok], group[ok]
     draws = np.zeros(len(truth), np.int64) if draw is None else np.asarray(draw)[ok]
-    normals: dict[str, list[np.ndarray]] = {}
+    normals: dict[str, np.ndarray] = {}
     for g in dict.fromkeys(group.tolist()):
         normal = (group == g) & ~truth
         if normal.any():
-            normals[str(g)] = [normal & (draws == d) for d in np.unique(draws[normal])]
-    return truth, probability, normals
+            normals[str(g)] = normal
+    return truth, probability, normals, draws
 
 
 def worst_group_threshold(
@@ -217,13 +217,13 @@ def worst_group_threshold(
     Candidates: a grid 0.05-0.995 in steps of 0.005 and, per group, its normal
     points' probability quantiles from ``floor`` to 1 (probabilities bunch near 1).
     """
-    truth, probability, normals = scored_normals(truth, probability, group, draw)
+    truth, probability, normals, draws = scored_normals(truth, probability, group, draw)
     if not normals:
         return 0.5
-    per_draw = list(normals.values())
+    # per group, its normal points in each draw that has any
+    per_draw = [[m & (draws == d) for d in np.unique(draws[m])] for m in normals.values()]
     candidates = [np.round(np.arange(0.05, 0.9951, 0.005), 3)]
-    for masks in per_draw:
-        normal = np.logical_or.reduce(masks)  # the group's normal points, every draw
+    for normal in normals.values():
         candidates.append(
             np.nextafter(np.quantile(probability[normal], np.linspace(floor, 1.0, 51)), np.inf)
         )
