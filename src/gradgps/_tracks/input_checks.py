@@ -268,6 +268,16 @@ def _log_quantile(hist: np.ndarray, first_bin: int, q: float) -> float:
     return float(10.0 ** ((k + first_bin) / _BINS_PER_DECADE))
 
 
+def _log_bins(values: np.ndarray, first_bin: int, last_bin: int) -> np.ndarray:
+    """Counts per bin of the histograms above: bin ``k`` (from ``first_bin``) holds the
+    values with ``round(_BINS_PER_DECADE * log10(value)) == k + first_bin``, values below
+    ``1e-9`` taken as ``1e-9`` and bins beyond either end clipped to it."""
+    with np.errstate(divide="ignore"):
+        k = np.rint(_BINS_PER_DECADE * np.log10(np.maximum(values, 1e-9)))
+    k = np.clip(k.astype(np.int64), first_bin, last_bin)
+    return np.bincount(k - first_bin, minlength=last_bin - first_bin + 1)
+
+
 def validated_rates(config: Mapping[str, Any] | None) -> tuple[float, float]:
     """``(min_rate_hz, max_rate_hz)`` from a model config's ``validated`` block, else the defaults."""
     block = (config or {}).get("validated")
@@ -313,9 +323,7 @@ class InputChecks:
         # Valid fixes per track, and the name of the column the tracks come from.
         self.fixes_per_track: dict[str, int] = {}
         self.track_column: str | None = None
-        # Fixes seen, and of them those whose latitude and longitude both lie on each grid
-        # of COARSE_GRIDS_DEG.
-        self.fixes_seen = 0
+        # Fixes whose latitude and longitude both lie on each grid of COARSE_GRIDS_DEG.
         self.on_grid = np.zeros(len(COARSE_GRIDS_DEG), dtype=np.int64)
         # Per reading of HEADING_READINGS, |reported heading - chord bearing| in 1-degree bins.
         self.heading_diff_hist = np.zeros((len(HEADING_READINGS), 181), dtype=np.int64)
@@ -353,7 +361,6 @@ class InputChecks:
             "update_hist": bins(self.update_hist),
             "position_repeats": self.position_repeats,
             "last_update": dict(self._last_update),
-            "fixes_seen": self.fixes_seen,
             "speed_steps": self.speed_steps,
             "still_speed_steps": self.still_speed_steps,
             "backward": self.backward,
@@ -391,7 +398,6 @@ class InputChecks:
         # starts afresh from them.
         fill(checks.update_hist, state.get("update_hist", ()))
         checks.position_repeats = int(state.get("position_repeats", 0))
-        checks.fixes_seen = int(state.get("fixes_seen", 0))
         checks.speed_steps = int(state.get("speed_steps", 0))
         checks.still_speed_steps = int(state.get("still_speed_steps", 0))
         checks.backward = int(state.get("backward", 0))
@@ -579,10 +585,7 @@ class InputChecks:
         moving = np.isfinite(reported) & ~slow
         if moving.any():
             ratio = reported[moving] / v[i][moving]
-            with np.errstate(divide="ignore"):
-                r = np.rint(_BINS_PER_DECADE * np.log10(np.maximum(ratio, 1e-9)))
-            r = np.clip(r.astype(np.int64), _R_MIN, _R_MAX)
-            self.speed_ratio_hist += np.bincount(r - _R_MIN, minlength=self.speed_ratio_hist.size)
+            self.speed_ratio_hist += _log_bins(ratio, _R_MIN, _R_MAX)
         if np.isnan(heading).all():
             return
         i, reported = i[~slow], reported[~slow]
@@ -716,10 +719,7 @@ class InputChecks:
         de = east12 - east01 * ratio
         dn = ((lat[i + 2] - lat[i + 1]) - (lat[i + 1] - lat[i]) * ratio) * per_deg
         size = np.hypot(de, dn)
-        with np.errstate(divide="ignore"):
-            j = np.rint(_BINS_PER_DECADE * np.log10(np.maximum(size, 1e-9)))
-        j = np.clip(j.astype(np.int64), _J_MIN, _J_MAX)
-        self.second_diff_hist += np.bincount(j - _J_MIN, minlength=self.second_diff_hist.size)
+        self.second_diff_hist += _log_bins(size, _J_MIN, _J_MAX)
 
     def second_difference_median(self) -> float:
         """Median second difference of the positions in metres (bin centre); nan if none."""
@@ -746,21 +746,22 @@ class InputChecks:
         times = np.r_[last, times]
         gaps = np.diff(times)
         gaps = gaps[gaps >= REPEAT_S]
-        if gaps.size:
-            k = np.rint(_BINS_PER_DECADE * np.log10(gaps)).astype(np.int64)
-            k = np.clip(k, _K_MIN, _K_MAX)
-            self.update_hist += np.bincount(k - _K_MIN, minlength=self.update_hist.size)
+        self.update_hist += _log_bins(gaps, _K_MIN, _K_MAX)
         self._last_update[track] = float(times[-1])
 
     def _grids(self, lat: np.ndarray, lon: np.ndarray) -> None:
         """Count the fixes whose latitude and longitude both lie on each coarse grid."""
-        self.fixes_seen += int(lat.size)
         for i, (cell, _) in enumerate(COARSE_GRIDS_DEG):
             on = np.ones(lat.size, dtype=bool)
             for x in (lat, lon):
                 q = x / cell
                 on &= np.abs(q - np.rint(q)) <= _GRID_TOLERANCE
             self.on_grid[i] += int(on.sum())
+
+    @property
+    def fixes_seen(self) -> int:
+        """Valid fixes taken in, all tracks."""
+        return sum(self.fixes_per_track.values())
 
     def coarse_grid(self) -> tuple[float, str] | None:
         """The coarsest grid (degrees, name) that holds :data:`COARSE_SHARE` of the fixes,
@@ -794,8 +795,7 @@ class InputChecks:
         proper = dt >= REPEAT_S
         self.repeats += int((~proper).sum())
         d = dt[proper]
-        k = np.clip(np.rint(_BINS_PER_DECADE * np.log10(d)).astype(np.int64), _K_MIN, _K_MAX)
-        self.hist += np.bincount(k - _K_MIN, minlength=self.hist.size)
+        self.hist += _log_bins(d, _K_MIN, _K_MAX)
         dist = haversine_m(lat[:-1][proper], lon[:-1][proper], lat[1:][proper], lon[1:][proper])
         speed = dist / d
         fast = speed > MAX_SPEED_MPS
