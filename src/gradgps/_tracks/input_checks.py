@@ -117,7 +117,7 @@ Warnings (thresholds are module constants):
   the steps agree, and 64-89 % with protocol ``grad`` or ``gnss`` faults
   injected (``benchmarks/witness_agreement.py``): faults make their own steps
   disagree, not the clean ones. A speed in
-  km/h read as m/s made the shipped model flag 31.8 % of a clean 0.5 Hz drive's
+  km/h read as m/s made the shipped model flag 34.3 % of a clean 0.5 Hz drive's
   fixes (``benchmarks/witness_units.py``).
 
 A small tolerance (:data:`RATE_TOLERANCE`) keeps a file recorded exactly at
