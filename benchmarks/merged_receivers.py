@@ -7,10 +7,10 @@ validation trip segment and each pair of receivers (positions only), the share o
 rows the shipped model flags and the kinds of input warning
 (:class:`gradgps._tracks.input_checks.InputChecks`), with the second receiver's
 times as logged (most fixes share a timestamp with the first's) and shifted by
-half a second (the fixes interleave). No fault is injected: every flag is a false
-alarm. Never the test splits. Run:
+each of ``--shifts`` seconds (0.3 and 0.5 by default: the fixes interleave). No fault
+is injected: every flag is a false alarm. Never the test splits. Run:
 
-    python benchmarks/merged_receivers.py [--model DIR] [--data-dir DIR]
+    python benchmarks/merged_receivers.py [--model DIR] [--data-dir DIR] [--shifts 0.3,0.5]
 """
 
 from __future__ import annotations
@@ -29,13 +29,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default=None)
     parser.add_argument("--data-dir", default=None)
+    parser.add_argument("--shifts", default="0.3,0.5", help="seconds, comma-separated")
     args = parser.parse_args()
+    shifts = [0.0] + [float(x) for x in args.shifts.split(",")]
     det = Detector(args.model) if args.model else Detector()
     fixes = to_fixes(load_dataset("nl_motorway", "validation", data_dir=args.data_dir))
-    print(
-        "| segment | receivers | rows | each alone | merged | warnings | shifted 0.5 s | warnings |"
-    )
-    print("|---|---|---|---|---|---|---|---|")
+    shifted = "".join(f" shifted {x:g} s | warnings |" for x in shifts[1:])
+    print("| segment | receivers | rows | each alone | merged | warnings |" + shifted)
+    print("|---|---|---|---|---|---|" + "---|---|" * (len(shifts) - 1))
     tracks = sorted(fixes["track"].unique())
     segments = sorted({name.rsplit("_", 1)[1] for name in tracks})
     for segment in segments:
@@ -46,7 +47,7 @@ def main() -> None:
                 warnings.simplefilter("ignore")
                 alone = det.detect(pair)["anomaly"].mean()
                 cells = []
-                for shift in (0.0, 0.5):
+                for shift in shifts:
                     moved = pair.assign(t=pair["t"] + shift * (pair["track"] == b))
                     merged = moved.sort_values("t", kind="stable")[["t", "lat", "lon"]]
                     merged = merged.reset_index(drop=True)

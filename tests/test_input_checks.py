@@ -797,3 +797,126 @@ def test_injected_faults_do_not_make_the_file_checks_fire(shared_data: Path) -> 
             where = (name, faults.__name__, findings)
             assert not file_kinds & {kind for kind, _ in findings}, where
             assert not [text for _, text in findings if "placeholder" in text], where
+
+
+# Two sources merged into one track (the ``interleaved sources`` check).
+
+
+def _two_receivers(shift_s: float, gap_m: float = 4.0, noise_m: float = 0.3) -> pd.DataFrame:
+    """One winding drive seen by two 1 Hz receivers ``gap_m`` m apart (east), each with
+    its own noise, the second fixing ``shift_s`` s after the first (a multiple of 0.1):
+    merged by time into one track."""
+    fine = _winding(period_s=0.1)
+    rng = np.random.default_rng(7)
+    frame = LocalFrame(52.0, 4.4)
+    east, north = frame.to_local(fine["lat"].to_numpy(), fine["lon"].to_numpy())
+    tenths = np.rint(fine["t"].to_numpy() * 10).astype(int)
+    parts = []
+    for offset, gap in ((0, 0.0), (round(shift_s * 10), gap_m)):
+        pick = np.flatnonzero(tenths % 10 == offset)
+        lat, lon = frame.to_geodetic(
+            east[pick] + gap + rng.normal(0.0, noise_m, pick.size),
+            north[pick] + rng.normal(0.0, noise_m, pick.size),
+        )
+        parts.append(pd.DataFrame({"track": "a", "t": tenths[pick] / 10, "lat": lat, "lon": lon}))
+    merged = pd.concat(parts).sort_values("t", kind="stable")
+    return merged.reset_index(drop=True)
+
+
+@pytest.mark.parametrize("shift_s", [0.3, 0.5, 0.7])
+def test_two_receivers_merged_into_one_track_are_named(shift_s: float) -> None:
+    """Fixes alternating between two receivers 4 m apart: named, with the zig-zag and the
+    smooth path every other fix keeps to, instead of ``noisy fixes``; each receiver alone,
+    and one receiver sampled twice as fast, say nothing."""
+    findings = InputChecks().add(_two_receivers(shift_s)).findings()
+    assert [kind for kind, _ in findings] == ["interleaved sources"], findings
+    ((_, text),) = findings
+    assert "--track-col" in text, text
+    zigzag, smooth, pairs = InputChecks().add(_two_receivers(shift_s)).interleaved()
+    assert zigzag > 3.0, (zigzag, smooth)
+    assert smooth < 1.5, (zigzag, smooth)
+    assert pairs > 1000
+    for seed in (1, 2):
+        assert InputChecks().add(_winding(noise_m=0.3, seed=seed)).findings() == []
+    fast = _winding(period_s=0.5, noise_m=0.3)
+    assert InputChecks().add(fast).findings() == []
+    # Receivers that agree within their noise make no zig-zag worth a word.
+    assert InputChecks().add(_two_receivers(0.5, gap_m=0.0)).findings() == []
+
+
+def test_a_noisy_receiver_is_not_two_sources() -> None:
+    """Independent errors move a fix as far off its predecessors' line over every other
+    fix as over consecutive ones (ratio about 1, not 3): named noisy, not interleaved."""
+    checks = InputChecks().add(_noisy(3.0, t=np.arange(1200.0)))
+    zigzag, smooth, _ = checks.interleaved()
+    assert 0.7 < zigzag / smooth < 1.4, (zigzag, smooth)
+    assert [kind for kind, _ in checks.findings()] == ["noisy fixes"]
+
+
+def test_interleaved_sources_in_chunks_and_stream_states_equal_the_whole_file() -> None:
+    """Chunks cut anywhere, with a state written and read back between them, gather the
+    same second differences over consecutive fixes and every other fix as the whole table;
+    a state from before the check loads, and the check starts from nothing there."""
+    fixes = _two_receivers(0.5)
+    whole = InputChecks().add(fixes)
+    chunked = InputChecks()
+    for lo in range(0, len(fixes), 97):
+        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
+        chunked.add(fixes.iloc[lo : lo + 97])
+    assert (whole.consecutive_hist == chunked.consecutive_hist).all()
+    assert (whole.alternate_hist == chunked.alternate_hist).all()
+    assert (whole.second_diff_hist == chunked.second_diff_hist).all()
+    assert whole.findings() == chunked.findings()
+    state = whole.to_state()
+    for key in ("consecutive_hist", "alternate_hist"):
+        del state[key]
+    old = InputChecks.from_state(state)
+    assert old.interleaved()[2] == 0
+    assert "interleaved sources" not in [kind for kind, _ in old.findings()]
+
+
+def test_merged_real_receivers_are_named_and_real_drives_are_not(shared_data: Path) -> None:
+    """The NL motorway validation trips' receivers, two by two, merged into one track
+    half a second apart: every pair is named. Every real drive, every split, at its own
+    rate and at 0.5 Hz, clean and with protocol ``grad`` faults: its second differences
+    over consecutive fixes stay below those over every other fix (ratio under 1, where
+    the check wants 3), and the check says nothing."""
+    from gradgps._data.datasets import DATASETS, TEST_ONLY, load_dataset
+    from gradgps._eval.robustness import decimate
+    from gradgps._tracks.track import to_fixes
+    from gradgps.inject import inject_grad
+
+    fixes = to_fixes(load_dataset("nl_motorway", "validation", data_dir=shared_data))
+    pairs = 0
+    for segment in ("00", "01"):
+        here = sorted(n for n in fixes["track"].unique() if n.endswith("_" + segment))
+        for a, b in itertools.combinations(here, 2):
+            pair = fixes[fixes["track"].isin([a, b])]
+            moved = pair.assign(t=pair["t"] + 0.5 * (pair["track"] == b), track="")
+            merged = moved.sort_values("t", kind="stable").reset_index(drop=True)
+            kinds = [kind for kind, _ in InputChecks().add(merged).findings()]
+            assert "interleaved sources" in kinds, (a, b, kinds)
+            pairs += 1
+    assert pairs >= 6
+    checked = 0
+    for name in DATASETS:
+        if name == "simulated":
+            continue
+        for split in ("test",) if name in TEST_ONLY else ("train", "validation", "test"):
+            table = load_dataset(name, split, data_dir=shared_data)
+            if table.empty:
+                continue
+            cmap = to_fixes(table).attrs["columns"]
+            for data in (table, decimate(table, cmap, 2.0)):
+                for faults in (False, True):
+                    seen = (
+                        inject_grad(data, seed=0, columns=cmap)[list(data.columns)]
+                        if faults
+                        else data
+                    )
+                    checks = InputChecks().add(to_fixes(seen, cmap))
+                    zigzag, smooth, n = checks.interleaved()
+                    assert n >= 300, (name, split, n)
+                    assert zigzag < smooth, (name, split, faults, zigzag, smooth)
+                    checked += 1
+    assert checked >= 72

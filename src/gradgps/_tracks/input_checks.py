@@ -98,6 +98,24 @@ Warnings (thresholds are module constants):
   (``benchmarks/tried/receiver_noise_levels.py``,
   ``benchmarks/tried/receiver_noise_check.py``): its answers on such files are
   not backed by any measurement on real data.
+* ``interleaved sources``: consecutive fixes zig-zag while every other fix
+  keeps to a smooth path: the median *second difference* over consecutive
+  fixes (as for ``noisy fixes``, but over steps up to
+  :data:`INTERLEAVE_STEP_RATIO` times each other, so that two 1 Hz receivers
+  a third of a second apart count too) is at least :data:`INTERLEAVED_RATIO`
+  times the median over every other fix (fixes ``i``, ``i + 2``, ``i + 4``),
+  and at least :data:`INTERLEAVED_MIN_M`, over at least :data:`MIN_TRIPLES`
+  of each (exact repeats left out). A driven path bends more over two steps
+  than over one (four times as much at a steady turn), and a receiver's
+  independent noise is the same over both, so an ordinary drive's ratio is
+  about 1 or less; two receivers (or vehicles) merged into one track with
+  their fixes alternating put every consecutive triple across the gap between
+  them and every other fix on one of them. A file that merges fleet devices
+  without a track column does this; merged half a second apart, the NL
+  motorway receivers had 9-46 % of their clean fixes flagged with no word
+  (``benchmarks/merged_receivers.py``). Where it is found, ``noisy fixes`` and
+  ``irregular sampling`` are not said: the zig-zag makes the one, the two
+  clocks the other;
 * ``reported speed`` / ``reported heading``: a speed or heading column that
   contradicts the positions. Each is held against the *chords*: the steps
   between the first fixes of each second of a track (:data:`WITNESS_BASELINE_S`),
@@ -140,6 +158,9 @@ __all__ = [
     "CHECK_EVERY",
     "COARSE_GRIDS_DEG",
     "COARSE_SHARE",
+    "INTERLEAVED_MIN_M",
+    "INTERLEAVED_RATIO",
+    "INTERLEAVE_STEP_RATIO",
     "IRREGULAR_IQR_RATIO",
     "MAX_FAST_SHARE",
     "MAX_FAST_STEPS",
@@ -204,6 +225,15 @@ COARSE_SHARE = 0.99
 _GRID_TOLERANCE = 1e-6
 #: Steps of a triple whose durations differ by more than this share are not used.
 _TRIPLE_TOLERANCE = 0.1
+#: Two sources interleaved in one track: the median second difference over consecutive
+#: fixes at least this many times the median over every other fix (an ordinary drive's
+#: is about 1 or less: see ``interleaved sources``) ...
+INTERLEAVED_RATIO = 3.0
+#: ... and at least this many metres (a zig-zag within a good receiver's noise says nothing).
+INTERLEAVED_MIN_M = 1.0
+#: Triples of that comparison: the longer of their two steps at most this many times the
+#: shorter (two 1 Hz receivers 0.3-0.7 s apart; further apart, ``irregular sampling``).
+INTERLEAVE_STEP_RATIO = 2.5
 #: Relative slack on the rate limits (histogram resolution and clock jitter).
 RATE_TOLERANCE = 0.05
 #: A reported speed or heading is held against the step between two fixes (the chord),
@@ -278,6 +308,35 @@ def _log_bins(values: np.ndarray, first_bin: int, last_bin: int) -> np.ndarray:
     return np.bincount(k - first_bin, minlength=last_bin - first_bin + 1)
 
 
+def _second_differences(
+    t: np.ndarray, lat: np.ndarray, lon: np.ndarray, lag: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Over each triple of fixes ``i``, ``i + lag``, ``i + 2 lag`` whose two steps are
+    proper: the steps (s) and where the third fix lands beyond the first two's
+    straight-line extrapolation over its step (m)."""
+    if t.size < 2 * lag + 1:
+        empty = np.empty(0)
+        return empty, empty, empty
+    dt = t[lag:] - t[:-lag]
+    d1, d2 = dt[:-lag], dt[lag:]
+    i = np.flatnonzero((d1 >= REPEAT_S) & (d2 >= REPEAT_S))
+    d1, d2 = d1[i], d2[i]
+    per_deg = math.radians(1.0) * EARTH_MEAN_RADIUS_M
+    scale = np.cos(np.radians(lat[i + lag])) * per_deg
+    east01 = ((lon[i + lag] - lon[i] + 540.0) % 360.0 - 180.0) * scale  # across +-180 too
+    east12 = ((lon[i + 2 * lag] - lon[i + lag] + 540.0) % 360.0 - 180.0) * scale
+    ratio = d2 / d1
+    de = east12 - east01 * ratio
+    dn = ((lat[i + 2 * lag] - lat[i + lag]) - (lat[i + lag] - lat[i]) * ratio) * per_deg
+    return d1, d2, np.hypot(de, dn)
+
+
+def _comparable(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    """Triples whose longer step is at most :data:`INTERLEAVE_STEP_RATIO` times the shorter."""
+    within: np.ndarray = np.maximum(d1, d2) <= INTERLEAVE_STEP_RATIO * np.minimum(d1, d2)
+    return within
+
+
 def validated_rates(config: Mapping[str, Any] | None) -> tuple[float, float]:
     """``(min_rate_hz, max_rate_hz)`` from a model config's ``validated`` block, else the defaults."""
     block = (config or {}).get("validated")
@@ -307,6 +366,10 @@ class InputChecks:
         self.fast = 0
         self.fastest = 0.0
         self.second_diff_hist = np.zeros(_J_MAX - _J_MIN + 1, dtype=np.int64)
+        # Second differences over consecutive fixes and over every other fix, for
+        # ``interleaved sources``.
+        self.consecutive_hist = np.zeros(_J_MAX - _J_MIN + 1, dtype=np.int64)
+        self.alternate_hist = np.zeros(_J_MAX - _J_MIN + 1, dtype=np.int64)
         self.speed_ratio_hist = np.zeros(_R_MAX - _R_MIN + 1, dtype=np.int64)
         # Steps the positions drive at WITNESS_MIN_SPEED_MPS or more with a reported speed,
         # and of them those whose reported speed is below STILL_SPEED_MPS.
@@ -331,7 +394,7 @@ class InputChecks:
         self.speed_column: str | None = None
         self.speed_unit = "m/s"
         self.heading_column: str | None = None
-        # The last two fixes of each track (t, lat, lon), oldest first.
+        # The last four fixes of each track (t, lat, lon), oldest first.
         self._last: dict[str, list[tuple[float, float, float]]] = {}
         # Each track's last position update (its time).
         self._last_update: dict[str, float] = {}
@@ -356,6 +419,8 @@ class InputChecks:
             "fast": self.fast,
             "fastest": self.fastest,
             "second_diff_hist": bins(self.second_diff_hist),
+            "consecutive_hist": bins(self.consecutive_hist),
+            "alternate_hist": bins(self.alternate_hist),
             "speed_ratio_hist": bins(self.speed_ratio_hist),
             "heading_diff_hist": bins(self.heading_diff_hist),
             "update_hist": bins(self.update_hist),
@@ -397,6 +462,8 @@ class InputChecks:
         # States written before the position-update check have none of its facts: it
         # starts afresh from them.
         fill(checks.update_hist, state.get("update_hist", ()))
+        fill(checks.consecutive_hist, state.get("consecutive_hist", ()))
+        fill(checks.alternate_hist, state.get("alternate_hist", ()))
         checks.position_repeats = int(state.get("position_repeats", 0))
         checks.speed_steps = int(state.get("speed_steps", 0))
         checks.still_speed_steps = int(state.get("still_speed_steps", 0))
@@ -513,22 +580,24 @@ class InputChecks:
         self._grids(la, lo)
         self.fixes_per_track[track] = self.fixes_per_track.get(track, 0) + int(tt.size)
         last = self._last.get(track, [])
+        k = len(last)
         if last and tt[0] >= last[-1][0]:
-            # The track goes on: its last fixes (in time order) lead this chunk's;
-            # their own step was counted with the chunk before.
+            # The track goes on: its last fixes (in time order) lead this chunk's; the
+            # steps and triples among them were counted with the chunks before.
             tt = np.r_[[f[0] for f in last], tt]
             la = np.r_[[f[1] for f in last], la]
             lo = np.r_[[f[2] for f in last], lo]
-            self._steps(tt[len(last) - 1 :], la[len(last) - 1 :], lo[len(last) - 1 :])
-            self._updates(track, tt[len(last) - 1 :], la[len(last) - 1 :], lo[len(last) - 1 :])
         else:
+            k = 0
             self._last_update.pop(track, None)  # no step from the fixes before: start afresh
-            self._updates(track, tt, la, lo)
-            self._steps(tt, la, lo)
-        self._second_differences(tt, la, lo)
+        one, two, four = (max(k - n, 0) for n in (1, 2, 4))
+        self._updates(track, tt[one:], la[one:], lo[one:])
+        self._steps(tt[one:], la[one:], lo[one:])
+        self._second_differences(tt[two:], la[two:], lo[two:])
+        self._alternate_second_differences(tt[four:], la[four:], lo[four:])
         self._last[track] = [
             (float(a), float(b), float(c))
-            for a, b, c in zip(tt[-2:], la[-2:], lo[-2:], strict=True)
+            for a, b, c in zip(tt[-4:], la[-4:], lo[-4:], strict=True)
         ]
         self._witness(track, part)
 
@@ -700,26 +769,33 @@ class InputChecks:
 
     def _second_differences(self, t: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
         """Histogram where each fix lands beyond the line its two predecessors draw (m), over
-        triples whose two steps are proper and within 10 % of each other."""
-        if t.size < 3:
-            return
-        dt = np.diff(t)
-        d1, d2 = dt[:-1], dt[1:]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            even = (d1 >= REPEAT_S) & (d2 >= REPEAT_S) & (np.abs(d2 - d1) <= _TRIPLE_TOLERANCE * d1)
-        if not even.any():
-            return
-        i = np.flatnonzero(even)
-        per_deg = math.radians(1.0) * EARTH_MEAN_RADIUS_M
-        scale = np.cos(np.radians(lat[i + 1])) * per_deg
-        east01 = ((lon[i + 1] - lon[i] + 540.0) % 360.0 - 180.0) * scale  # across +-180 too
-        east12 = ((lon[i + 2] - lon[i + 1] + 540.0) % 360.0 - 180.0) * scale
-        ratio = d2[i] / d1[i]
-        # The third fix against the first two's straight-line extrapolation over its step.
-        de = east12 - east01 * ratio
-        dn = ((lat[i + 2] - lat[i + 1]) - (lat[i + 1] - lat[i]) * ratio) * per_deg
-        size = np.hypot(de, dn)
-        self.second_diff_hist += _log_bins(size, _J_MIN, _J_MAX)
+        triples whose two steps are proper and within 10 % of each other; and, over steps
+        within :data:`INTERLEAVE_STEP_RATIO` of each other, the same for ``interleaved
+        sources``."""
+        d1, d2, size = _second_differences(t, lat, lon, 1)
+        with np.errstate(invalid="ignore"):
+            even = np.abs(d2 - d1) <= _TRIPLE_TOLERANCE * d1
+        self.second_diff_hist += _log_bins(size[even], _J_MIN, _J_MAX)
+        self.consecutive_hist += _log_bins(size[_comparable(d1, d2)], _J_MIN, _J_MAX)
+
+    def _alternate_second_differences(
+        self, t: np.ndarray, lat: np.ndarray, lon: np.ndarray
+    ) -> None:
+        """Histogram of the second differences over every other fix (``i``, ``i + 2``,
+        ``i + 4``), for ``interleaved sources``."""
+        d1, d2, size = _second_differences(t, lat, lon, 2)
+        self.alternate_hist += _log_bins(size[_comparable(d1, d2)], _J_MIN, _J_MAX)
+
+    def interleaved(self) -> tuple[float, float, int]:
+        """Medians of the second differences over consecutive fixes and over every other
+        fix (m, exact repeats left out; nan where none), and the fewer of their counts."""
+        medians, counts = [], []
+        for hist in (self.consecutive_hist, self.alternate_hist):
+            moving = hist.copy()
+            moving[0] = 0  # the first bin holds 1 mm and less
+            medians.append(_log_quantile(moving, _J_MIN, 0.5))
+            counts.append(int(moving.sum()))
+        return medians[0], medians[1], min(counts)
 
     def second_difference_median(self) -> float:
         """Median second difference of the positions in metres (bin centre); nan if none."""
@@ -906,8 +982,33 @@ class InputChecks:
                 f"the position changes (one fix every {update_s:.2g} s) and detect on those"
             )
             out.append(("repeated fixes", text))
+        zigzag, smooth, pairs = self.interleaved()
+        interleaved = (
+            coarse is None
+            and not padded
+            and pairs >= MIN_TRIPLES
+            and zigzag >= INTERLEAVED_MIN_M
+            and zigzag >= INTERLEAVED_RATIO * smooth
+        )
+        if interleaved:
+            column = f" (column {self.track_column!r})" if self.track_column else ""
+            text = (
+                f"interleaved sources: consecutive fixes zig-zag {zigzag:.2g} m off the line "
+                f"their two predecessors draw (median) while every other fix keeps to a "
+                f"smooth path ({smooth:.2g} m): two receivers or vehicles in one track"
+                f"{column}, their fixes alternating. The model reads the zig-zag as faults: "
+                "expect false alarms; give each source its own track with --track-col (a "
+                "column naming the receiver, device or vehicle)"
+            )
+            out.append(("interleaved sources", text))
         noise, triples = self.second_difference_quartile()
-        if coarse is None and not padded and triples >= MIN_TRIPLES and noise > NOISY_QUARTILE_M:
+        if (
+            coarse is None
+            and not padded
+            and not interleaved
+            and triples >= MIN_TRIPLES
+            and noise > NOISY_QUARTILE_M
+        ):
             text = (
                 f"noisy fixes: three in four fixes land more than {noise:.2g} m off the line "
                 "their two predecessors draw (at most 1.3 m on every real drive the model "
@@ -917,11 +1018,12 @@ class InputChecks:
             out.append(("noisy fixes", text))
         out.extend(self._witness_warnings())
         q1, q3 = self.step_quantile(0.25), self.step_quantile(0.75)
-        if math.isfinite(median) and q3 - q1 > IRREGULAR_IQR_RATIO * median:
+        if not interleaved and math.isfinite(median) and q3 - q1 > IRREGULAR_IQR_RATIO * median:
             text = (
                 f"irregular sampling: time steps between {q1:.2g} s and {q3:.2g} s (quartiles) "
                 f"around a median of {median:.2g} s; the model was validated on evenly "
-                "sampled drives"
+                "sampled drives (a file that merges receivers or vehicles without a track "
+                "column looks so: name theirs with --track-col)"
             )
             out.append(("irregular sampling", text))
         return out
