@@ -920,3 +920,30 @@ def test_merged_real_receivers_are_named_and_real_drives_are_not(shared_data: Pa
                     assert zigzag < smooth, (name, split, faults, zigzag, smooth)
                     checked += 1
     assert checked >= 72
+
+
+def test_a_repeated_timestamp_at_a_new_position_is_named_even_once() -> None:
+    """One fix stamped with its predecessor's time while the car moved on (a time column
+    coarser than the fixes come) is named, where a repeat of the same position is not
+    (under 1 % of the steps); chunks and a stream state between them count it alike, and a
+    state from before the count loads with none."""
+    t = REGULAR.copy()
+    fixes = _track(t)
+    fixes.loc[101:, "t"] -= 1.0  # fix 101 gets fix 100's time, the rest follow it
+    findings = InputChecks().add(fixes).findings()
+    assert [kind for kind, _ in findings] == ["repeated timestamps"], findings
+    ((_, text),) = findings
+    assert "1 of them at a new position" in text, text
+    assert "flagged invalid in every mode" in text, text
+    same = _track(t)
+    same.loc[101, ["t", "lat", "lon"]] = same.loc[100, ["t", "lat", "lon"]].to_numpy()
+    assert InputChecks().add(same).findings() == []
+    chunked = InputChecks()
+    for lo in range(0, len(fixes), 101):
+        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
+        chunked.add(fixes.iloc[lo : lo + 101])
+    assert chunked.moved_repeats == 1
+    assert chunked.findings() == findings
+    state = InputChecks().add(fixes).to_state()
+    del state["moved_repeats"]
+    assert InputChecks.from_state(state).moved_repeats == 0
