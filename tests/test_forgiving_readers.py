@@ -110,3 +110,62 @@ def test_table_keeps_every_column_of_a_geojson(tmp_path: Path) -> None:
     path.write_text(json.dumps(doc))
     table = read_table(path)
     assert {"timestamp", "vehicle", "lat", "lon"} <= set(table.frame.columns)
+
+
+def _takeout_csv(tmp_path: Path, n: int = 200) -> tuple[Path, np.ndarray, np.ndarray]:
+    """Google location history written as CSV: times in ms, degrees x 1e7 as integers."""
+    i = np.arange(n)
+    lat = 48.1 + 0.00015 * i  # about 17 m/s north
+    lon = 11.5 + 0.0002 * i + 0.001 * np.sin(i / 30.0)
+    e7_lat, e7_lon = np.rint(lat * 1e7).astype(np.int64), np.rint(lon * 1e7).astype(np.int64)
+    path = tmp_path / "takeout.csv"
+    rows = [
+        f"{1_600_000_000_000 + 1000 * i},{a},{b},5"
+        for i, (a, b) in enumerate(zip(e7_lat, e7_lon, strict=True))
+    ]
+    path.write_text("timestampMs,latitudeE7,longitudeE7,accuracy\n" + "\n".join(rows) + "\n")
+    return path, e7_lat / 1e7, e7_lon / 1e7
+
+
+def test_coordinates_in_degrees_times_1e7_are_read_as_degrees(tmp_path: Path) -> None:
+    """latitudeE7/longitudeE7 (Google location history) are found and read as degrees, in
+    batch and --follow alike (before: not found, and named by hand every fix was invalid,
+    'latitude outside +-90'); a latitude column otherwise named is read as it is."""
+    path, lat, lon = _takeout_csv(tmp_path)
+    fixes = read_fixes(path)
+    assert fixes.attrs["columns"].lat == "latitudeE7"
+    np.testing.assert_array_equal(fixes["lat"].to_numpy(), lat)
+    np.testing.assert_array_equal(fixes["lon"].to_numpy(), lon)
+    runner = CliRunner()
+    batch, follow = tmp_path / "batch.csv", tmp_path / "follow.csv"
+    assert runner.invoke(main, ["detect", str(path), "-o", str(batch)]).exit_code == 0
+    result = runner.invoke(main, ["detect", "--follow", str(path), "-o", str(follow)])
+    assert result.exit_code == 0, result.output
+    import pandas as pd
+
+    a, b = pd.read_csv(batch), pd.read_csv(follow)
+    assert (a["invalid_reason"].isna()).all(), a["invalid_reason"].unique()
+    pd.testing.assert_frame_equal(a, b)
+    np.testing.assert_allclose(a["lat_clean"], lat, atol=1e-6)
+    plain = tmp_path / "plain.csv"
+    plain.write_text("t,lat,lon\n0,48.1,11.5\n1,48.1001,11.5001\n")
+    assert read_fixes(plain)["lat"].tolist() == [48.1, 48.1001]
+
+
+def test_faults_and_repairs_are_written_back_in_degrees_times_1e7(tmp_path: Path) -> None:
+    """Injected faults and the cleaned positions go back into a latitudeE7 column in its own
+    unit: the injected file's untouched fixes keep their values, and a cleaned table reads
+    as the positions it repaired."""
+    import pandas as pd
+
+    import gradgps
+    from gradgps.inject import inject_grad
+
+    path, lat, _ = _takeout_csv(tmp_path)
+    table = pd.read_csv(path)
+    injected = inject_grad(table, seed=0)
+    clean = injected["label_anomaly"] == 0
+    np.testing.assert_allclose(injected["latitudeE7"][clean], table["latitudeE7"][clean])
+    np.testing.assert_allclose(injected["lat_true"], lat)
+    cleaned = gradgps.Detector().clean(table)
+    np.testing.assert_allclose(cleaned["latitudeE7"] / 1e7, lat, atol=1e-5)

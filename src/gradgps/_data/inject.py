@@ -38,7 +38,7 @@ import pandas as pd
 from .._exceptions import ConfigError, InputError
 from .._result import invalid_reasons
 from .._tracks.geo import LocalFrame
-from .._tracks.track import ColumnMap, to_fixes, track_rows
+from .._tracks.track import ColumnMap, to_fixes, track_rows, units_per_degree
 
 __all__ = [
     "BIAS_TYPES",
@@ -327,8 +327,9 @@ def inject_grad(
     rank_lon = _rank(lo.time_type, lo.bias_type)
     use_lon = rank_lon > rank_lat
     result = table.reset_index(drop=True).copy()
-    result[cmap.lat] = lat
-    result[cmap.lon] = lon
+    # In the column's own unit (degrees, or degrees x 1e7 for a latitudeE7).
+    result[cmap.lat] = lat * units_per_degree(cmap.lat)
+    result[cmap.lon] = lon * units_per_degree(cmap.lon)
     _write_labels(result, labels, use_lon)
     result["lat_true"] = lat_true
     result["lon_true"] = lon_true
@@ -663,8 +664,9 @@ def inject_gnss(
     la, lo = labels["lat"], labels["lon"]
     use_lon = _rank(lo.time_type, lo.bias_type) > _rank(la.time_type, la.bias_type)
     result = table.reset_index(drop=True).copy()
-    result[cmap.lat] = lat
-    result[cmap.lon] = lon
+    # In the column's own unit (degrees, or degrees x 1e7 for a latitudeE7).
+    result[cmap.lat] = lat * units_per_degree(cmap.lat)
+    result[cmap.lon] = lon * units_per_degree(cmap.lon)
     quality = _receiver_columns(cmap)
     for role, value in (
         ("fix_quality", OUTAGE_FIX_QUALITY),
@@ -1001,8 +1003,8 @@ def inject_freeze(
     assert cmap.lon is not None
     rng = np.random.default_rng(seed)
     result = labelled.copy()
-    lat = result[cmap.lat].to_numpy(dtype=np.float64).copy()
-    lon = result[cmap.lon].to_numpy(dtype=np.float64).copy()
+    lat = fixes["lat"].to_numpy(dtype=np.float64).copy()
+    lon = fixes["lon"].to_numpy(dtype=np.float64).copy()
     anomaly = result["label_anomaly"].to_numpy().astype(np.int8).copy()
     bias = result["label_bias"].to_numpy(dtype=object).copy()
     time_type = result["label_time"].to_numpy(dtype=object).copy()
@@ -1051,8 +1053,9 @@ def inject_freeze(
             anomaly[held], bias[held], time_type[held] = 1, "freeze", "transient"
             free[max(start - 5, 0) : stop + 5] = False
             budget -= stop - start - 1
-    result[cmap.lat] = lat
-    result[cmap.lon] = lon
+    # In the column's own unit (degrees, or degrees x 1e7 for a latitudeE7).
+    result[cmap.lat] = lat * units_per_degree(cmap.lat)
+    result[cmap.lon] = lon * units_per_degree(cmap.lon)
     result["label_anomaly"] = anomaly
     result["label_bias"] = bias
     result["label_time"] = time_type

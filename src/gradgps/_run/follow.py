@@ -93,6 +93,7 @@ from .._tracks.track import (
     resolve_columns,
     rolled_over,
     speed_unit_named,
+    units_per_degree,
 )
 
 __all__ = [
@@ -376,8 +377,11 @@ class _CsvFollower:
         }
         self.streams = streams
         self.output = output
-        # A speed column's name may say its unit (speed_kmh), as the batch reader reads it.
+        # A speed column's name may say its unit (speed_kmh), and a coordinate column's
+        # (latitudeE7), as the batch reader reads them.
         self.speed_factor = SPEED_UNITS[speed_unit]
+        self.lat_units = units_per_degree(roles.lat)
+        self.lon_units = units_per_degree(roles.lon)
         self.watch = watch
 
     def out_header(self) -> list[str]:
@@ -403,9 +407,9 @@ class _CsvFollower:
         try:
             t = parse_time(self._value(fields, "time") or "nan")
             role = "lat"
-            lat = float(self._value(fields, "lat") or "nan")
+            lat = float(self._value(fields, "lat") or "nan") / self.lat_units
             role = "lon"
-            lon = float(self._value(fields, "lon") or "nan")
+            lon = float(self._value(fields, "lon") or "nan") / self.lon_units
             role = "speed"
             speed = self._optional(fields, "speed")
             if speed is not None:

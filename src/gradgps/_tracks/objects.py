@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from .._exceptions import ConfigError, InputError
-from .track import _ALIASES, ColumnMap, Table, _norm, to_fixes
+from .track import _ALIASES, ColumnMap, Table, _norm, to_fixes, units_per_degree
 
 __all__ = ["PYTHON_ARGS", "TrackInput", "as_track_input"]
 
@@ -186,8 +186,8 @@ def replace_positions(inp: TrackInput, lat: np.ndarray, lon: np.ndarray, keep: n
         cols = inp.columns
         assert cols.lat is not None
         assert cols.lon is not None
-        frame[cols.lat] = lat
-        frame[cols.lon] = lon
+        frame[cols.lat] = lat * units_per_degree(cols.lat)  # the column's own unit
+        frame[cols.lon] = lon * units_per_degree(cols.lon)
     else:
         import geopandas as gpd
 

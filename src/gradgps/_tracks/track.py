@@ -65,6 +65,7 @@ __all__ = [
     "resolve_columns",
     "to_fixes",
     "track_rows",
+    "units_per_degree",
 ]
 
 OPTIONAL_CHANNELS = ("speed", "heading", "alt", "hdop")
@@ -109,6 +110,9 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "latitudedeg",
         "y_lat",
         "latwgs84",
+        # degrees x 1e7 (Google location history, Android's latitudeE7)
+        "latitudee7",
+        "late7",
         "y",
         "northing",
     ),
@@ -124,6 +128,9 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "londeg",
         "longitudedeg",
         "lonwgs84",
+        "longitudee7",
+        "lnge7",
+        "lone7",
         "x",
         "easting",
     ),
@@ -498,6 +505,14 @@ def canonical_heading(values: np.ndarray) -> np.ndarray:
     return out
 
 
+def units_per_degree(name: str | None) -> float:
+    """Units per degree of a latitude or longitude column, as its name says: ``1e7`` for
+    degrees x 1e7 (``latitudeE7``, Google location history's integers), else (``None``
+    too) 1."""
+    norm = _norm(name or "")
+    return 1e7 if norm.endswith("e7") and norm != "e7" else 1.0
+
+
 def speed_unit_named(name: str) -> str:
     """The unit (a key of :data:`SPEED_UNITS`) a speed column's name says (``speed_kmh``);
     ``"m/s"`` if none."""
@@ -790,8 +805,11 @@ def to_fixes(
         y = _numeric(frame, cmap.lat, table, what=f"y coordinate in {table.options.crs}")
         out["lon"], out["lat"] = _to_wgs84(x, y, table.options.crs, table.options)
     else:
-        out["lat"] = _numeric(frame, cmap.lat, table, what="latitude in degrees")
-        out["lon"] = _numeric(frame, cmap.lon, table, what="longitude in degrees")
+        # A column named latitudeE7 holds degrees x 1e7, as a speed_kmh holds km/h.
+        lat = _numeric(frame, cmap.lat, table, what="latitude in degrees")
+        lon = _numeric(frame, cmap.lon, table, what="longitude in degrees")
+        out["lat"] = lat / units_per_degree(cmap.lat)
+        out["lon"] = lon / units_per_degree(cmap.lon)
         if _norm(cmap.lat) in _XY_NAMES or _norm(cmap.lon) in _XY_NAMES:
             _check_degrees(out["lat"], out["lon"], cmap, table)
             notes.append(
