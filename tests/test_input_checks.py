@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import itertools
 import json
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -38,6 +40,16 @@ def _kinds(fixes: pd.DataFrame, **rates: float) -> set[str]:
             if key in w:
                 kinds.add(kind)
     return kinds
+
+
+def _through_states(fixes: pd.DataFrame, size: int) -> InputChecks:
+    """The checks of ``fixes`` fed ``size`` rows at a time, each time from the state the
+    last chunk left, written to JSON and read back (a stream worker's life)."""
+    chunked = InputChecks()
+    for lo in range(0, len(fixes), size):
+        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
+        chunked.add(fixes.iloc[lo : lo + size])
+    return chunked
 
 
 REGULAR = np.arange(300.0)
@@ -532,10 +544,7 @@ def test_repeated_fixes_in_chunks_and_through_a_stream_state_equal_the_whole_fil
         [_repeated(_winding(), 5), _repeated(_winding(seed=1).assign(track="b"), 5)]
     ).reset_index(drop=True)
     whole = InputChecks().add(fixes)
-    chunked = InputChecks()
-    for lo in range(0, len(fixes), 333):
-        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
-        chunked.add(fixes.iloc[lo : lo + 333])
+    chunked = _through_states(fixes, 333)
     assert (whole.update_hist == chunked.update_hist).all()
     assert whole.position_repeats == chunked.position_repeats
     assert whole.findings() == chunked.findings()
@@ -558,11 +567,31 @@ def test_no_real_drive_is_a_repeated_clock_or_coarse(shared_data: Path) -> None:
     """Every split of every real data set, at its own rate and decimated to 0.5 Hz: the
     positions change at the rate the fixes come (ratio 1) and are written finer than any
     coarse grid, so neither check says anything."""
+    from gradgps._tracks.track import to_fixes
+
+    checked = 0
+    for name, split, cmap, data in _every_real_drive(shared_data):
+        checks = InputChecks().add(to_fixes(data, cmap))
+        ratio, updates = checks.padded()
+        assert updates >= 300, (name, split)
+        assert ratio < 1.1, (name, split, ratio)
+        kinds = [k for k, _ in checks.findings()]
+        assert "repeated fixes" not in kinds, (name, split)
+        assert "coarse coordinates" not in kinds, (name, split)
+        assert "one-fix tracks" not in kinds, (name, split)
+        assert "time runs backwards" not in kinds, (name, split)
+        assert checks.coarse_grid() is None, (name, split)
+        checked += 1
+    assert checked >= 36
+
+
+def _every_real_drive(shared_data: Path) -> Iterator[tuple[str, str, Any, pd.DataFrame]]:
+    """``(data set, split, column map, table)`` for every split of every real data set, at
+    its own rate and decimated to 0.5 Hz."""
     from gradgps._data.datasets import DATASETS, TEST_ONLY, load_dataset
     from gradgps._eval.robustness import decimate
     from gradgps._tracks.track import to_fixes
 
-    checked = 0
     for name in DATASETS:
         if name == "simulated":
             continue
@@ -572,18 +601,7 @@ def test_no_real_drive_is_a_repeated_clock_or_coarse(shared_data: Path) -> None:
                 continue
             cmap = to_fixes(table).attrs["columns"]
             for data in (table, decimate(table, cmap, 2.0)):
-                checks = InputChecks().add(to_fixes(data, cmap))
-                ratio, updates = checks.padded()
-                assert updates >= 300, (name, split)
-                assert ratio < 1.1, (name, split, ratio)
-                kinds = [k for k, _ in checks.findings()]
-                assert "repeated fixes" not in kinds, (name, split)
-                assert "coarse coordinates" not in kinds, (name, split)
-                assert "one-fix tracks" not in kinds, (name, split)
-                assert "time runs backwards" not in kinds, (name, split)
-                assert checks.coarse_grid() is None, (name, split)
-                checked += 1
-    assert checked >= 36
+                yield name, split, cmap, data
 
 
 # Coordinates rounded on export (the ``coarse coordinates`` check).
@@ -622,10 +640,7 @@ def test_coarse_coordinates_in_chunks_and_stream_states_equal_the_whole_file() -
     drive = _winding()
     coarse = drive.assign(lat=drive["lat"].round(4), lon=drive["lon"].round(4))
     whole = InputChecks().add(coarse)
-    chunked = InputChecks()
-    for lo in range(0, len(coarse), 97):
-        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
-        chunked.add(coarse.iloc[lo : lo + 97])
+    chunked = _through_states(coarse, 97)
     assert whole.fixes_seen == chunked.fixes_seen == len(coarse)
     assert (whole.on_grid == chunked.on_grid).all()
     assert whole.findings() == chunked.findings()
@@ -709,10 +724,7 @@ def test_a_fleet_of_short_tracks_is_not_one_fix_tracks() -> None:
     fleet = pd.concat(parts).sort_values("t", kind="stable").reset_index(drop=True)
     whole = InputChecks().add(fleet)
     assert "one-fix tracks" not in [kind for kind, _ in whole.findings()]
-    chunked = InputChecks()
-    for lo in range(0, len(fleet), 11):
-        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
-        chunked.add(fleet.iloc[lo : lo + 11])
+    chunked = _through_states(fleet, 11)
     assert chunked.fixes_per_track == whole.fixes_per_track
     lone = pd.concat([_track(np.array([float(i)]), name=f"r{i}") for i in range(60)])
     assert [kind for kind, _ in InputChecks().add(lone).findings()] == ["one-fix tracks"]
@@ -744,10 +756,7 @@ def test_time_order_in_chunks_and_stream_states_equals_the_whole_file() -> None:
     b = _winding(seed=1)[["track", "t", "lat", "lon"]].assign(track="b")
     both = pd.concat([a, b]).sort_index(kind="stable").reset_index(drop=True)
     whole = InputChecks().add(both)
-    chunked = InputChecks()
-    for lo in range(0, len(both), 41):
-        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
-        chunked.add(both.iloc[lo : lo + 41])
+    chunked = _through_states(both, 41)
     assert whole.backward == chunked.backward == len(a) - 1
     assert whole.findings() == chunked.findings()
 
@@ -859,10 +868,7 @@ def test_interleaved_sources_in_chunks_and_stream_states_equal_the_whole_file() 
     a state from before the check loads, and the check starts from nothing there."""
     fixes = _two_receivers(0.5)
     whole = InputChecks().add(fixes)
-    chunked = InputChecks()
-    for lo in range(0, len(fixes), 97):
-        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
-        chunked.add(fixes.iloc[lo : lo + 97])
+    chunked = _through_states(fixes, 97)
     assert (whole.consecutive_hist == chunked.consecutive_hist).all()
     assert (whole.alternate_hist == chunked.alternate_hist).all()
     assert (whole.second_diff_hist == chunked.second_diff_hist).all()
@@ -881,8 +887,7 @@ def test_merged_real_receivers_are_named_and_real_drives_are_not(shared_data: Pa
     rate and at 0.5 Hz, clean and with protocol ``grad`` faults: its second differences
     over consecutive fixes stay below those over every other fix (ratio under 1, where
     the check wants 3), and the check says nothing."""
-    from gradgps._data.datasets import DATASETS, TEST_ONLY, load_dataset
-    from gradgps._eval.robustness import decimate
+    from gradgps._data.datasets import load_dataset
     from gradgps._tracks.track import to_fixes
     from gradgps.inject import inject_grad
 
@@ -899,26 +904,14 @@ def test_merged_real_receivers_are_named_and_real_drives_are_not(shared_data: Pa
             pairs += 1
     assert pairs >= 6
     checked = 0
-    for name in DATASETS:
-        if name == "simulated":
-            continue
-        for split in ("test",) if name in TEST_ONLY else ("train", "validation", "test"):
-            table = load_dataset(name, split, data_dir=shared_data)
-            if table.empty:
-                continue
-            cmap = to_fixes(table).attrs["columns"]
-            for data in (table, decimate(table, cmap, 2.0)):
-                for faults in (False, True):
-                    seen = (
-                        inject_grad(data, seed=0, columns=cmap)[list(data.columns)]
-                        if faults
-                        else data
-                    )
-                    checks = InputChecks().add(to_fixes(seen, cmap))
-                    zigzag, smooth, n = checks.interleaved()
-                    assert n >= 300, (name, split, n)
-                    assert zigzag < smooth, (name, split, faults, zigzag, smooth)
-                    checked += 1
+    for name, split, cmap, data in _every_real_drive(shared_data):
+        for faults in (False, True):
+            seen = inject_grad(data, seed=0, columns=cmap)[list(data.columns)] if faults else data
+            checks = InputChecks().add(to_fixes(seen, cmap))
+            zigzag, smooth, n = checks.interleaved()
+            assert n >= 300, (name, split, n)
+            assert zigzag < smooth, (name, split, faults, zigzag, smooth)
+            checked += 1
     assert checked >= 72
 
 
@@ -938,10 +931,7 @@ def test_a_repeated_timestamp_at_a_new_position_is_named_even_once() -> None:
     same = _track(t)
     same.loc[101, ["t", "lat", "lon"]] = same.loc[100, ["t", "lat", "lon"]].to_numpy()
     assert InputChecks().add(same).findings() == []
-    chunked = InputChecks()
-    for lo in range(0, len(fixes), 101):
-        chunked = InputChecks.from_state(json.loads(json.dumps(chunked.to_state())))
-        chunked.add(fixes.iloc[lo : lo + 101])
+    chunked = _through_states(fixes, 101)
     assert chunked.moved_repeats == 1
     assert chunked.findings() == findings
     state = InputChecks().add(fixes).to_state()
