@@ -127,3 +127,20 @@ def test_a_damaged_checks_state_is_reported_and_the_vehicle_starts_afresh(
     dead = [f for _, f in client.xrange(f"gradgps:{IN}:{GROUP}:dead-letter")]
     assert any("histogram bin" in f["problem"] and f["key"] == key for f in dead), dead
     assert client.xlen(OUT) == 14
+
+
+def test_a_vehicle_gets_the_warning_for_fixes_it_could_not_use(fleet: pd.DataFrame) -> None:
+    """A vehicle whose fixes carry a repeated timestamp at a new position (a time column
+    coarser than its fixes): the repeat is unusable, and still goes to the checks, so the
+    vehicle gets follow mode's ``repeated timestamps`` warning (before: none)."""
+    track = fleet[fleet["track"] == "1"].iloc[: CHECK_EVERY + 10].copy()  # one look
+    track.iloc[101:, track.columns.get_loc("t")] -= 1.0
+    server = fakeredis.FakeServer()
+    _push(server, track)
+    worker = RedisStreamWorker(_client(server), IN, OUT, GROUP, "w1", batch_size=64)
+    worker.ensure_group()
+    _drain(worker)
+    said = [f["warning"] for _, f in _client(server).xrange(f"{OUT}:warnings")]
+    expected = _follow_warnings(track)
+    assert [w for w in expected if w.startswith("repeated timestamps")], expected
+    assert said == expected

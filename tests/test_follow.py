@@ -488,3 +488,26 @@ def test_an_infinite_heading_in_a_stream_is_no_direction_to_the_checks_either() 
     warned: list[str] = []
     follow_lines([header, *rows], [].append, warn=warned.append)
     assert warned == []
+
+
+@pytest.mark.parametrize("rewrite", ["newest first", "a second repeated"])
+def test_a_stream_names_the_times_it_cannot_use_as_batch_does(rewrite: str) -> None:
+    """Fixes the stream sets aside for their time (written newest first; one stamped with
+    its predecessor's time at a new position) still go to the input checks, as batch gives
+    them the whole file: the same warnings, in the same words (before: none, only the
+    unusable lines' count)."""
+    from gradgps._tracks.input_checks import input_warnings
+    from gradgps._tracks.track import to_fixes
+
+    frame = pd.read_csv(io.StringIO("\n".join(_winding_csv(1.0, minutes=5.0))))
+    if rewrite == "newest first":
+        frame = frame.iloc[::-1]
+        kind = "time runs backwards"
+    else:
+        frame.loc[151:, "t"] -= 1.0
+        kind = "repeated timestamps"
+    lines = frame.to_csv(index=False).splitlines()
+    warned: list[str] = []
+    follow_lines(lines, [].append, warn=warned.append)
+    assert [w for w in warned if w.startswith(kind)], warned
+    assert warned == input_warnings(to_fixes(frame.reset_index(drop=True)))

@@ -56,7 +56,7 @@ output of the fix that settled it: exactly once too. Outputs with the
 revisions applied (the later one wins) are the verdicts of batch detection;
 a fix whose verdict nothing revised keeps the one of its output.
 
-**Input warnings.** Each vehicle's usable fixes go through follow mode's input
+**Input warnings.** Each vehicle's fixes, usable or not, go through follow mode's input
 checks (:class:`_Watch`: a look after :data:`CHECK_EVERY` fixes, then after
 twice as many as the time before); each kind of warning goes once per vehicle to
 :attr:`RedisStreamWorker.warning_stream` (``vehicle_id``, ``source_id``: the fix at
@@ -255,12 +255,12 @@ class _Message:
 @dataclass
 class _Watch:
     """A vehicle's input checks (:class:`~gradgps._tracks.input_checks.InputChecks`) as
-    follow mode runs them: they look after :data:`CHECK_EVERY` usable fixes, then after
+    follow mode runs them: they look after :data:`CHECK_EVERY` fixes, then after
     twice as many as the time before, and say each kind of warning once."""
 
     checks: InputChecks
     said: list[str] = field(default_factory=list)
-    since: int = 0  # usable fixes since the last look
+    since: int = 0  # fixes since the last look
     next_look: int = CHECK_EVERY
 
     def to_state(self) -> dict[str, Any]:
@@ -282,7 +282,7 @@ class _Watch:
     def add(
         self, fixes: list[tuple[str, float, float, float, float, float]]
     ) -> list[tuple[int, str]]:
-        """Take in usable fixes (source id, t, lat, lon, speed m/s, heading degrees; NaN:
+        """Take in fixes (source id, t, lat, lon, speed m/s, heading degrees; NaN:
         none), in order; returns each new warning with the index of the fix at which the
         checks found it."""
         found: list[tuple[int, str]] = []
@@ -770,17 +770,19 @@ class RedisStreamWorker:
         outputs: list[dict[str, str]],
         tracks: dict[bytes, _Track],
     ) -> list[dict[str, str]]:
-        """The page's usable fixes through their vehicles' input checks; returns the
+        """The page's fixes, usable or not, through their vehicles' input checks (as batch
+        and follow mode give them every fix read: a repeated or backward time is what some
+        of them are there to see); returns the
         warning messages to write (``vehicle_id``, ``source_id``: the fix at which the
         checks found it, ``warning``)."""
-        usable: dict[bytes, list[tuple[str, float, float, float, float, float]]] = {}
+        read: dict[bytes, list[tuple[str, float, float, float, float, float]]] = {}
         by_id = {o["source_id"]: o for o in outputs}
         for message in messages:
             output = by_id.get(message.id)
-            if output is None or output["invalid_reason"] != "":
+            if output is None:
                 continue
             f = message.fields
-            usable.setdefault(message.vehicle, []).append(
+            read.setdefault(message.vehicle, []).append(
                 (
                     message.id,
                     _number(f.get("t")),
@@ -791,7 +793,7 @@ class RedisStreamWorker:
                 )
             )
         warnings: list[dict[str, str]] = []
-        for vehicle, fixes in usable.items():
+        for vehicle, fixes in read.items():
             watch = tracks[vehicle].watch
             if watch is None:
                 continue

@@ -53,8 +53,9 @@ CSV fix-quality column saying 0/``V``/``none``, 0 satellites), with
 Honest inputs: the checks batch ``gradgps detect`` runs over a whole file
 (:class:`gradgps._tracks.input_checks.InputChecks`: a slow rate, repeated
 timestamps, a noisy receiver, a reported speed in another unit...) run over the
-stream too, after :data:`CHECK_EVERY` scored fixes, then after twice as many
-each time, and at the end of the input;
+stream too, over every fix read (usable or not, as batch reads the whole file),
+after :data:`CHECK_EVERY` of them, then after twice as many each time, and at
+the end of the input;
 ``warn`` gets each kind of warning once, the first time its evidence is in (a
 stream has no end to wait for).
 
@@ -318,7 +319,8 @@ class _Watch:
         speed: float | None,
         heading: float | None,
     ) -> None:
-        """One scored fix (speed in m/s, heading in degrees, as the Detector took them)."""
+        """One fix read, usable or not (speed in m/s, heading in degrees, as the Detector
+        took them)."""
         if self.warn is None:
             return
         nan = math.nan
@@ -436,8 +438,9 @@ class _CsvFollower:
             fix_quality=self._value(fields, "fix_quality"),
             satellites=_satellites(self._value(fields, "satellites")),
         )
-        if not result.invalid_reason:
-            self.watch.fix(track, t, lat, lon, speed, heading)
+        # Every fix read goes to the checks, usable or not, as batch gives them the whole
+        # file: a repeated or backward time is what some of them are there to see.
+        self.watch.fix(track, t, lat, lon, speed, heading)
         return self.output.verdict(track, det, result)
 
     def line(self, text: str) -> _Line:
@@ -523,8 +526,7 @@ class _NmeaFollower:
                 fix_quality=0 if epoch.no_fix else epoch.quality,
                 satellites=epoch.satellites,
             )
-            if not result.invalid_reason:
-                self.watch.fix("", tod + self.day_offset, lat, lon, epoch.speed, epoch.course)
+            self.watch.fix("", tod + self.day_offset, lat, lon, epoch.speed, epoch.course)
             verdict = self.output.verdict(None, self.detector, result)
             scored = True
             self.last_epoch = (tod, n, verdict)
