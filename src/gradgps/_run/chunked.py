@@ -7,13 +7,13 @@ own streaming :class:`~gradgps._grad.detector.Detector` on first sight, and that
 detector's state carries over from one chunk to the next. Memory is bounded
 by the chunk size plus a few kilobytes of state per track id.
 
-What that means for the results (see :mod:`gradgps._grad.detector`): for a file
-whose fixes are in time order within each track, without repeated
-timestamps, they equal batch ``Detector().detect`` on the whole file, bit
-for bit. Where the file is not in order, a fix whose time is not after the
-previous valid fix of its track is flagged invalid (``invalid_reason``
-"time not after the previous fix") instead of being sorted in and merged as
-batch detection does; sort the file first if that matters.
+What that means for the results (see :mod:`gradgps._grad.detector`): they
+equal batch ``Detector().detect`` on the whole file, bit for bit. Both read
+each track in row order: a fix whose time is not after the previous usable
+fix of its track (a repeated or backward timestamp) is flagged invalid
+(``invalid_reason`` "time not after the previous fix"), never sorted in or
+merged (:func:`gradgps._tracks.preprocess.stream_reasons`, the one rule every
+mode applies); sort the file first if its rows are out of order.
 
 Every input row gives exactly one output row, in input order; invalid fixes
 are flagged, never dropped.
