@@ -20,9 +20,32 @@ pytestmark = pytest.mark.filterwarnings("ignore::gradgps.InputWarning")
 def _fixes() -> pd.DataFrame:
     n = 40
     t = np.arange(n, dtype=float)
-    t[20] = t[19] + MIN_STEP_S / 2  # one instant, reported twice
-    lat, lon = LocalFrame(41.25, -95.98).to_geodetic(10.0 * np.arange(n), np.zeros(n))
+    t[20] = t[19] + MIN_STEP_S / 2  # one instant, reported twice (the same fix)
+    east = 10.0 * np.arange(n)
+    east[20] = east[19]
+    lat, lon = LocalFrame(41.25, -95.98).to_geodetic(east, np.zeros(n))
     return pd.DataFrame({"track": "a", "t": t, "lat": lat, "lon": lon})
+
+
+def test_report_draws_the_segments_a_time_glitch_makes() -> None:
+    """A fix set aside for its time at a new position begins a new segment at the next
+    usable fix (:func:`gradgps._tracks.preprocess.time_glitch_breaks`): the report draws
+    the two segments detection scored."""
+    fixes = _fixes()
+    fixes.loc[20, "lat"] += 1e-4  # the second report of the instant is another fix
+    det = Detector()
+    inputs = ReportInputs(fixes, det.detect(fixes), det.model_.params)
+    drawn = figures(inputs)
+    try:
+        lines = [line for _, _, fig in drawn[1:] for ax in fig.axes for line in ax.get_lines()]
+        sizes = {len(line.get_xdata()) for line in lines}
+        assert {20, 19} <= sizes, sizes
+        assert len(fixes) - 1 not in sizes
+    finally:
+        import matplotlib.pyplot as plt
+
+        for _, _, fig in drawn:
+            plt.close(fig)
 
 
 def test_training_sees_the_points_detection_sees() -> None:

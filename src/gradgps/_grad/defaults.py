@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pandas as pd
 
 from .._result import STEP_TOLERANCE_S
@@ -77,7 +78,9 @@ MIN_STEP_S = 1e-3
 FRAME_RADIUS_M = 100_000.0
 
 
-def grad_points(fixes: pd.DataFrame, max_gap_s: float) -> Prepared:
+def grad_points(
+    fixes: pd.DataFrame, max_gap_s: float, breaks: np.ndarray | None = None
+) -> Prepared:
     """GRAD's preprocessing, the one spelling that detection, training and the report share.
 
     Each track in time order, fixes less than :data:`MIN_STEP_S` apart merged,
@@ -87,7 +90,8 @@ def grad_points(fixes: pd.DataFrame, max_gap_s: float) -> Prepared:
     interpolated (the Detector sees the fixes as they came, as a stream does).
     Steps are compared with :data:`gradgps._result.STEP_TOLERANCE_S`, as
     :func:`gradgps._tracks.preprocess.stream_reasons` does, so rows it
-    passes are never merged here.
+    passes are never merged here. ``breaks``: rows that begin a segment whatever the
+    gap before them (:func:`gradgps._tracks.preprocess.time_glitch_breaks`).
     """
     return preprocess(
         fixes,
@@ -95,4 +99,5 @@ def grad_points(fixes: pd.DataFrame, max_gap_s: float) -> Prepared:
         interpolate=False,
         min_step_s=MIN_STEP_S - STEP_TOLERANCE_S,
         frame_radius_m=FRAME_RADIUS_M,
+        breaks=breaks,
     )

@@ -21,7 +21,12 @@ Invalid fixes (time, latitude or longitude missing, not finite or out of
 range; a repeated or backward time; a fix the receiver itself reports as no
 fix, where its fix quality or satellite count is given) come back with
 ``anomaly=1``, ``invalid_reason`` saying why, NaN score and clean position,
-and never touch the detector's state. Speed and heading are optional: a
+and never touch the detector's state, with one exception: a fix set aside for
+its time at a position other than the last usable fix's says the time column
+could not time the step to the next usable fix (it covers two fixes' motion),
+so that next fix begins a new segment, as after a gap
+(:func:`gradgps._tracks.preprocess.time_glitch_breaks`; a fix repeated exactly
+breaks nothing). Speed and heading are optional: a
 missing, non-numeric or infinite reading is treated as absent (NaN), and the
 fix is still used. A gap longer than the model's
 ``max_gap_s`` starts a new segment: every state is reset, because nothing
@@ -88,7 +93,7 @@ from .._result import (
 )
 from .._tracks.geo import LocalFrame, far_apart_scalar
 from .._tracks.input_checks import input_warnings, validated_rates
-from .._tracks.preprocess import Prepared, stream_reasons
+from .._tracks.preprocess import Prepared, stream_reasons, time_glitch_breaks
 from .._tracks.track import ColumnKeywords, ColumnMap, check_keywords, datetime_seconds
 from .core import N_CORE_PARAMS, _layout
 from .defaults import FRAME_RADIUS_M, MIN_STEP_S, grad_points
@@ -274,7 +279,9 @@ def load_grad_model(model: str | os.PathLike[str] | None = None) -> GradModel:
     return _load_cached(resolved, max(stamps))
 
 
-_STATE_FORMAT = 3
+#: 4: the time-glitch rule's ``last_fix`` and ``glitch`` (2026-12-03); a state of an
+#: earlier format is refused with a message to start afresh.
+_STATE_FORMAT = 4
 _NON_FINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
 
 
@@ -422,6 +429,8 @@ def _state(
     warm: Iterable[Fix],
     S: NDArray[Any] | None,
     H: NDArray[Any] | None,
+    last_fix: tuple[float, float] | None = None,
+    glitch: bool = False,
 ) -> dict[str, Any]:
     """A stream's state as :meth:`Detector.get_state` writes it (``det``: its model and
     settings), for a Detector and for one vehicle of a :class:`FleetDetector` alike."""
@@ -437,6 +446,8 @@ def _state(
         "warm": [encode_floats(w) for w in warm],
         "S": encode_floats(S),
         "H": encode_floats(H),
+        "last_fix": None if last_fix is None else encode_floats(last_fix),
+        "glitch": glitch,
     }
 
 
@@ -503,6 +514,11 @@ class Detector:
         self._seg_count = 0
         # The segment's fixes while its period is provisional.
         self._warm: list[Fix] = []
+        # The last usable fix's position, and whether a fix set aside for its time at
+        # another position came since (the next usable fix then begins a segment:
+        # :func:`gradgps._tracks.preprocess.time_glitch_breaks`).
+        self._last_fix: tuple[float, float] | None = None
+        self._glitch = False
 
     def _new_segment(self, period: float, lat0: float, lon0: float) -> None:
         if self._frame is None or (self._frame.lat0, self._frame.lon0) != (lat0, lon0):
@@ -593,6 +609,7 @@ class Detector:
             and self._work is not None
             and fix_quality is None
             and satellites is None
+            and not self._glitch
         ):
             # The common case in one compiled call; it declines (-1) whatever needs the
             # segment rule below (a gap, a far jump) before touching the state.
@@ -620,10 +637,12 @@ class Detector:
                 self.model_.params.max_gap_s,
             )
             if code > 0:
+                self._glitch |= _time_glitch(code, self._last_fix, lat_f, lon_f)
                 return PointResult.invalid(REASONS[code])
             if code == 0:
                 self._seg_count += 1
                 self._last_t = t_f
+                self._last_fix = (lat_f, lon_f)
                 return self._point()
         reason = fix_reason(
             t_f,
@@ -635,11 +654,13 @@ class Detector:
             satellites=satellites,
         )
         if reason:
+            code = REASONS.index(reason) if reason in _TIME_REASONS else 0
+            self._glitch |= _time_glitch(code, self._last_fix, lat_f, lon_f)
             return PointResult.invalid(reason)
         frame = self._frame
         self._warm, restarted = _follow_segment(
             (t_f, lat_f, lon_f, reading(speed), reading(heading)),
-            self._last_t,
+            None if self._glitch else self._last_t,
             (math.nan, math.nan) if frame is None else (frame.lat0, frame.lon0),
             self._period,
             self._warm,
@@ -649,6 +670,8 @@ class Detector:
         )
         self._seg_count = 1 if restarted else self._seg_count + 1
         self._last_t = t_f
+        self._last_fix = (lat_f, lon_f)
+        self._glitch = False
         return self._point()
 
     @property
@@ -702,6 +725,8 @@ class Detector:
             self._warm,
             self._S,
             self._H,
+            self._last_fix,
+            self._glitch,
         )
 
     def set_state(self, state: Mapping[str, Any]) -> Detector:
@@ -723,6 +748,8 @@ class Detector:
             self._P,
             self._S,
             self._H,
+            self._last_fix,
+            self._glitch,
         ) = restored
         self._work = None  # made for the restored P on the first step
         return self
@@ -770,9 +797,10 @@ class Detector:
         if isinstance(seg_count, bool) or not isinstance(seg_count, int) or seg_count < 0:
             raise ValueError(f"segment_count {shown(seg_count)} is not a count")
         if seg_count == 0:
-            if any(state[k] not in (None, []) for k in ("frame", "last_t", "warm", "S", "H")):
+            stored = ("frame", "last_t", "warm", "S", "H", "last_fix")
+            if any(state[k] not in (None, []) for k in stored) or state["glitch"] is not False:
                 raise ValueError("segment_count 0 (a fresh detector) with a stored segment")
-            return None, None, 0, 1.0, [], None, None, None
+            return None, None, 0, 1.0, [], None, None, None, None, False
         frame_values = [_decode_float(v) for v in state["frame"]]
         if len(frame_values) != 2:
             raise ValueError("'frame' must hold latitude and longitude")
@@ -821,7 +849,16 @@ class Detector:
             raise ValueError("'H' is not a GRU hidden state (values outside [-1, 1])")
         H = H64.astype(np.float32)
         _check_counters(P, S, seg_count)
-        return frame, last_t, seg_count, period, warm, P, S, H
+        last_fix = None
+        if state["last_fix"] is not None:
+            lat, lon = _decode_list(state["last_fix"])
+            if fix_reason(0.0, lat, lon):
+                raise ValueError("'last_fix' is not a usable position")
+            last_fix = (lat, lon)
+        glitch = state["glitch"]
+        if not isinstance(glitch, bool) or (glitch and last_fix is None):
+            raise ValueError(f"'glitch' {shown(glitch)} is not a flag after a usable fix")
+        return frame, last_t, seg_count, period, warm, P, S, H, last_fix, glitch
 
     # -- batch -------------------------------------------------------------
 
@@ -895,7 +932,8 @@ class Detector:
         m = self.model_
         reason = stream_reasons(fixes, min_step_s=MIN_STEP_S)
         usable = np.flatnonzero(reason == "")
-        prepared = grad_points(fixes.iloc[usable], m.params.max_gap_s)
+        breaks = time_glitch_breaks(fixes, reason)[usable]
+        prepared = grad_points(fixes.iloc[usable], m.params.max_gap_s, breaks)
         pts = prepared.points
         n = len(pts)
         out = np.zeros((n, N_POINT_OUT))
@@ -1175,6 +1213,17 @@ REASONS: tuple[str, ...] = (
 # that starts a new segment every few fixes would otherwise cost a round per segment).
 _MAX_ROUNDS = 8
 
+#: Codes of :data:`REASONS` that set a fix aside for its time, and their reasons.
+_TIME_CODES = (9, 10)
+_TIME_REASONS = tuple(REASONS[c] for c in _TIME_CODES)
+
+
+def _time_glitch(code: int, last_fix: tuple[float, float] | None, lat: float, lon: float) -> bool:
+    """Whether a fix set aside with reason code ``code`` is one the time column could not
+    time: set aside for its time at a position other than the last usable fix's
+    (:func:`gradgps._tracks.preprocess.time_glitch_breaks`, the batch form)."""
+    return code in _TIME_CODES and last_fix is not None and last_fix != (lat, lon)
+
 
 @numba.njit(cache=True)
 def _reason_code(
@@ -1278,6 +1327,9 @@ def _fleet_kernel(
     Hs: Any,
     seg: NDArray[np.int64],
     last_t: FloatArray,
+    last_lat: FloatArray,
+    last_lon: FloatArray,
+    glitch: NDArray[np.bool_],
     lat0: FloatArray,
     lon0: FloatArray,
     gp: Any,
@@ -1341,10 +1393,14 @@ def _fleet_kernel(
         c = _reason_code(t[i], lat[i], lon[i], fresh, last_t[s], receiver[i])
         if c != 0:
             code[i] = c
+            # _time_glitch, for the per-fix path to act on at the vehicle's next fix
+            if (c == 9 or c == 10) and (lat[i] != last_lat[s] or lon[i] != last_lon[s]):
+                glitch[s] = glitch[s] or not math.isnan(last_lat[s])
             continue
         dt[i] = t[i] - last_t[s]
         if (
-            seg[s] <= PERIOD_STEPS
+            glitch[s]
+            or seg[s] <= PERIOD_STEPS
             or dt[i] > max_gap_s
             or far_apart_scalar(lat0[s], lon0[s], lat[i], lon[i], FRAME_RADIUS_M)
         ):
@@ -1361,6 +1417,8 @@ def _fleet_kernel(
         n_block += 1
         seg[s] += 1
         last_t[s] = t[i]
+        last_lat[s] = lat[i]
+        last_lon[s] = lon[i]
     _score_block(block, n_block, in_block)
     return n_def
 
@@ -1524,6 +1582,10 @@ class FleetDetector:
         cap = max(int(capacity), 1)
         self._seg = np.zeros(cap, np.int64)
         self._last = np.full(cap, np.nan)
+        # The last usable fix's position (NaN: none) and the time-glitch flag (see Detector).
+        self._last_lat = np.full(cap, np.nan)
+        self._last_lon = np.full(cap, np.nan)
+        self._glitch = np.zeros(cap, np.bool_)
         self._lat0 = np.full(cap, np.nan)
         self._lon0 = np.full(cap, np.nan)
         self._period = np.ones(cap)
@@ -1563,6 +1625,9 @@ class FleetDetector:
 
         self._seg = grown(self._seg, 0)
         self._last = grown(self._last, np.nan)
+        self._last_lat = grown(self._last_lat, np.nan)
+        self._last_lon = grown(self._last_lon, np.nan)
+        self._glitch = grown(self._glitch, False)
         self._lat0 = grown(self._lat0, np.nan)
         self._lon0 = grown(self._lon0, np.nan)
         self._period = grown(self._period, 1.0)
@@ -1590,6 +1655,8 @@ class FleetDetector:
     def _clear(self, s: int) -> None:
         self._seg[s] = 0
         self._last[s] = np.nan
+        self._last_lat[s] = self._last_lon[s] = np.nan
+        self._glitch[s] = False
         self._lat0[s] = self._lon0[s] = np.nan
         self._period[s] = 1.0
         self._s_len[s] = 0
@@ -1692,10 +1759,13 @@ class FleetDetector:
             t, fix[1], fix[2], seg == 0, math.nan if last is None else last, receiver
         )
         if code:
+            if not np.isnan(self._last_lat[s]):
+                last_fix = (float(self._last_lat[s]), float(self._last_lon[s]))
+                self._glitch[s] |= _time_glitch(code, last_fix, fix[1], fix[2])
             return code
         self._warm[s], restarted = _follow_segment(
             fix,
-            last,
+            None if self._glitch[s] else last,
             (float(self._lat0[s]), float(self._lon0[s])),
             float(self._period[s]),
             self._warm[s],
@@ -1705,6 +1775,8 @@ class FleetDetector:
         )
         self._seg[s] = 1 if restarted else seg + 1
         self._last[s] = t
+        self._last_lat[s], self._last_lon[s] = fix[1], fix[2]
+        self._glitch[s] = False
         return 0
 
     # -- batches -------------------------------------------------------------------
@@ -1779,6 +1851,9 @@ class FleetDetector:
                     self._H,
                     self._seg,
                     self._last,
+                    self._last_lat,
+                    self._last_lon,
+                    self._glitch,
                     self._lat0,
                     self._lon0,
                     self._gp,
@@ -1866,15 +1941,23 @@ class FleetDetector:
             self._warm[s],
             self._S[a : a + n],
             self._H[s],
+            None
+            if np.isnan(self._last_lat[s])
+            else (float(self._last_lat[s]), float(self._last_lon[s])),
+            bool(self._glitch[s]),
         )
 
     def set_state(self, vehicle: Hashable, state: Mapping[str, Any]) -> None:
         """Restore ``vehicle`` from a :meth:`get_state` (or :meth:`Detector.get_state`) state of
         the same model and settings. A state the Detector would refuse raises
         :class:`~gradgps.ConfigError` and leaves the vehicle as it was."""
-        frame, last_t, seg, period, warm, P, S, H = self._template._checked_state(state)
+        restored = self._template._checked_state(state)
+        frame, last_t, seg, period, warm, P, S, H, last_fix, glitch = restored
         s = self._slot(vehicle)
         self._clear(s)
+        if last_fix is not None:
+            self._last_lat[s], self._last_lon[s] = last_fix
+        self._glitch[s] = glitch
         if seg:
             self._lat0[s], self._lon0[s] = frame.lat0, frame.lon0
             self._last[s] = last_t

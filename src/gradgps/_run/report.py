@@ -54,7 +54,7 @@ from .._grad.pipeline import PipelineParams, grad_features
 from .._io.export import geojson_document
 from .._result import ResultCounts
 from .._tracks.geo import LocalFrame
-from .._tracks.preprocess import Prepared
+from .._tracks.preprocess import Prepared, time_glitch_breaks
 from .explore import SCRIPT, embedded_geojson, track_explorer
 from .report_data import MAX_TABLE_ROWS, SAMPLE_ROWS, TRACK_ROWS, Thinned
 
@@ -316,8 +316,12 @@ def figures(inputs: ReportInputs) -> list[tuple[str, str, Any]]:
         # The channels need every fix of a segment: those read again for the busiest tracks.
         fixes, result = thinned.channel or (fixes.iloc[:0], result.iloc[:0])
     # The rows the detector used, exactly: nothing merged, nothing sorted.
-    usable = np.flatnonzero(result["invalid_reason"].to_numpy() == "")
-    prepared = grad_points(fixes.iloc[usable].reset_index(drop=True), inputs.params.max_gap_s)
+    reason = result["invalid_reason"].to_numpy()
+    usable = np.flatnonzero(reason == "")
+    breaks = time_glitch_breaks(fixes, reason)[usable]  # the segments the detector drew
+    prepared = grad_points(
+        fixes.iloc[usable].reset_index(drop=True), inputs.params.max_gap_s, breaks
+    )
     flags = _point_flags(prepared, result.iloc[usable].reset_index(drop=True))
     per_segment = pd.Series(flags).groupby(prepared.points["segment"].to_numpy()).sum()
     sizes = prepared.points.groupby("segment").size()

@@ -33,7 +33,9 @@ Warnings (thresholds are module constants):
   of the steps) the clean NL motorway validation drives had 47 % of their fixes
   flagged, with no word (``benchmarks/time_columns.py``): the step after each
   repeat covers two fixes' motion in one second, a jump the offset tracker
-  holds until the drive moves on;
+  held. The detector now begins a new segment there
+  (:func:`gradgps._tracks.preprocess.time_glitch_breaks`): 2.4 %, the repeats
+  themselves (invalid) included;
 * ``implausible speeds``: more than :data:`MAX_FAST_STEPS` steps, and more
   than :data:`MAX_FAST_SHARE` of all proper steps, imply more than 100 m/s.
   The share keeps files *with faults* quiet: faults are what the detector is
@@ -959,9 +961,9 @@ class InputChecks:
                 moved = (
                     f", {self.moved_repeats:,} of them at a new position: the time column is "
                     "coarser than the fixes come (whole seconds from a receiver a little faster "
-                    "than its nominal rate, or a logger's own clock), so the step after each "
-                    "spans two fixes in one time step and can read as a jump: expect false "
-                    "alarms after them"
+                    "than its nominal rate, or a logger's own clock); the step after each spans "
+                    "two fixes in one time step, so the fix after it begins a new segment "
+                    "(nothing is predicted across it)"
                 )
             text = (
                 f"repeated timestamps: {self.repeats:,} of {self.steps:,} time steps "

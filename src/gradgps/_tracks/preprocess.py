@@ -48,6 +48,7 @@ __all__ = [
     "invalid_reasons",
     "preprocess",
     "stream_reasons",
+    "time_glitch_breaks",
 ]
 
 _CORE = ("track", "t", "lat", "lon")
@@ -154,6 +155,41 @@ def stream_reasons(fixes: pd.DataFrame, *, min_step_s: float = MIN_STEP_S) -> np
     return reason
 
 
+def time_glitch_breaks(fixes: pd.DataFrame, reason: np.ndarray) -> np.ndarray:
+    """Per row, whether a usable fix must begin a new segment because the time column could
+    not time the step to it (see :func:`stream_reasons` for ``reason``).
+
+    A fix set aside for its time (:data:`NOT_AFTER`, :data:`TOO_CLOSE`) at a position other
+    than the previous usable fix's of its track is a fix the receiver made between that fix
+    and the next usable one, in a time column coarser than the fixes come (whole seconds
+    from a receiver a little faster than its nominal rate). The step to the next usable fix
+    then covers two fixes' motion in one recorded step, which the detector would read as a
+    jump and hold; so, as after a gap, nothing is predicted across it: that next usable fix
+    begins a new segment. An exact repeat (the same time and position) says nothing of the
+    sort and breaks nothing. Every mode applies this rule (batch here, streams in
+    :class:`gradgps.Detector` and :class:`gradgps.FleetDetector`)."""
+    breaks = np.zeros(len(fixes), dtype=bool)
+    timed = np.flatnonzero((reason == NOT_AFTER) | (reason == TOO_CLOSE))
+    if timed.size == 0:
+        return breaks
+    lat = fixes["lat"].to_numpy(dtype=np.float64)
+    lon = fixes["lon"].to_numpy(dtype=np.float64)
+    tracks = fixes["track"].to_numpy(dtype=object)
+    considered = np.flatnonzero((reason == "") | (reason == NOT_AFTER) | (reason == TOO_CLOSE))
+    last: dict[object, tuple[float, float]] = {}
+    pending: set[object] = set()
+    for i in considered.tolist():
+        track = tracks[i]
+        if reason[i] == "":
+            if track in pending:
+                breaks[i] = True
+                pending.discard(track)
+            last[track] = (lat[i], lon[i])
+        elif track in last and last[track] != (lat[i], lon[i]):
+            pending.add(track)
+    return breaks
+
+
 def _circular_mean_deg(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     rad = np.radians(values)
     finite = np.isfinite(rad)
@@ -200,6 +236,7 @@ def preprocess(
     interpolate: bool = True,
     min_step_s: float = 0.0,
     frame_radius_m: float | None = None,
+    breaks: np.ndarray | None = None,
 ) -> Prepared:
     """Order, merge, fill and split canonical fixes; project to metres. See the module docstring.
 
@@ -208,7 +245,9 @@ def preprocess(
     than this after the previous one (in time order) is merged into its
     point, like a repeated timestamp; the default 0 merges only exact
     repeats. A chain of close fixes merges into one point, at the first time.
-    ``frame_radius_m``: see step 5 of the module docstring.
+    ``frame_radius_m``: see step 5 of the module docstring. ``breaks`` (one per row,
+    optional): rows whose point begins a new segment whatever the gap before it
+    (:func:`time_glitch_breaks`).
     """
     if not np.isfinite(max_gap_s) or max_gap_s <= 0:
         raise ConfigError(f"max_gap_s must be a positive number of seconds, got {max_gap_s}")
@@ -268,6 +307,8 @@ def preprocess(
         period = float(np.median(dt)) if dt.size else 1.0
         periods[str(track)] = period
         split = dt > max_gap_s
+        if breaks is not None:
+            split |= breaks[rows][starts][1:]
         if frame_radius_m is None:
             east_u, north_u = frame.to_local(lat_u, lon_u)
             seg_frames = [frame] * (int(split.sum()) + 1)
