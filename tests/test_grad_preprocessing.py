@@ -27,25 +27,29 @@ def _fixes() -> pd.DataFrame:
     return pd.DataFrame({"track": "a", "t": t, "lat": lat, "lon": lon})
 
 
+def _drawn_sizes(fixes: pd.DataFrame) -> set[int]:
+    """How many points each line of the report's segment figures draws for ``fixes``."""
+    det = Detector()
+    drawn = figures(ReportInputs(fixes, det.detect(fixes), det.model_.params))
+    try:
+        lines = [line for _, _, fig in drawn[1:] for ax in fig.axes for line in ax.get_lines()]
+        return {len(line.get_xdata()) for line in lines}
+    finally:
+        import matplotlib.pyplot as plt
+
+        for _, _, fig in drawn:
+            plt.close(fig)
+
+
 def test_report_draws_the_segments_a_time_glitch_makes() -> None:
     """A fix set aside for its time at a new position begins a new segment at the next
     usable fix (:func:`gradgps._tracks.preprocess.time_glitch_breaks`): the report draws
     the two segments detection scored."""
     fixes = _fixes()
     fixes.loc[20, "lat"] += 1e-4  # the second report of the instant is another fix
-    det = Detector()
-    inputs = ReportInputs(fixes, det.detect(fixes), det.model_.params)
-    drawn = figures(inputs)
-    try:
-        lines = [line for _, _, fig in drawn[1:] for ax in fig.axes for line in ax.get_lines()]
-        sizes = {len(line.get_xdata()) for line in lines}
-        assert {20, 19} <= sizes, sizes
-        assert len(fixes) - 1 not in sizes
-    finally:
-        import matplotlib.pyplot as plt
-
-        for _, _, fig in drawn:
-            plt.close(fig)
+    sizes = _drawn_sizes(fixes)
+    assert {20, 19} <= sizes, sizes
+    assert len(fixes) - 1 not in sizes
 
 
 def test_training_sees_the_points_detection_sees() -> None:
@@ -60,19 +64,9 @@ def test_training_sees_the_points_detection_sees() -> None:
 
 def test_report_draws_the_points_detection_scored() -> None:
     fixes = _fixes()
-    det = Detector()
-    inputs = ReportInputs(fixes, det.detect(fixes), det.model_.params)
-    drawn = figures(inputs)
-    try:
-        lines = [line for _, _, fig in drawn[1:] for ax in fig.axes for line in ax.get_lines()]
-        sizes = {len(line.get_xdata()) for line in lines}
-        assert len(fixes) not in sizes
-        assert len(fixes) - 1 in sizes
-    finally:
-        import matplotlib.pyplot as plt
-
-        for _, _, fig in drawn:
-            plt.close(fig)
+    sizes = _drawn_sizes(fixes)
+    assert len(fixes) not in sizes
+    assert len(fixes) - 1 in sizes
 
 
 def test_the_detector_does_not_interpolate_short_gaps_and_the_docs_say_so() -> None:
