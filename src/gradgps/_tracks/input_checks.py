@@ -308,6 +308,14 @@ def _log_quantile(hist: np.ndarray, first_bin: int, q: float) -> float:
     return float(10.0 ** ((k + first_bin) / _BINS_PER_DECADE))
 
 
+def _moving_quantile(hist: np.ndarray, q: float) -> tuple[float, int]:
+    """The ``q`` quantile of a histogram of second differences (m, bin centre) with exact
+    repeats (its first bin: 1 mm and less) left out, and how many it is over."""
+    moving = hist.copy()
+    moving[0] = 0
+    return _log_quantile(moving, _J_MIN, q), int(moving.sum())
+
+
 def _log_bins(values: np.ndarray, first_bin: int, last_bin: int) -> np.ndarray:
     """Counts per bin of the histograms above: bin ``k`` (from ``first_bin``) holds the
     values with ``round(_BINS_PER_DECADE * log10(value)) == k + first_bin``, values below
@@ -804,13 +812,9 @@ class InputChecks:
     def interleaved(self) -> tuple[float, float, int]:
         """Medians of the second differences over consecutive fixes and over every other
         fix (m, exact repeats left out; nan where none), and the fewer of their counts."""
-        medians, counts = [], []
-        for hist in (self.consecutive_hist, self.alternate_hist):
-            moving = hist.copy()
-            moving[0] = 0  # the first bin holds 1 mm and less
-            medians.append(_log_quantile(moving, _J_MIN, 0.5))
-            counts.append(int(moving.sum()))
-        return medians[0], medians[1], min(counts)
+        zigzag, n_zigzag = _moving_quantile(self.consecutive_hist, 0.5)
+        smooth, n_smooth = _moving_quantile(self.alternate_hist, 0.5)
+        return zigzag, smooth, min(n_zigzag, n_smooth)
 
     def second_difference_median(self) -> float:
         """Median second difference of the positions in metres (bin centre); nan if none."""
@@ -819,9 +823,7 @@ class InputChecks:
     def second_difference_quartile(self) -> tuple[float, int]:
         """Lower quartile of the second differences in metres (bin centre), exact repeats
         (1 mm and less) left out, and how many it is over; ``(nan, 0)`` if none."""
-        moving = self.second_diff_hist.copy()
-        moving[0] = 0  # the first bin holds 1 mm and less
-        return _log_quantile(moving, _J_MIN, 0.25), int(moving.sum())
+        return _moving_quantile(self.second_diff_hist, 0.25)
 
     def _updates(self, track: str, t: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
         """Times between the track's position updates into ``update_hist``: ``t[0]`` is the
@@ -830,6 +832,7 @@ class InputChecks:
         proper = dt >= REPEAT_S
         changed = (lat[1:] != lat[:-1]) | (lon[1:] != lon[:-1])
         self.position_repeats += int((proper & ~changed).sum())
+        self.moved_repeats += int((~proper & changed).sum())
         times = t[1:][proper & changed]
         last = self._last_update.get(track)
         if last is None:  # the track's first fix is its first update
@@ -885,8 +888,6 @@ class InputChecks:
             return
         proper = dt >= REPEAT_S
         self.repeats += int((~proper).sum())
-        moved = (lat[1:] != lat[:-1]) | (lon[1:] != lon[:-1])
-        self.moved_repeats += int((~proper & moved).sum())
         d = dt[proper]
         self.hist += _log_bins(d, _K_MIN, _K_MAX)
         dist = haversine_m(lat[:-1][proper], lon[:-1][proper], lat[1:][proper], lon[1:][proper])
