@@ -637,7 +637,7 @@ class Detector:
                 self.model_.params.max_gap_s,
             )
             if code > 0:
-                self._glitch |= _time_glitch(code, self._last_fix, lat_f, lon_f)
+                self._glitch |= _time_glitch(code, *self._last_position(), lat_f, lon_f)
                 return PointResult.invalid(REASONS[code])
             if code == 0:
                 self._seg_count += 1
@@ -654,8 +654,8 @@ class Detector:
             satellites=satellites,
         )
         if reason:
-            code = REASONS.index(reason) if reason in _TIME_REASONS else 0
-            self._glitch |= _time_glitch(code, self._last_fix, lat_f, lon_f)
+            code = _REASON_CODES.get(reason, 0)
+            self._glitch |= _time_glitch(code, *self._last_position(), lat_f, lon_f)
             return PointResult.invalid(reason)
         frame = self._frame
         self._warm, restarted = _follow_segment(
@@ -673,6 +673,10 @@ class Detector:
         self._last_fix = (lat_f, lon_f)
         self._glitch = False
         return self._point()
+
+    def _last_position(self) -> tuple[float, float]:
+        """The last usable fix's latitude and longitude; NaN before the first."""
+        return (math.nan, math.nan) if self._last_fix is None else self._last_fix
 
     @property
     def settled(self) -> PointResult | None:
@@ -1213,16 +1217,22 @@ REASONS: tuple[str, ...] = (
 # that starts a new segment every few fixes would otherwise cost a round per segment).
 _MAX_ROUNDS = 8
 
-#: Codes of :data:`REASONS` that set a fix aside for its time, and their reasons.
-_TIME_CODES = (9, 10)
-_TIME_REASONS = tuple(REASONS[c] for c in _TIME_CODES)
+#: Each reason of :data:`REASONS` to its code.
+_REASON_CODES = {reason: code for code, reason in enumerate(REASONS)}
 
 
-def _time_glitch(code: int, last_fix: tuple[float, float] | None, lat: float, lon: float) -> bool:
+@numba.njit(cache=True)
+def _time_glitch(code: int, last_lat: float, last_lon: float, lat: float, lon: float) -> bool:
     """Whether a fix set aside with reason code ``code`` is one the time column could not
-    time: set aside for its time at a position other than the last usable fix's
-    (:func:`gradgps._tracks.preprocess.time_glitch_breaks`, the batch form)."""
-    return code in _TIME_CODES and last_fix is not None and last_fix != (lat, lon)
+    time: set aside for its time (codes 9, 10) at a position other than the last usable
+    fix's (``last_lat`` NaN: none yet). The one rule of the Detector, the fleet kernel and
+    its per-fix path; :func:`gradgps._tracks.preprocess.time_glitch_breaks` is its batch
+    form."""
+    return (
+        (code == 9 or code == 10)
+        and not math.isnan(last_lat)
+        and (lat != last_lat or lon != last_lon)
+    )
 
 
 @numba.njit(cache=True)
@@ -1393,9 +1403,8 @@ def _fleet_kernel(
         c = _reason_code(t[i], lat[i], lon[i], fresh, last_t[s], receiver[i])
         if c != 0:
             code[i] = c
-            # _time_glitch, for the per-fix path to act on at the vehicle's next fix
-            if (c == 9 or c == 10) and (lat[i] != last_lat[s] or lon[i] != last_lon[s]):
-                glitch[s] = glitch[s] or not math.isnan(last_lat[s])
+            # for the per-fix path to act on at the vehicle's next fix
+            glitch[s] |= _time_glitch(c, last_lat[s], last_lon[s], lat[i], lon[i])
             continue
         dt[i] = t[i] - last_t[s]
         if (
@@ -1759,9 +1768,8 @@ class FleetDetector:
             t, fix[1], fix[2], seg == 0, math.nan if last is None else last, receiver
         )
         if code:
-            if not np.isnan(self._last_lat[s]):
-                last_fix = (float(self._last_lat[s]), float(self._last_lon[s]))
-                self._glitch[s] |= _time_glitch(code, last_fix, fix[1], fix[2])
+            last_lat, last_lon = float(self._last_lat[s]), float(self._last_lon[s])
+            self._glitch[s] |= _time_glitch(code, last_lat, last_lon, fix[1], fix[2])
             return code
         self._warm[s], restarted = _follow_segment(
             fix,

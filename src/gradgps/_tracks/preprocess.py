@@ -175,7 +175,10 @@ def time_glitch_breaks(fixes: pd.DataFrame, reason: np.ndarray) -> np.ndarray:
     lat = fixes["lat"].to_numpy(dtype=np.float64)
     lon = fixes["lon"].to_numpy(dtype=np.float64)
     tracks = fixes["track"].to_numpy(dtype=object)
-    considered = np.flatnonzero((reason == "") | (reason == NOT_AFTER) | (reason == TOO_CLOSE))
+    # Only the tracks that hold such a fix, each read in row order.
+    glitchy = pd.Series(tracks).isin(set(tracks[timed])).to_numpy()
+    read = (reason == "") | (reason == NOT_AFTER) | (reason == TOO_CLOSE)
+    considered = np.flatnonzero(glitchy & read)
     last: dict[object, tuple[float, float]] = {}
     pending: set[object] = set()
     for i in considered.tolist():
